@@ -1,0 +1,1 @@
+//! vfxgraph-render
