@@ -1,1 +1,32 @@
-//! vfxgraph-engine
+//! # vfxgraph-engine
+//!
+//! A generic dataflow engine: YAML graphs of typed nodes, a content-addressed cache and a
+//! parallel scheduler. It knows nothing of images or cameras: node and artifact types are
+//! registered by the program that uses it (in vfxgraph, the `vfxgraph-nodes` crate).
+//!
+//! - [`graph`]: parse and validate a graph file (all errors at once, with line:column).
+//! - [`artifact`] and [`registry`]: value types with canonical encodings and content digests.
+//! - [`node`]: what a node type declares and what it sees when it runs.
+//! - [`exec`]: instances, cache keys, planning and the scheduler.
+//! - [`store`]: the on-disk cache (objects + actions).
+
+pub mod artifact;
+pub mod diagnostic;
+pub mod exec;
+pub mod frames;
+pub mod fsutil;
+pub mod graph;
+pub mod node;
+pub mod param;
+pub mod registry;
+pub mod store;
+pub mod yaml;
+
+pub use artifact::{ArtifactType, Digest, Value};
+pub use diagnostic::{Diagnostic, Diagnostics, ErrorKind, Span};
+pub use exec::{plan, run, Observer, PlanReport, PlanStatus, RunOptions, RunReport, Status};
+pub use frames::FrameSet;
+pub use graph::{load, Graph, LoadError, Overrides};
+pub use node::{Context, InputValue, Mode, Node, NodeError, NodeSpec, PortSpec};
+pub use param::{ParamSpec, ParamType, ParamValue, Params, PathRole};
+pub use registry::Registry;

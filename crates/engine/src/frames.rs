@@ -1,0 +1,139 @@
+//! Frame ranges: `0..=239`, `0..240`, `1-10,15,20-40:2`, or a single frame.
+
+use std::fmt;
+
+/// A sorted set of distinct frame numbers.
+#[derive(Clone, Debug, PartialEq, Eq, Default)]
+pub struct FrameSet {
+    frames: Vec<i64>,
+}
+
+impl FrameSet {
+    /// The frames in increasing order.
+    pub fn frames(&self) -> &[i64] {
+        &self.frames
+    }
+
+    /// Number of frames.
+    pub fn len(&self) -> usize {
+        self.frames.len()
+    }
+
+    /// True when empty.
+    pub fn is_empty(&self) -> bool {
+        self.frames.is_empty()
+    }
+
+    /// Builds from any frames (sorted, deduplicated).
+    pub fn from_frames(mut frames: Vec<i64>) -> Self {
+        frames.sort_unstable();
+        frames.dedup();
+        FrameSet { frames }
+    }
+
+    /// Parses a range expression. Comma-separated items, each one of: `N`, `A..B` (exclusive),
+    /// `A..=B` (inclusive), `A-B` (inclusive), optionally followed by `:STEP`.
+    pub fn parse(text: &str) -> Result<FrameSet, String> {
+        const LIMIT: usize = 10_000_000;
+        let mut frames = Vec::new();
+        for item in text.split(',') {
+            let item = item.trim();
+            if item.is_empty() {
+                return Err(format!("empty item in frame range `{text}`"));
+            }
+            let (range, step) = match item.split_once(':') {
+                Some((r, s)) => {
+                    let step: i64 = s
+                        .trim()
+                        .parse()
+                        .map_err(|_| format!("bad step `{s}` in `{item}`"))?;
+                    if step <= 0 {
+                        return Err(format!("step must be positive in `{item}`"));
+                    }
+                    (r.trim(), step)
+                }
+                None => (item, 1),
+            };
+            let num = |s: &str| -> Result<i64, String> {
+                s.trim()
+                    .parse::<i64>()
+                    .map_err(|_| format!("`{s}` is not a frame number (in `{item}`)"))
+            };
+            let (a, b) = if let Some((a, b)) = range.split_once("..=") {
+                (num(a)?, num(b)?)
+            } else if let Some((a, b)) = range.split_once("..") {
+                (num(a)?, num(b)? - 1)
+            } else if let Some(pos) = range[1..].find('-').map(|p| p + 1) {
+                (num(&range[..pos])?, num(&range[pos + 1..])?)
+            } else {
+                let n = num(range)?;
+                (n, n)
+            };
+            if b < a {
+                return Err(format!("range `{item}` is empty (end before start)"));
+            }
+            let mut f = a;
+            while f <= b {
+                frames.push(f);
+                if frames.len() > LIMIT {
+                    return Err(format!("frame range `{text}` has more than {LIMIT} frames"));
+                }
+                f += step;
+            }
+        }
+        Ok(FrameSet::from_frames(frames))
+    }
+}
+
+impl fmt::Display for FrameSet {
+    /// Compact form: runs of consecutive frames as `A-B`.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let mut i = 0;
+        let fr = &self.frames;
+        while i < fr.len() {
+            let mut j = i;
+            while j + 1 < fr.len() && fr[j + 1] == fr[j] + 1 {
+                j += 1;
+            }
+            if i > 0 {
+                write!(f, ",")?;
+            }
+            if j > i {
+                write!(f, "{}-{}", fr[i], fr[j])?;
+            } else {
+                write!(f, "{}", fr[i])?;
+            }
+            i = j + 1;
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn forms() {
+        assert_eq!(FrameSet::parse("0..=3").unwrap().frames(), &[0, 1, 2, 3]);
+        assert_eq!(FrameSet::parse("0..3").unwrap().frames(), &[0, 1, 2]);
+        assert_eq!(
+            FrameSet::parse("1-3,15,20-26:2").unwrap().frames(),
+            &[1, 2, 3, 15, 20, 22, 24, 26]
+        );
+        assert_eq!(FrameSet::parse("7").unwrap().frames(), &[7]);
+        assert_eq!(
+            FrameSet::parse("-3-1").unwrap().frames(),
+            &[-3, -2, -1, 0, 1]
+        );
+        assert_eq!(FrameSet::parse("3,1,2,2").unwrap().to_string(), "1-3");
+    }
+
+    #[test]
+    fn errors() {
+        assert!(FrameSet::parse("5..=1").is_err());
+        assert!(FrameSet::parse("a-b").is_err());
+        assert!(FrameSet::parse("1-5:0").is_err());
+        assert!(FrameSet::parse("1,,2").is_err());
+    }
+}

@@ -1,0 +1,431 @@
+//! Node types: what a node declares (ports, params, mode) and what it sees when it runs.
+//!
+//! A node never computes its own cache key: it declares its inputs, parameters (with
+//! `affects_output`), version and whether it is seeded, and the engine derives the key
+//! (the Gaffer pattern, see STYLE.md).
+
+use std::collections::BTreeMap;
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+use crate::artifact::{ArtifactType, Value};
+use crate::param::{ParamSpec, ParamType, Params, PathRole};
+
+/// Whether a node type runs once, once per frame, or either (chosen by the graph).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Mode {
+    /// One instance for the whole graph.
+    Once,
+    /// One instance per frame of the graph's range.
+    PerFrame,
+    /// Per frame when the graph says `per_frame: true` or when an input is connected to a
+    /// per-frame producer; once otherwise.
+    Either,
+}
+
+/// A declared input or output port.
+#[derive(Clone, Debug)]
+pub struct PortSpec {
+    /// Port name.
+    pub name: &'static str,
+    /// Artifact type name (an element type; see `sequence`).
+    pub ty: &'static str,
+    /// For inputs: the port takes the whole `sequence<ty>` of a per-frame producer rather
+    /// than one element.
+    pub sequence: bool,
+    /// For inputs: may be left unconnected.
+    pub optional: bool,
+    /// One line of documentation.
+    pub doc: &'static str,
+}
+
+impl PortSpec {
+    /// A port carrying one `ty` value (for a per-frame consumer: the element of its frame).
+    pub fn one(name: &'static str, ty: &'static str, doc: &'static str) -> Self {
+        PortSpec {
+            name,
+            ty,
+            sequence: false,
+            optional: false,
+            doc,
+        }
+    }
+
+    /// An input taking a whole `sequence<ty>`.
+    pub fn sequence(name: &'static str, ty: &'static str, doc: &'static str) -> Self {
+        PortSpec {
+            name,
+            ty,
+            sequence: true,
+            optional: false,
+            doc,
+        }
+    }
+
+    /// Marks an input optional.
+    pub fn optional(mut self) -> Self {
+        self.optional = true;
+        self
+    }
+
+    /// The type as shown to users: `image` or `sequence<image>`.
+    pub fn display_type(&self) -> String {
+        if self.sequence {
+            format!("sequence<{}>", self.ty)
+        } else {
+            self.ty.to_string()
+        }
+    }
+}
+
+/// Everything a node type declares about itself.
+#[derive(Clone, Debug)]
+pub struct NodeSpec {
+    /// Stable type name used in graph files.
+    pub name: &'static str,
+    /// Bumped whenever the output for the same inputs and params changes.
+    pub version: u32,
+    /// Documentation: what it does and which book section it implements.
+    pub doc: &'static str,
+    /// Input ports.
+    pub inputs: Vec<PortSpec>,
+    /// Output ports.
+    pub outputs: Vec<PortSpec>,
+    /// Parameters.
+    pub params: Vec<ParamSpec>,
+    /// Once, per frame, or either.
+    pub mode: Mode,
+    /// True if the node draws random numbers: its key then includes the graph seed and node id.
+    pub seeded: bool,
+}
+
+impl NodeSpec {
+    /// Starts a spec for a node that runs once, version 1, unseeded.
+    pub fn new(name: &'static str, doc: &'static str) -> Self {
+        NodeSpec {
+            name,
+            version: 1,
+            doc,
+            inputs: Vec::new(),
+            outputs: Vec::new(),
+            params: Vec::new(),
+            mode: Mode::Either,
+            seeded: false,
+        }
+    }
+    /// Sets the version.
+    pub fn version(mut self, v: u32) -> Self {
+        self.version = v;
+        self
+    }
+    /// Sets the mode.
+    pub fn mode(mut self, m: Mode) -> Self {
+        self.mode = m;
+        self
+    }
+    /// Marks the node seeded.
+    pub fn seeded(mut self) -> Self {
+        self.seeded = true;
+        self
+    }
+    /// Adds an input.
+    pub fn input(mut self, p: PortSpec) -> Self {
+        self.inputs.push(p);
+        self
+    }
+    /// Adds an output.
+    pub fn output(mut self, p: PortSpec) -> Self {
+        self.outputs.push(p);
+        self
+    }
+    /// Adds a parameter.
+    pub fn param(mut self, p: ParamSpec) -> Self {
+        self.params.push(p);
+        self
+    }
+
+    /// Looks up a parameter.
+    pub fn param_spec(&self, name: &str) -> Option<&ParamSpec> {
+        self.params.iter().find(|p| p.name == name)
+    }
+
+    /// Names of path parameters with the given role.
+    pub fn path_params(&self, role: PathRole) -> impl Iterator<Item = &'static str> + '_ {
+        self.params.iter().filter_map(move |p| match p.ty {
+            ParamType::Path(r) if r == role => Some(p.name),
+            _ => None,
+        })
+    }
+}
+
+/// A node type: a spec and a compute function.
+pub trait Node: Send + Sync + 'static {
+    /// The declaration.
+    fn spec(&self) -> &NodeSpec;
+    /// Computes the outputs from `ctx`'s inputs and params, calling [`Context::output`] once
+    /// per output port. Must be deterministic given inputs, params, frame and seed.
+    fn run(&self, ctx: &mut Context<'_>) -> Result<(), NodeError>;
+}
+
+/// A node's failure, shown to the user with the node id and frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NodeError {
+    /// What went wrong, including the chain of causes.
+    pub message: String,
+}
+
+impl NodeError {
+    /// An error with a message.
+    pub fn msg(message: impl Into<String>) -> Self {
+        NodeError {
+            message: message.into(),
+        }
+    }
+}
+
+impl fmt::Display for NodeError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.message)
+    }
+}
+
+impl<E: std::error::Error> From<E> for NodeError {
+    fn from(e: E) -> Self {
+        let mut message = e.to_string();
+        let mut src = e.source();
+        while let Some(s) = src {
+            let m = s.to_string();
+            if !message.contains(&m) {
+                message.push_str(": ");
+                message.push_str(&m);
+            }
+            src = s.source();
+        }
+        NodeError { message }
+    }
+}
+
+/// An input as handed to a running node.
+#[derive(Clone, Debug)]
+pub enum InputValue {
+    /// One value.
+    One(Value),
+    /// A whole sequence: (frame, value) in frame order.
+    Sequence(Vec<(i64, Value)>),
+}
+
+/// What a running node sees: its params, inputs, frame and seed; where it puts its outputs.
+pub struct Context<'a> {
+    pub(crate) node_id: &'a str,
+    pub(crate) frame: Option<i64>,
+    pub(crate) params: &'a Params,
+    pub(crate) spec: &'a NodeSpec,
+    pub(crate) graph_dir: &'a Path,
+    pub(crate) inputs: BTreeMap<&'static str, InputValue>,
+    pub(crate) seed: u64,
+    pub(crate) progress: &'a (dyn Fn(f32) + Sync),
+    pub(crate) outputs: BTreeMap<&'static str, Value>,
+}
+
+impl<'a> Context<'a> {
+    /// Builds a context by hand, for unit tests of a node outside a graph.
+    pub fn for_test(
+        spec: &'a NodeSpec,
+        params: &'a Params,
+        graph_dir: &'a Path,
+        frame: Option<i64>,
+        inputs: Vec<(&'static str, InputValue)>,
+    ) -> Self {
+        Context {
+            node_id: "test",
+            frame,
+            params,
+            spec,
+            graph_dir,
+            inputs: inputs.into_iter().collect(),
+            seed: 0,
+            progress: &|_| {},
+            outputs: BTreeMap::new(),
+        }
+    }
+
+    /// The node's id in the graph.
+    pub fn node_id(&self) -> &str {
+        self.node_id
+    }
+
+    /// The frame, for a per-frame instance.
+    pub fn frame(&self) -> Option<i64> {
+        self.frame
+    }
+
+    /// The checked parameters, defaults filled in.
+    pub fn params(&self) -> &Params {
+        self.params
+    }
+
+    /// A 64-bit seed derived from the graph seed, the node id and the frame; use it to seed a
+    /// PCG stream so results do not depend on scheduling.
+    pub fn seed(&self) -> u64 {
+        self.seed
+    }
+
+    /// Reports progress in [0, 1] for long work.
+    pub fn progress(&self, fraction: f32) {
+        (self.progress)(fraction.clamp(0.0, 1.0))
+    }
+
+    /// A path parameter resolved against the graph file's folder, with the frame pattern
+    /// (`%04d`, `%d`, `####`) filled in for per-frame instances.
+    pub fn path(&self, param: &str) -> PathBuf {
+        resolve_path(self.graph_dir, self.params.str(param), self.frame)
+    }
+
+    /// The value on input `port`.
+    pub fn input<T: ArtifactType>(&self, port: &str) -> Result<&T, NodeError> {
+        self.input_opt(port)?
+            .ok_or_else(|| NodeError::msg(format!("input `{port}` is not connected")))
+    }
+
+    /// The value on an optional input port, `None` if unconnected.
+    pub fn input_opt<T: ArtifactType>(&self, port: &str) -> Result<Option<&T>, NodeError> {
+        match self.inputs.get(port) {
+            None => Ok(None),
+            Some(InputValue::One(v)) => v.get::<T>().map(Some).ok_or_else(|| {
+                NodeError::msg(format!(
+                    "input `{port}` holds {} where {} was expected",
+                    v.type_name(),
+                    T::NAME
+                ))
+            }),
+            Some(InputValue::Sequence(_)) => Err(NodeError::msg(format!(
+                "input `{port}` is a sequence; use Context::sequence"
+            ))),
+        }
+    }
+
+    /// The whole sequence on input `port`, in frame order.
+    pub fn sequence<T: ArtifactType>(&self, port: &str) -> Result<Vec<(i64, &T)>, NodeError> {
+        match self.inputs.get(port) {
+            Some(InputValue::Sequence(items)) => items
+                .iter()
+                .map(|(f, v)| {
+                    v.get::<T>().map(|t| (*f, t)).ok_or_else(|| {
+                        NodeError::msg(format!(
+                            "input `{port}` frame {f} holds {} where {} was expected",
+                            v.type_name(),
+                            T::NAME
+                        ))
+                    })
+                })
+                .collect(),
+            Some(InputValue::One(_)) => Err(NodeError::msg(format!(
+                "input `{port}` is one value, not a sequence"
+            ))),
+            None => Err(NodeError::msg(format!("input `{port}` is not connected"))),
+        }
+    }
+
+    /// Sets output `port`. Panics if the port is not declared or has another type (a bug in
+    /// the node, not a user error).
+    pub fn output<T: ArtifactType>(&mut self, port: &str, value: T) {
+        let spec = self
+            .spec
+            .outputs
+            .iter()
+            .find(|p| p.name == port)
+            .unwrap_or_else(|| panic!("node {} has no output `{port}`", self.spec.name));
+        assert_eq!(
+            spec.ty,
+            T::NAME,
+            "node {} output `{port}` type",
+            self.spec.name
+        );
+        self.outputs.insert(spec.name, Value::new(value));
+    }
+
+    /// Takes an output set earlier (for tests of nodes).
+    pub fn take_output<T: ArtifactType + Clone>(&mut self, port: &str) -> Option<T> {
+        self.outputs.get(port).and_then(|v| v.get::<T>()).cloned()
+    }
+}
+
+/// Resolves a path parameter: relative paths are taken from `base`; a frame pattern is filled
+/// in when `frame` is given (`%04d`-style printf width, `%d`, or a run of `#` for the width).
+pub fn resolve_path(base: &Path, text: &str, frame: Option<i64>) -> PathBuf {
+    let text = match frame {
+        Some(f) => format_frame(text, f),
+        None => text.to_string(),
+    };
+    let p = Path::new(&text);
+    if p.is_absolute() {
+        p.to_path_buf()
+    } else {
+        base.join(p)
+    }
+}
+
+/// True when `text` holds a frame pattern.
+pub fn has_frame_pattern(text: &str) -> bool {
+    format_frame(text, 0) != format_frame(text, 1)
+}
+
+/// Fills a frame pattern: `%04d`, `%d` or `####` (width = number of `#`).
+pub fn format_frame(text: &str, frame: i64) -> String {
+    let mut out = String::with_capacity(text.len() + 4);
+    let b = text.as_bytes();
+    let mut i = 0;
+    while i < b.len() {
+        if b[i] == b'%' {
+            let mut j = i + 1;
+            while j < b.len() && b[j].is_ascii_digit() {
+                j += 1;
+            }
+            if j < b.len() && b[j] == b'd' {
+                let spec = &text[i + 1..j];
+                let width: usize = spec.parse().unwrap_or(0);
+                let zero = spec.starts_with('0');
+                if zero {
+                    out.push_str(&format!("{frame:0width$}"));
+                } else {
+                    out.push_str(&format!("{frame:width$}"));
+                }
+                i = j + 1;
+                continue;
+            }
+        }
+        if b[i] == b'#' {
+            let mut j = i;
+            while j < b.len() && b[j] == b'#' {
+                j += 1;
+            }
+            let width = j - i;
+            out.push_str(&format!("{frame:0width$}"));
+            i = j;
+            continue;
+        }
+        let ch = text[i..].chars().next().expect("in bounds");
+        out.push(ch);
+        i += ch.len_utf8();
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frame_patterns() {
+        assert_eq!(format_frame("f.%04d.png", 7), "f.0007.png");
+        assert_eq!(format_frame("f.####.png", 12), "f.0012.png");
+        assert_eq!(format_frame("f.%d.png", 12), "f.12.png");
+        assert_eq!(format_frame("plain.png", 12), "plain.png");
+        assert!(has_frame_pattern("a_##.exr"));
+        assert!(!has_frame_pattern("a.exr"));
+        assert_eq!(
+            resolve_path(Path::new("/g"), "x/%03d.png", Some(5)),
+            PathBuf::from("/g/x/005.png")
+        );
+    }
+}

@@ -1,0 +1,100 @@
+//! The catalog of node types and artifact types a program knows.
+//!
+//! The engine ships no node types of its own (it knows nothing of images or cameras);
+//! `vfxgraph-nodes` fills a registry at start-up.
+
+use std::collections::BTreeMap;
+use std::sync::Arc;
+
+use crate::artifact::{decoder, ArtifactType, DecodeFn, DynArtifact};
+use crate::node::Node;
+
+/// What the registry knows about one artifact type.
+#[derive(Clone)]
+pub struct ArtifactInfo {
+    /// Stable name.
+    pub name: &'static str,
+    /// One line of documentation.
+    pub doc: &'static str,
+    pub(crate) decode: DecodeFn,
+}
+
+/// Node and artifact types by name.
+#[derive(Clone, Default)]
+pub struct Registry {
+    nodes: BTreeMap<&'static str, Arc<dyn Node>>,
+    artifacts: BTreeMap<&'static str, ArtifactInfo>,
+}
+
+impl Registry {
+    /// An empty registry with the built-in scalar artifact types (`float`, `int`, `bool`,
+    /// `string`).
+    pub fn new() -> Self {
+        let mut r = Registry::default();
+        r.register_artifact::<f64>();
+        r.register_artifact::<i64>();
+        r.register_artifact::<bool>();
+        r.register_artifact::<String>();
+        r
+    }
+
+    /// Adds an artifact type. Registering one name twice panics (a programming error).
+    pub fn register_artifact<T: ArtifactType>(&mut self) {
+        let info = ArtifactInfo {
+            name: T::NAME,
+            doc: T::DOC,
+            decode: decoder::<T>(),
+        };
+        if self.artifacts.insert(T::NAME, info).is_some() {
+            panic!("artifact type `{}` registered twice", T::NAME);
+        }
+    }
+
+    /// Adds a node type. Its ports must name registered artifact types, and a type name may be
+    /// registered once (both programming errors, so they panic at start-up).
+    pub fn register_node(&mut self, node: impl Node) {
+        let spec = node.spec();
+        for p in spec.inputs.iter().chain(&spec.outputs) {
+            assert!(
+                self.artifacts.contains_key(p.ty),
+                "node `{}` port `{}` uses unregistered artifact type `{}`",
+                spec.name,
+                p.name,
+                p.ty
+            );
+        }
+        let name = spec.name;
+        if self.nodes.insert(name, Arc::new(node)).is_some() {
+            panic!("node type `{name}` registered twice");
+        }
+    }
+
+    /// A node type by name.
+    pub fn node(&self, name: &str) -> Option<&Arc<dyn Node>> {
+        self.nodes.get(name)
+    }
+
+    /// All node types, by name.
+    pub fn nodes(&self) -> impl Iterator<Item = &Arc<dyn Node>> {
+        self.nodes.values()
+    }
+
+    /// An artifact type by name.
+    pub fn artifact(&self, name: &str) -> Option<&ArtifactInfo> {
+        self.artifacts.get(name)
+    }
+
+    /// All artifact types, by name.
+    pub fn artifacts(&self) -> impl Iterator<Item = &ArtifactInfo> {
+        self.artifacts.values()
+    }
+
+    /// Decodes stored bytes of a named type.
+    pub fn decode(&self, type_name: &str, bytes: &[u8]) -> Result<Arc<dyn DynArtifact>, String> {
+        let info = self
+            .artifacts
+            .get(type_name)
+            .ok_or_else(|| format!("unknown artifact type `{type_name}`"))?;
+        (info.decode)(bytes)
+    }
+}

@@ -1,0 +1,426 @@
+//! The cache: a content-addressed object store plus an action map (Bazel's CAS + action cache).
+//!
+//! ```text
+//! .vfxgraph/
+//!   objects/ab/<digest>   artifact bytes, named by their content digest
+//!   actions/ab/<key>      JSON: the output digests (and written files) of one node instance
+//!   records/<node>.json   the key components of each node's last run, to explain reruns
+//!   files.json            the (path, size, mtime) → digest memo of input files
+//!   tmp/                  temporaries, renamed into place when complete
+//! ```
+//!
+//! Every write is a temporary file renamed into place, and an action is written only after all
+//! its objects, so a crash (even SIGKILL) leaves either a complete entry or none. Reads verify
+//! the object's digest; a mismatch is treated as a miss and the object removed.
+
+use std::collections::{BTreeMap, HashSet};
+use std::fs;
+use std::io::{self, Write};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::{Duration, SystemTime};
+
+use serde::{Deserialize, Serialize};
+
+use crate::artifact::{content_digest, Digest};
+
+const OBJECT_MAGIC: &[u8; 5] = b"VFXO1";
+
+/// One output of a cached node instance.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct ActionOutput {
+    /// Output port.
+    pub port: String,
+    /// Artifact type name.
+    pub ty: String,
+    /// Content digest (hex).
+    pub digest: String,
+}
+
+/// A file a writer node wrote, with the digest it had.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct WrittenFile {
+    /// Absolute path.
+    pub path: PathBuf,
+    /// Content digest (hex) of the file as written.
+    pub digest: String,
+}
+
+/// The cached result of one node instance.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct ActionEntry {
+    /// Node type.
+    pub node_type: String,
+    /// Node id in the graph that produced it (informational).
+    pub node_id: String,
+    /// Frame, for per-frame instances.
+    pub frame: Option<i64>,
+    /// Outputs by port.
+    pub outputs: Vec<ActionOutput>,
+    /// Files written.
+    #[serde(default)]
+    pub files: Vec<WrittenFile>,
+    /// Compute time in seconds.
+    pub seconds: f64,
+}
+
+/// A summary line of `vfxgraph cache ls`.
+#[derive(Clone, Debug, Serialize)]
+pub struct EntrySummary {
+    /// The cache key (hex).
+    pub key: String,
+    /// The entry.
+    pub entry: ActionEntry,
+    /// Bytes of its objects.
+    pub bytes: u64,
+    /// Last use.
+    pub last_used: SystemTime,
+}
+
+/// Result of a garbage collection.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct GcReport {
+    /// Actions removed.
+    pub actions_removed: usize,
+    /// Objects removed.
+    pub objects_removed: usize,
+    /// Bytes freed.
+    pub bytes_freed: u64,
+    /// Bytes left.
+    pub bytes_left: u64,
+}
+
+/// The on-disk cache.
+#[derive(Debug)]
+pub struct Store {
+    root: PathBuf,
+}
+
+static TMP: AtomicU64 = AtomicU64::new(0);
+
+fn shard(dir: &Path, hex: &str) -> PathBuf {
+    dir.join(&hex[..2]).join(hex)
+}
+
+impl Store {
+    /// Opens (creating) a cache folder, removing temporaries older than an hour (left by a
+    /// killed run; younger ones may belong to a concurrent run).
+    pub fn open(root: &Path) -> io::Result<Store> {
+        for sub in ["objects", "actions", "records", "tmp"] {
+            fs::create_dir_all(root.join(sub))?;
+        }
+        if let Ok(rd) = fs::read_dir(root.join("tmp")) {
+            for e in rd.flatten() {
+                let old = e
+                    .metadata()
+                    .and_then(|m| m.modified())
+                    .ok()
+                    .and_then(|t| t.elapsed().ok())
+                    .is_some_and(|age| age > Duration::from_secs(3600));
+                if old {
+                    let _ = fs::remove_file(e.path());
+                }
+            }
+        }
+        Ok(Store {
+            root: root.to_path_buf(),
+        })
+    }
+
+    /// The cache folder.
+    pub fn root(&self) -> &Path {
+        &self.root
+    }
+
+    /// Where the file-hash memo lives.
+    pub fn file_memo_path(&self) -> PathBuf {
+        self.root.join("files.json")
+    }
+
+    fn write_atomic(&self, dest: &Path, bytes: &[&[u8]]) -> io::Result<()> {
+        let n = TMP.fetch_add(1, Ordering::Relaxed);
+        let tmp = self
+            .root
+            .join("tmp")
+            .join(format!("{}-{n}", std::process::id()));
+        let r = (|| {
+            let mut f = fs::File::create(&tmp)?;
+            for b in bytes {
+                f.write_all(b)?;
+            }
+            drop(f);
+            if let Some(p) = dest.parent() {
+                fs::create_dir_all(p)?;
+            }
+            fs::rename(&tmp, dest)
+        })();
+        if r.is_err() {
+            let _ = fs::remove_file(&tmp);
+        }
+        r
+    }
+
+    fn object_path(&self, d: &Digest) -> PathBuf {
+        shard(&self.root.join("objects"), &d.to_hex())
+    }
+
+    fn action_path(&self, key: &Digest) -> PathBuf {
+        shard(&self.root.join("actions"), &key.to_hex())
+    }
+
+    /// Stores an encoded artifact under its digest (a no-op if present).
+    pub fn put_object(&self, digest: &Digest, type_name: &str, bytes: &[u8]) -> io::Result<()> {
+        let path = self.object_path(digest);
+        if path.exists() {
+            return Ok(());
+        }
+        let name_len = (type_name.len() as u32).to_le_bytes();
+        self.write_atomic(
+            &path,
+            &[OBJECT_MAGIC, &name_len, type_name.as_bytes(), bytes],
+        )
+    }
+
+    /// True if an object file exists (not verified).
+    pub fn has_object(&self, digest: &Digest) -> bool {
+        self.object_path(digest).is_file()
+    }
+
+    /// Reads and verifies an object: its type name and encoded bytes. A corrupt object is
+    /// removed and reported as absent.
+    pub fn get_object(&self, digest: &Digest) -> Option<(String, Vec<u8>)> {
+        let path = self.object_path(digest);
+        let raw = fs::read(&path).ok()?;
+        let parsed = (|| {
+            let rest = raw.strip_prefix(OBJECT_MAGIC)?;
+            let n = u32::from_le_bytes(rest.get(..4)?.try_into().ok()?) as usize;
+            let name = std::str::from_utf8(rest.get(4..4 + n)?).ok()?;
+            let payload = rest.get(4 + n..)?;
+            (content_digest(name, payload) == *digest).then(|| (name.to_string(), payload.to_vec()))
+        })();
+        if parsed.is_none() {
+            tracing::warn!("cache object {} is corrupt; removing it", digest.short());
+            let _ = fs::remove_file(&path);
+        }
+        parsed
+    }
+
+    /// Looks up an action. An unreadable entry is a miss.
+    pub fn get_action(&self, key: &Digest) -> Option<ActionEntry> {
+        let bytes = fs::read(self.action_path(key)).ok()?;
+        serde_json::from_slice(&bytes).ok()
+    }
+
+    /// Records an action (after its objects).
+    pub fn put_action(&self, key: &Digest, entry: &ActionEntry) -> io::Result<()> {
+        let bytes = serde_json::to_vec_pretty(entry).map_err(io::Error::other)?;
+        self.write_atomic(&self.action_path(key), &[&bytes])
+    }
+
+    /// Removes an action (e.g. when its objects are gone).
+    pub fn remove_action(&self, key: &Digest) {
+        let _ = fs::remove_file(self.action_path(key));
+    }
+
+    /// Marks an action as used now (for least-recently-used collection).
+    pub fn touch_action(&self, key: &Digest) {
+        if let Ok(f) = fs::File::options().append(true).open(self.action_path(key)) {
+            let _ = f.set_modified(SystemTime::now());
+        }
+    }
+
+    /// Reads a record file (see [`crate::exec`]).
+    pub fn get_record<T: serde::de::DeserializeOwned>(&self, name: &str) -> Option<T> {
+        let bytes = fs::read(self.root.join("records").join(name)).ok()?;
+        serde_json::from_slice(&bytes).ok()
+    }
+
+    /// Writes a record file.
+    pub fn put_record<T: Serialize>(&self, name: &str, value: &T) -> io::Result<()> {
+        let bytes = serde_json::to_vec(value).map_err(io::Error::other)?;
+        self.write_atomic(&self.root.join("records").join(name), &[&bytes])
+    }
+
+    fn walk(dir: &Path) -> Vec<(PathBuf, fs::Metadata)> {
+        let mut out = Vec::new();
+        if let Ok(shards) = fs::read_dir(dir) {
+            for s in shards.flatten() {
+                if let Ok(files) = fs::read_dir(s.path()) {
+                    for f in files.flatten() {
+                        if let Ok(m) = f.metadata() {
+                            if m.is_file() {
+                                out.push((f.path(), m));
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    fn object_size(&self, hex: &str) -> u64 {
+        fs::metadata(shard(&self.root.join("objects"), hex))
+            .map(|m| m.len())
+            .unwrap_or(0)
+    }
+
+    /// All actions, most recently used first.
+    pub fn list(&self) -> Vec<EntrySummary> {
+        let mut out = Vec::new();
+        for (path, meta) in Self::walk(&self.root.join("actions")) {
+            let Some(entry) = fs::read(&path)
+                .ok()
+                .and_then(|b| serde_json::from_slice::<ActionEntry>(&b).ok())
+            else {
+                continue;
+            };
+            let bytes = entry
+                .outputs
+                .iter()
+                .map(|o| self.object_size(&o.digest))
+                .sum::<u64>()
+                + meta.len();
+            out.push(EntrySummary {
+                key: path
+                    .file_name()
+                    .map(|s| s.to_string_lossy().into_owned())
+                    .unwrap_or_default(),
+                entry,
+                bytes,
+                last_used: meta.modified().unwrap_or(SystemTime::UNIX_EPOCH),
+            });
+        }
+        out.sort_by(|a, b| b.last_used.cmp(&a.last_used).then(a.key.cmp(&b.key)));
+        out
+    }
+
+    /// Total bytes on disk (objects, actions, records).
+    pub fn disk_usage(&self) -> u64 {
+        ["objects", "actions"]
+            .iter()
+            .flat_map(|d| Self::walk(&self.root.join(d)))
+            .map(|(_, m)| m.len())
+            .sum()
+    }
+
+    /// Removes objects no action refers to, then (with `max_bytes`) the least recently used
+    /// actions until the cache fits, and their newly unreferenced objects.
+    pub fn gc(&self, max_bytes: Option<u64>) -> GcReport {
+        let mut report = GcReport::default();
+        let mut actions = self.list();
+        if let Some(max) = max_bytes {
+            // Newest first: keep while the running total fits.
+            let mut total = 0u64;
+            let mut keep = Vec::new();
+            for a in actions {
+                if total + a.bytes <= max {
+                    total += a.bytes;
+                    keep.push(a);
+                } else if let Some(k) = Digest::from_hex(&a.key) {
+                    self.remove_action(&k);
+                    report.actions_removed += 1;
+                }
+            }
+            actions = keep;
+        }
+        let live: HashSet<String> = actions
+            .iter()
+            .flat_map(|a| a.entry.outputs.iter().map(|o| o.digest.clone()))
+            .collect();
+        for (path, meta) in Self::walk(&self.root.join("objects")) {
+            let name = path
+                .file_name()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            if !live.contains(&name) && fs::remove_file(&path).is_ok() {
+                report.objects_removed += 1;
+                report.bytes_freed += meta.len();
+            }
+        }
+        report.bytes_left = self.disk_usage();
+        report
+    }
+
+    /// Deletes everything in the cache.
+    pub fn clear(&self) -> io::Result<()> {
+        for sub in ["objects", "actions", "records", "tmp"] {
+            let p = self.root.join(sub);
+            if p.exists() {
+                fs::remove_dir_all(&p)?;
+            }
+            fs::create_dir_all(&p)?;
+        }
+        let _ = fs::remove_file(self.file_memo_path());
+        Ok(())
+    }
+
+    /// Number of objects per type, for `cache du`.
+    pub fn usage_by_type(&self) -> BTreeMap<String, (usize, u64)> {
+        let mut out: BTreeMap<String, (usize, u64)> = BTreeMap::new();
+        for a in self.list() {
+            for o in &a.entry.outputs {
+                let e = out.entry(o.ty.clone()).or_default();
+                e.0 += 1;
+                e.1 += self.object_size(&o.digest);
+            }
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn objects_round_trip_and_corruption_is_a_miss() {
+        let dir = tempfile::tempdir().unwrap();
+        let s = Store::open(dir.path()).unwrap();
+        let d = content_digest("float", b"1.5");
+        s.put_object(&d, "float", b"1.5").unwrap();
+        assert_eq!(s.get_object(&d), Some(("float".into(), b"1.5".to_vec())));
+        // Corrupt it: the read is a miss and the object is gone.
+        let p = s.object_path(&d);
+        let mut raw = fs::read(&p).unwrap();
+        let last = raw.len() - 1;
+        raw[last] ^= 1;
+        fs::write(&p, raw).unwrap();
+        assert_eq!(s.get_object(&d), None);
+        assert!(!s.has_object(&d));
+    }
+
+    #[test]
+    fn gc_keeps_live_objects() {
+        let dir = tempfile::tempdir().unwrap();
+        let s = Store::open(dir.path()).unwrap();
+        let live = content_digest("string", b"\"a\"");
+        let dead = content_digest("string", b"\"b\"");
+        s.put_object(&live, "string", b"\"a\"").unwrap();
+        s.put_object(&dead, "string", b"\"b\"").unwrap();
+        let key = Digest::of(b"key");
+        s.put_action(
+            &key,
+            &ActionEntry {
+                node_type: "t".into(),
+                node_id: "n".into(),
+                frame: None,
+                outputs: vec![ActionOutput {
+                    port: "out".into(),
+                    ty: "string".into(),
+                    digest: live.to_hex(),
+                }],
+                files: vec![],
+                seconds: 0.0,
+            },
+        )
+        .unwrap();
+        let r = s.gc(None);
+        assert_eq!(r.objects_removed, 1);
+        assert!(s.has_object(&live) && !s.has_object(&dead));
+        let r = s.gc(Some(0));
+        assert_eq!(r.actions_removed, 1);
+        assert!(!s.has_object(&live));
+        assert_eq!(s.list().len(), 0);
+    }
+}

@@ -1,0 +1,320 @@
+//! Small node types for testing the engine on its own (floats and text files).
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::sync::{Condvar, Mutex};
+use std::time::Duration;
+
+use vfxgraph_engine::{
+    exec, graph, Context, Graph, Mode, Node, NodeError, NodeSpec, Overrides, ParamSpec, ParamType,
+    ParamValue, PathRole, PortSpec, Registry, RunOptions, RunReport,
+};
+
+pub struct Num(NodeSpec);
+impl Node for Num {
+    fn spec(&self) -> &NodeSpec {
+        &self.0
+    }
+    fn run(&self, ctx: &mut Context<'_>) -> Result<(), NodeError> {
+        let v = ctx.params().f64("value");
+        ctx.output("out", v);
+        Ok(())
+    }
+}
+
+pub struct Add(NodeSpec);
+impl Node for Add {
+    fn spec(&self) -> &NodeSpec {
+        &self.0
+    }
+    fn run(&self, ctx: &mut Context<'_>) -> Result<(), NodeError> {
+        let a = *ctx.input::<f64>("a")?;
+        let b = ctx.input_opt::<f64>("b")?.copied().unwrap_or(0.0);
+        let v = a + b + ctx.params().f64("offset");
+        ctx.output("out", v);
+        Ok(())
+    }
+}
+
+pub struct Round(NodeSpec);
+impl Node for Round {
+    fn spec(&self) -> &NodeSpec {
+        &self.0
+    }
+    fn run(&self, ctx: &mut Context<'_>) -> Result<(), NodeError> {
+        let a = ctx.input::<f64>("a")?.round();
+        ctx.output("out", a);
+        Ok(())
+    }
+}
+
+pub struct Ramp(NodeSpec);
+impl Node for Ramp {
+    fn spec(&self) -> &NodeSpec {
+        &self.0
+    }
+    fn run(&self, ctx: &mut Context<'_>) -> Result<(), NodeError> {
+        let f = ctx.frame().expect("per frame") as f64;
+        let v = f * ctx.params().f64("scale");
+        ctx.output("out", v);
+        Ok(())
+    }
+}
+
+pub struct Sum(NodeSpec);
+impl Node for Sum {
+    fn spec(&self) -> &NodeSpec {
+        &self.0
+    }
+    fn run(&self, ctx: &mut Context<'_>) -> Result<(), NodeError> {
+        let v: f64 = ctx.sequence::<f64>("items")?.iter().map(|(_, x)| **x).sum();
+        ctx.output("out", v);
+        Ok(())
+    }
+}
+
+pub struct ReadNum(NodeSpec);
+impl Node for ReadNum {
+    fn spec(&self) -> &NodeSpec {
+        &self.0
+    }
+    fn run(&self, ctx: &mut Context<'_>) -> Result<(), NodeError> {
+        let p = ctx.path("path");
+        let text = std::fs::read_to_string(&p)
+            .map_err(|e| NodeError::msg(format!("{}: {e}", p.display())))?;
+        let v: f64 = text
+            .trim()
+            .parse()
+            .map_err(|e| NodeError::msg(format!("{}: {e}", p.display())))?;
+        ctx.output("out", v);
+        Ok(())
+    }
+}
+
+pub struct WriteNum(NodeSpec);
+impl Node for WriteNum {
+    fn spec(&self) -> &NodeSpec {
+        &self.0
+    }
+    fn run(&self, ctx: &mut Context<'_>) -> Result<(), NodeError> {
+        let v = *ctx.input::<f64>("a")?;
+        vfxgraph_engine::fsutil::atomic_write(&ctx.path("path"), format!("{v}\n").as_bytes())?;
+        Ok(())
+    }
+}
+
+pub struct Fail(NodeSpec);
+impl Node for Fail {
+    fn spec(&self) -> &NodeSpec {
+        &self.0
+    }
+    fn run(&self, _ctx: &mut Context<'_>) -> Result<(), NodeError> {
+        Err(NodeError::msg("this node always fails"))
+    }
+}
+
+pub struct Rand(NodeSpec);
+impl Node for Rand {
+    fn spec(&self) -> &NodeSpec {
+        &self.0
+    }
+    fn run(&self, ctx: &mut Context<'_>) -> Result<(), NodeError> {
+        let v = (ctx.seed() >> 11) as f64 / (1u64 << 53) as f64;
+        ctx.output("out", v);
+        Ok(())
+    }
+}
+
+/// Two instances must be inside `run` at the same time to pass; gives up after 10 s.
+pub struct Rendezvous(NodeSpec);
+pub static BARRIER: (Mutex<usize>, Condvar) = (Mutex::new(0), Condvar::new());
+impl Node for Rendezvous {
+    fn spec(&self) -> &NodeSpec {
+        &self.0
+    }
+    fn run(&self, ctx: &mut Context<'_>) -> Result<(), NodeError> {
+        let (lock, cv) = &BARRIER;
+        let mut arrived = lock.lock().unwrap();
+        *arrived += 1;
+        cv.notify_all();
+        let (guard, timeout) = cv
+            .wait_timeout_while(arrived, Duration::from_secs(10), |n| *n < 2)
+            .unwrap();
+        drop(guard);
+        if timeout.timed_out() {
+            return Err(NodeError::msg(
+                "partner never arrived: nodes did not run concurrently",
+            ));
+        }
+        ctx.output("out", 1.0f64);
+        Ok(())
+    }
+}
+
+pub fn registry() -> Registry {
+    let f = || ParamType::Float {
+        min: -1e9,
+        max: 1e9,
+    };
+    let mut r = Registry::new();
+    r.register_node(Num(NodeSpec::new("num", "a constant")
+        .mode(Mode::Once)
+        .param(ParamSpec::required("value", f(), "the value"))
+        .param(
+            ParamSpec::optional(
+                "label",
+                ParamType::Str,
+                ParamValue::Str(String::new()),
+                "cosmetic",
+            )
+            .cosmetic(),
+        )
+        .output(PortSpec::one("out", "float", ""))));
+    r.register_node(Add(NodeSpec::new("add", "a + b + offset")
+        .param(ParamSpec::optional(
+            "offset",
+            f(),
+            ParamValue::Float(0.0),
+            "",
+        ))
+        .param(ParamSpec::optional(
+            "count",
+            ParamType::Int { min: 0, max: 10 },
+            ParamValue::Int(1),
+            "",
+        ))
+        .input(PortSpec::one("a", "float", ""))
+        .input(PortSpec::one("b", "float", "").optional())
+        .output(PortSpec::one("out", "float", ""))));
+    r.register_node(Round(
+        NodeSpec::new("round", "round to integer")
+            .input(PortSpec::one("a", "float", ""))
+            .output(PortSpec::one("out", "float", "")),
+    ));
+    r.register_node(Ramp(
+        NodeSpec::new("ramp", "frame × scale")
+            .mode(Mode::PerFrame)
+            .param(ParamSpec::optional(
+                "scale",
+                f(),
+                ParamValue::Float(1.0),
+                "",
+            ))
+            .output(PortSpec::one("out", "float", "")),
+    ));
+    r.register_node(Sum(NodeSpec::new("sum", "sum of a sequence")
+        .mode(Mode::Once)
+        .input(PortSpec::sequence("items", "float", ""))
+        .output(PortSpec::one("out", "float", ""))));
+    r.register_node(ReadNum(
+        NodeSpec::new("read_num", "a number from a text file")
+            .param(ParamSpec::required(
+                "path",
+                ParamType::Path(PathRole::Input),
+                "",
+            ))
+            .output(PortSpec::one("out", "float", "")),
+    ));
+    r.register_node(WriteNum(
+        NodeSpec::new("write_num", "a number to a text file")
+            .param(ParamSpec::required(
+                "path",
+                ParamType::Path(PathRole::Output),
+                "",
+            ))
+            .input(PortSpec::one("a", "float", "")),
+    ));
+    r.register_node(Fail(
+        NodeSpec::new("fail", "always fails")
+            .input(PortSpec::one("a", "float", "").optional())
+            .output(PortSpec::one("out", "float", "")),
+    ));
+    r.register_node(Rand(
+        NodeSpec::new("rand", "a seeded random number")
+            .seeded()
+            .output(PortSpec::one("out", "float", "")),
+    ));
+    r.register_node(Rendezvous(
+        NodeSpec::new("rendezvous", "waits for a partner")
+            .mode(Mode::Once)
+            .param(ParamSpec::optional(
+                "name",
+                ParamType::Str,
+                ParamValue::Str(String::new()),
+                "",
+            ))
+            .output(PortSpec::one("out", "float", "")),
+    ));
+    r.register_node(Sequence2(
+        NodeSpec::new("pair", "sequence of a pair")
+            .mode(Mode::Once)
+            .input(PortSpec::sequence("items", "string", ""))
+            .output(PortSpec::one("out", "float", "")),
+    ));
+    r
+}
+
+pub struct Sequence2(NodeSpec);
+impl Node for Sequence2 {
+    fn spec(&self) -> &NodeSpec {
+        &self.0
+    }
+    fn run(&self, ctx: &mut Context<'_>) -> Result<(), NodeError> {
+        ctx.output("out", 0.0f64);
+        Ok(())
+    }
+}
+
+/// A scratch folder holding a graph file.
+pub struct Scratch {
+    pub dir: tempfile::TempDir,
+}
+
+impl Scratch {
+    pub fn new() -> Self {
+        Scratch {
+            dir: tempfile::tempdir().unwrap(),
+        }
+    }
+    pub fn path(&self, name: &str) -> PathBuf {
+        self.dir.path().join(name)
+    }
+    pub fn write(&self, name: &str, text: &str) -> PathBuf {
+        let p = self.path(name);
+        if let Some(parent) = p.parent() {
+            std::fs::create_dir_all(parent).unwrap();
+        }
+        std::fs::write(&p, text).unwrap();
+        p
+    }
+    pub fn graph(&self, text: &str) -> Graph {
+        let p = self.write("graph.yaml", text);
+        load(&p)
+    }
+    pub fn opts(&self) -> RunOptions {
+        RunOptions {
+            jobs: Some(2),
+            cache_dir: Some(self.path(".vfxgraph")),
+            force: vec![],
+        }
+    }
+    pub fn run(&self, text: &str) -> RunReport {
+        let g = self.graph(text);
+        exec::run(&g, &registry(), &self.opts(), &exec::Quiet).unwrap()
+    }
+}
+
+pub fn load(p: &Path) -> Graph {
+    match graph::load(p, &registry(), &Overrides::default()) {
+        Ok(g) => g,
+        Err(e) => panic!("{e}"),
+    }
+}
+
+/// Statuses of node `id` as (ran, cached).
+pub fn ran_cached(r: &RunReport, id: &str) -> (usize, usize) {
+    (
+        r.count(id, vfxgraph_engine::Status::Ran),
+        r.count(id, vfxgraph_engine::Status::Cached),
+    )
+}
