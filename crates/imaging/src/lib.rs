@@ -1,1 +1,27 @@
-//! vfxgraph-imaging
+//! # vfxgraph-imaging
+//!
+//! Image buffers, file I/O, colour transfer functions and tone mapping for vfxgraph, the
+//! dataflow engine implementing *Introduction to Visual Effects: A Computational Approach*
+//! (Madeira & Velho). Usable on its own: it knows nothing about graphs or nodes.
+//!
+//! - [`Image`]: a linear-light `f32` buffer, row-major, interleaved channels, origin at the
+//!   top-left pixel (x right, y down), as everywhere in vfxgraph.
+//! - [`io`]: PNG and JPEG (sRGB 8/16-bit, through the `image` crate), OpenEXR (through the `exr`
+//!   crate), PFM and Radiance RGBE `.hdr` (hand-written). sRGB is decoded to linear on read and
+//!   encoded on write; float formats are stored as they are.
+//! - [`color`]: the IEC 61966-2-1 sRGB transfer functions and Rec. 709 luminance.
+//! - [`tonemap`]: photographic exposure and display tone mapping (clip, or Reinhard et al. 2002).
+//!
+//! No function of this crate panics on the content of a file: malformed, truncated or huge inputs
+//! give an [`ImageError`].
+
+pub mod color;
+mod error;
+pub mod image;
+pub mod io;
+pub mod tonemap;
+
+pub use crate::error::ImageError;
+pub use crate::image::Image;
+pub use crate::io::{decode, encode, read_image, write_image, Format};
+pub use crate::tonemap::{exposure, tonemap, Operator};

@@ -1,0 +1,257 @@
+//! Reading and writing image files: PNG, JPEG, OpenEXR, PFM and Radiance RGBE.
+//!
+//! All decoders return linear-light `f32` [`Image`]s with pixel `(0, 0)` at the top-left:
+//! 8/16-bit sRGB formats (PNG, JPEG) are decoded with the IEC 61966-2-1 curve (alpha stays linear),
+//! float formats (EXR, PFM, HDR) are taken as they are. Decoders produce 1 (gray), 3 (RGB) or
+//! 4 (RGBA) channels. Encoders accept 1–4 channels and convert as each format requires (see the
+//! per-format functions).
+//!
+//! Decoding never panics on malformed data: errors are [`ImageError`] values. Headers are checked
+//! against [`crate::image::MAX_SAMPLES`] before any pixel buffer is allocated, and the third-party
+//! decoders (`image`, `exr`) additionally run behind `catch_unwind`, so a bug of theirs on a hostile
+//! file surfaces as [`ImageError::Decode`].
+
+pub mod exr;
+pub mod hdr;
+pub mod pfm;
+pub mod png_jpeg;
+
+use std::io::Write;
+use std::path::Path;
+
+pub use crate::error::ImageError;
+use crate::image::Image;
+
+pub use self::exr::{encode_exr, ExrCompression, ExrOptions, ExrPrecision};
+pub use self::png_jpeg::{encode_jpeg, encode_png16};
+
+/// An image file format this crate reads and writes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Format {
+    /// Portable Network Graphics (ISO/IEC 15948), 8/16-bit sRGB.
+    Png,
+    /// JPEG (ISO/IEC 10918-1, JFIF), 8-bit sRGB, no alpha.
+    Jpeg,
+    /// OpenEXR (Kainz, Bogart & Hess; openexr.com file layout), half/float/uint channels.
+    Exr,
+    /// Portable Float Map (Debevec's HDRShop/`pfstools` format), 32-bit float gray or RGB.
+    Pfm,
+    /// Radiance RGBE picture (Ward, "Real Pixels", Graphics Gems II, 1991), `.hdr`.
+    Hdr,
+}
+
+impl Format {
+    /// All formats, in a fixed order.
+    pub const ALL: [Format; 5] = [
+        Format::Png,
+        Format::Jpeg,
+        Format::Exr,
+        Format::Pfm,
+        Format::Hdr,
+    ];
+
+    /// The format named by the file extension of `p` (case-insensitive): `png`; `jpg`, `jpeg`,
+    /// `jpe`; `exr`; `pfm`; `hdr`, `rgbe`. `None` for anything else.
+    pub fn from_path(p: &Path) -> Option<Format> {
+        let ext = p.extension()?.to_str()?.to_ascii_lowercase();
+        match ext.as_str() {
+            "png" => Some(Format::Png),
+            "jpg" | "jpeg" | "jpe" => Some(Format::Jpeg),
+            "exr" => Some(Format::Exr),
+            "pfm" => Some(Format::Pfm),
+            "hdr" | "rgbe" => Some(Format::Hdr),
+            _ => None,
+        }
+    }
+
+    /// The format recognised from the first bytes of a file (its magic number): PNG
+    /// `89 50 4E 47`, JPEG `FF D8 FF`, OpenEXR `76 2F 31 01`, PFM `PF`/`Pf` + whitespace,
+    /// Radiance `#?RADIANCE` or `#?RGBE`.
+    pub fn sniff(bytes: &[u8]) -> Option<Format> {
+        if bytes.starts_with(b"\x89PNG") {
+            Some(Format::Png)
+        } else if bytes.starts_with(&[0xFF, 0xD8, 0xFF]) {
+            Some(Format::Jpeg)
+        } else if bytes.starts_with(&[0x76, 0x2F, 0x31, 0x01]) {
+            Some(Format::Exr)
+        } else if (bytes.starts_with(b"PF") || bytes.starts_with(b"Pf"))
+            && bytes.get(2).is_some_and(|b| b.is_ascii_whitespace())
+        {
+            Some(Format::Pfm)
+        } else if bytes.starts_with(b"#?RADIANCE") || bytes.starts_with(b"#?RGBE") {
+            Some(Format::Hdr)
+        } else {
+            None
+        }
+    }
+
+    /// The canonical file extension, without the dot.
+    pub fn extension(self) -> &'static str {
+        match self {
+            Format::Png => "png",
+            Format::Jpeg => "jpg",
+            Format::Exr => "exr",
+            Format::Pfm => "pfm",
+            Format::Hdr => "hdr",
+        }
+    }
+
+    /// The format's usual name ("PNG", "JPEG", "OpenEXR", "PFM", "Radiance HDR").
+    pub fn name(self) -> &'static str {
+        match self {
+            Format::Png => "PNG",
+            Format::Jpeg => "JPEG",
+            Format::Exr => "OpenEXR",
+            Format::Pfm => "PFM",
+            Format::Hdr => "Radiance HDR",
+        }
+    }
+
+    /// True for the formats that store linear floating-point values (EXR, PFM, HDR), false for
+    /// the 8/16-bit sRGB ones (PNG, JPEG).
+    pub fn is_float(self) -> bool {
+        matches!(self, Format::Exr | Format::Pfm | Format::Hdr)
+    }
+}
+
+impl std::fmt::Display for Format {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Decode the bytes of a file of `format` into a linear-light image (see the module docs and
+/// the per-format modules for details: [`png_jpeg`], [`exr`], [`pfm`], [`hdr`]).
+pub fn decode(bytes: &[u8], format: Format) -> Result<Image, ImageError> {
+    match format {
+        Format::Png | Format::Jpeg => png_jpeg::decode(bytes, format),
+        Format::Exr => exr::decode(bytes),
+        Format::Pfm => pfm::decode(bytes),
+        Format::Hdr => hdr::decode(bytes),
+    }
+}
+
+/// Encode a linear-light image as a file of `format` with default options: PNG 8-bit sRGB,
+/// JPEG quality 95 sRGB (alpha dropped), EXR 32-bit float ZIP, PFM little-endian, HDR RLE.
+/// For other choices use [`encode_png16`], [`encode_jpeg`], [`encode_exr`].
+pub fn encode(img: &Image, format: Format) -> Result<Vec<u8>, ImageError> {
+    check_encodable(img, format)?;
+    match format {
+        Format::Png => png_jpeg::encode_png8(img),
+        Format::Jpeg => encode_jpeg(img, png_jpeg::DEFAULT_JPEG_QUALITY),
+        Format::Exr => encode_exr(img, &ExrOptions::default()),
+        Format::Pfm => pfm::encode(img),
+        Format::Hdr => hdr::encode(img),
+    }
+}
+
+/// Read an image file. The format comes from the extension; when the file's magic bytes name a
+/// different format the magic bytes win (a mislabelled file still reads), and a file without a
+/// known extension is identified by its magic bytes alone. Errors name `path`.
+pub fn read_image(path: &Path) -> Result<Image, ImageError> {
+    let bytes = std::fs::read(path).map_err(|source| ImageError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let format = match (Format::sniff(&bytes), Format::from_path(path)) {
+        (Some(sniffed), _) => sniffed,
+        (None, Some(by_ext)) => by_ext,
+        (None, None) => {
+            return Err(ImageError::UnsupportedFormat(
+                "unknown extension and unrecognised magic bytes".into(),
+            )
+            .at_path(path))
+        }
+    };
+    decode(&bytes, format).map_err(|e| e.at_path(path))
+}
+
+/// Write an image file in the format named by the extension of `path` (see [`encode`]).
+///
+/// The write is atomic: the bytes go to a temporary file in the same directory, are flushed to
+/// disk, and the temporary file is renamed over `path`. A reader never sees a partial file, and a
+/// crash leaves either the old file or the new one. Errors name `path`.
+pub fn write_image(path: &Path, img: &Image) -> Result<(), ImageError> {
+    let format = Format::from_path(path).ok_or_else(|| {
+        ImageError::UnsupportedFormat(format!(
+            "cannot tell the format from the extension (use one of {})",
+            Format::ALL.map(|f| f.extension()).join(", ")
+        ))
+        .at_path(path)
+    })?;
+    let bytes = encode(img, format).map_err(|e| e.at_path(path))?;
+    write_atomic(path, &bytes)
+}
+
+/// Write `bytes` to `path` atomically (temporary file in the same directory, fsync, rename).
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), ImageError> {
+    let io_err = |p: &Path| {
+        let p = p.to_path_buf();
+        move |source| ImageError::Io { path: p, source }
+    };
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let mut tmp = tempfile::Builder::new()
+        .prefix(".vfxgraph-tmp-")
+        .tempfile_in(dir)
+        .map_err(io_err(dir))?;
+    tmp.write_all(bytes).map_err(io_err(path))?;
+    tmp.as_file().sync_all().map_err(io_err(path))?;
+    tmp.persist(path).map_err(|e| ImageError::Io {
+        path: path.to_path_buf(),
+        source: e.error,
+    })?;
+    Ok(())
+}
+
+/// Reject images no encoder can take (channel counts outside 1–4, data length mismatch).
+fn check_encodable(img: &Image, format: Format) -> Result<(), ImageError> {
+    let n = crate::image::sample_count(img.width, img.height, img.channels)
+        .map_err(|e| ImageError::encode(format, e.to_string()))?;
+    if img.data.len() != n {
+        return Err(ImageError::encode(
+            format,
+            format!(
+                "{}x{}x{} image holds {} samples",
+                img.width,
+                img.height,
+                img.channels,
+                img.data.len()
+            ),
+        ));
+    }
+    if img.is_empty() {
+        return Err(ImageError::encode(format, "the image has no pixels"));
+    }
+    Ok(())
+}
+
+/// Run a third-party decoder, turning a panic into [`ImageError::Decode`].
+pub(crate) fn guard<T>(
+    format: Format,
+    f: impl FnOnce() -> Result<T, ImageError>,
+) -> Result<T, ImageError> {
+    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)) {
+        Ok(r) => r,
+        Err(payload) => {
+            let msg = payload
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| payload.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "unknown panic".into());
+            Err(ImageError::decode(format, format!("decoder failed: {msg}")))
+        }
+    }
+}
+
+/// Read a big- or little-endian `f32` from 4 bytes.
+pub(crate) fn f32_from(bytes: [u8; 4], little_endian: bool) -> f32 {
+    if little_endian {
+        f32::from_le_bytes(bytes)
+    } else {
+        f32::from_be_bytes(bytes)
+    }
+}

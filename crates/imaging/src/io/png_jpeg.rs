@@ -1,0 +1,397 @@
+//! PNG (ISO/IEC 15948) and JPEG (ISO/IEC 10918-1) through the `image` crate.
+//!
+//! Decoding: 8- and 16-bit gray, gray + alpha, RGB and RGBA. The colour samples are taken to be
+//! sRGB-encoded (the web's and the book's assumption; embedded gAMA/iCCP chunks are ignored) and
+//! are decoded to linear light with the IEC 61966-2-1 curve; alpha is linear coverage and is only
+//! normalised to [0, 1]. Gray + alpha becomes RGBA (the gray replicated), so decoded images have
+//! 1, 3 or 4 channels.
+//!
+//! Encoding: linear light → sRGB 8-bit (or 16-bit PNG with [`encode_png16`]), clamped to [0, 1]
+//! with NaN → 0; alpha is quantised without the curve. JPEG cannot store alpha: it is dropped.
+
+use std::io::Cursor;
+
+use image::{DynamicImage, ExtendedColorType, ImageEncoder, ImageFormat, ImageReader, Limits};
+
+use super::{check_encodable, guard, Format};
+use crate::color::{
+    linear_to_srgb16, linear_to_srgb8, srgb16_to_linear, srgb8_to_linear, unit_to_u16, unit_to_u8,
+};
+use crate::error::ImageError;
+use crate::image::{sample_count, Image, MAX_SAMPLES};
+
+/// JPEG quality used by [`super::encode`].
+pub const DEFAULT_JPEG_QUALITY: u8 = 95;
+
+/// Decode PNG or JPEG bytes (`format` must be [`Format::Png`] or [`Format::Jpeg`]).
+pub fn decode(bytes: &[u8], format: Format) -> Result<Image, ImageError> {
+    let image_format = match format {
+        Format::Png => ImageFormat::Png,
+        Format::Jpeg => ImageFormat::Jpeg,
+        other => {
+            return Err(ImageError::UnsupportedFormat(format!(
+                "{other} is not decoded by the PNG/JPEG codec"
+            )))
+        }
+    };
+    let dynamic = guard(format, || {
+        let mut reader = ImageReader::with_format(Cursor::new(bytes), image_format);
+        let mut limits = Limits::default();
+        // 16-bit RGBA: 8 bytes a pixel in the decoder's buffer, 16 in ours.
+        limits.max_alloc = Some((MAX_SAMPLES as u64) * 2);
+        reader.limits(limits);
+        reader
+            .decode()
+            .map_err(|e| ImageError::decode(format, e.to_string()))
+    })?;
+    let (w, h) = (dynamic.width() as usize, dynamic.height() as usize);
+    sample_count(w, h, 4)?;
+    let img = match dynamic {
+        DynamicImage::ImageLuma8(b) => convert(w, h, 1, b.as_raw(), srgb8_to_linear, |_| 0.0),
+        DynamicImage::ImageRgb8(b) => convert(w, h, 3, b.as_raw(), srgb8_to_linear, |_| 0.0),
+        DynamicImage::ImageRgba8(b) => {
+            convert(w, h, 4, b.as_raw(), srgb8_to_linear, |a| a as f32 / 255.0)
+        }
+        DynamicImage::ImageLumaA8(b) => {
+            gray_alpha(w, h, b.as_raw(), srgb8_to_linear, |a| a as f32 / 255.0)
+        }
+        DynamicImage::ImageLuma16(b) => convert(w, h, 1, b.as_raw(), srgb16_to_linear, |_| 0.0),
+        DynamicImage::ImageRgb16(b) => convert(w, h, 3, b.as_raw(), srgb16_to_linear, |_| 0.0),
+        DynamicImage::ImageRgba16(b) => convert(w, h, 4, b.as_raw(), srgb16_to_linear, |a| {
+            a as f32 / 65535.0
+        }),
+        DynamicImage::ImageLumaA16(b) => {
+            gray_alpha(w, h, b.as_raw(), srgb16_to_linear, |a| a as f32 / 65535.0)
+        }
+        other => {
+            // Float or future layouts: values are display-referred in [0, 1], so sRGB-decode.
+            let b = other.to_rgba32f();
+            convert(w, h, 4, b.as_raw(), crate::color::srgb_to_linear, |a| a)
+        }
+    };
+    Ok(img)
+}
+
+/// Convert interleaved codes with `channels` channels: the last channel of a 4-channel layout
+/// is alpha (`alpha`), the others colour (`color`).
+fn convert<T: Copy + Sync>(
+    w: usize,
+    h: usize,
+    channels: usize,
+    raw: &[T],
+    color: impl Fn(T) -> f32,
+    alpha: impl Fn(T) -> f32,
+) -> Image {
+    let data = raw
+        .iter()
+        .enumerate()
+        .map(|(i, &v)| {
+            if channels == 4 && i % 4 == 3 {
+                alpha(v)
+            } else {
+                color(v)
+            }
+        })
+        .collect();
+    Image {
+        width: w,
+        height: h,
+        channels,
+        data,
+    }
+}
+
+/// Gray + alpha codes → RGBA.
+fn gray_alpha<T: Copy>(
+    w: usize,
+    h: usize,
+    raw: &[T],
+    color: impl Fn(T) -> f32,
+    alpha: impl Fn(T) -> f32,
+) -> Image {
+    let mut data = Vec::with_capacity(w * h * 4);
+    for p in raw.chunks_exact(2) {
+        let g = color(p[0]);
+        data.extend_from_slice(&[g, g, g, alpha(p[1])]);
+    }
+    Image {
+        width: w,
+        height: h,
+        channels: 4,
+        data,
+    }
+}
+
+fn dims_u32(img: &Image, format: Format) -> Result<(u32, u32), ImageError> {
+    match (u32::try_from(img.width), u32::try_from(img.height)) {
+        (Ok(w), Ok(h)) => Ok((w, h)),
+        _ => Err(ImageError::encode(format, "dimensions exceed 2^32 - 1")),
+    }
+}
+
+/// Quantise to 8-bit codes: colour through the sRGB curve, alpha linearly.
+fn codes8(img: &Image, keep_alpha: bool) -> (Vec<u8>, usize) {
+    let cc = img.color_channels();
+    let out_ch = if keep_alpha && img.has_alpha() {
+        cc + 1
+    } else {
+        cc
+    };
+    let mut out = Vec::with_capacity(img.pixel_count() * out_ch);
+    for p in img.data.chunks_exact(img.channels) {
+        out.extend(p[..cc].iter().map(|&v| linear_to_srgb8(v)));
+        if out_ch > cc {
+            out.push(unit_to_u8(p[cc]));
+        }
+    }
+    (out, out_ch)
+}
+
+fn color_type8(channels: usize) -> ExtendedColorType {
+    match channels {
+        1 => ExtendedColorType::L8,
+        2 => ExtendedColorType::La8,
+        3 => ExtendedColorType::Rgb8,
+        _ => ExtendedColorType::Rgba8,
+    }
+}
+
+/// Encode as an 8-bit sRGB PNG (gray, gray + alpha, RGB or RGBA as the image is).
+pub fn encode_png8(img: &Image) -> Result<Vec<u8>, ImageError> {
+    check_encodable(img, Format::Png)?;
+    let (w, h) = dims_u32(img, Format::Png)?;
+    let (codes, ch) = codes8(img, true);
+    let mut out = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut out)
+        .write_image(&codes, w, h, color_type8(ch))
+        .map_err(|e| ImageError::encode(Format::Png, e.to_string()))?;
+    Ok(out)
+}
+
+/// Encode as a 16-bit sRGB PNG (gray, gray + alpha, RGB or RGBA as the image is): the sRGB curve
+/// with 65536 levels, for linear data that would band at 8 bits.
+pub fn encode_png16(img: &Image) -> Result<Vec<u8>, ImageError> {
+    check_encodable(img, Format::Png)?;
+    let (w, h) = dims_u32(img, Format::Png)?;
+    let cc = img.color_channels();
+    let mut bytes = Vec::with_capacity(img.data.len() * 2);
+    for p in img.data.chunks_exact(img.channels) {
+        for &v in &p[..cc] {
+            bytes.extend_from_slice(&linear_to_srgb16(v).to_ne_bytes());
+        }
+        if img.has_alpha() {
+            bytes.extend_from_slice(&unit_to_u16(p[cc]).to_ne_bytes());
+        }
+    }
+    let color = match img.channels {
+        1 => ExtendedColorType::L16,
+        2 => ExtendedColorType::La16,
+        3 => ExtendedColorType::Rgb16,
+        _ => ExtendedColorType::Rgba16,
+    };
+    let mut out = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut out)
+        .write_image(&bytes, w, h, color)
+        .map_err(|e| ImageError::encode(Format::Png, e.to_string()))?;
+    Ok(out)
+}
+
+/// Encode as a baseline 8-bit sRGB JPEG of the given quality (1–100), gray or RGB; alpha is
+/// dropped (JPEG has no alpha channel).
+pub fn encode_jpeg(img: &Image, quality: u8) -> Result<Vec<u8>, ImageError> {
+    check_encodable(img, Format::Jpeg)?;
+    let (w, h) = dims_u32(img, Format::Jpeg)?;
+    if w > 65535 || h > 65535 {
+        return Err(ImageError::encode(
+            Format::Jpeg,
+            format!("{w}x{h} exceeds JPEG's 65535x65535 limit"),
+        ));
+    }
+    let (codes, ch) = codes8(img, false);
+    let mut out = Vec::new();
+    image::codecs::jpeg::JpegEncoder::new_with_quality(&mut out, quality.clamp(1, 100))
+        .write_image(&codes, w, h, color_type8(ch))
+        .map_err(|e| ImageError::encode(Format::Jpeg, e.to_string()))?;
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::color::{linear_to_srgb, srgb_to_linear};
+    use crate::io::{decode as decode_any, encode as encode_any};
+
+    /// A horizontal and vertical gradient, distinct in every channel, in linear light.
+    fn gradient(w: usize, h: usize, ch: usize) -> Image {
+        Image::from_fn(w, h, ch, |x, y, c| {
+            let v = (x as f32 / (w - 1) as f32) * 0.6 + (y as f32 / (h - 1) as f32) * 0.3;
+            (v + 0.03 * c as f32).min(1.0)
+        })
+    }
+
+    /// The largest error of 8-bit sRGB quantisation at linear value v (half a code, through the
+    /// derivative of the decoding curve), plus slack.
+    fn srgb8_tolerance(v: f32) -> f32 {
+        let s = linear_to_srgb(v);
+        (srgb_to_linear((s + 0.6 / 255.0).min(1.0)) - v).abs() + 1e-6
+    }
+
+    #[test]
+    fn png8_round_trip_all_layouts() {
+        for ch in 1..=4 {
+            let img = gradient(17, 9, ch);
+            let back = decode_any(&encode_any(&img, Format::Png).unwrap(), Format::Png).unwrap();
+            let expect = if ch == 2 { img.to_rgba() } else { img.clone() };
+            assert_eq!(
+                (back.width, back.height, back.channels),
+                (17, 9, expect.channels)
+            );
+            for (i, (&a, &b)) in expect.data.iter().zip(&back.data).enumerate() {
+                let is_alpha = expect.has_alpha() && i % expect.channels == expect.channels - 1;
+                let tol = if is_alpha {
+                    0.5 / 255.0 + 1e-6
+                } else {
+                    srgb8_tolerance(a)
+                };
+                assert!((a - b).abs() <= tol, "ch {ch} sample {i}: {a} vs {b}");
+            }
+            // Orientation: (0, 0) is the top-left, the darkest corner of the gradient.
+            assert!(back.get(0, 0, 0) < back.get(16, 0, 0));
+            assert!(back.get(0, 0, 0) < back.get(0, 8, 0));
+        }
+    }
+
+    #[test]
+    fn png16_round_trip_is_fine() {
+        for ch in [1, 2, 3, 4] {
+            let img = gradient(31, 7, ch);
+            let back = decode(&encode_png16(&img).unwrap(), Format::Png).unwrap();
+            let expect = if ch == 2 { img.to_rgba() } else { img.clone() };
+            let err = expect.max_abs_diff(&back).unwrap();
+            assert!(err < 3e-5, "ch {ch}: max error {err}");
+            assert_eq!(back.get(0, 0, 0), expect.get(0, 0, 0).min(1.0));
+        }
+    }
+
+    #[test]
+    fn png_known_values_and_clamping() {
+        // 8-bit sRGB 128 must decode to srgb_to_linear(128/255) exactly.
+        let img = Image::from_vec(
+            4,
+            1,
+            1,
+            vec![srgb_to_linear(128.0 / 255.0), -3.0, 9.0, f32::NAN],
+        )
+        .unwrap();
+        let back = decode(&encode_png8(&img).unwrap(), Format::Png).unwrap();
+        assert_eq!(back.data[0], srgb_to_linear(128.0 / 255.0));
+        assert_eq!(back.data[1], 0.0, "negative clamps to 0");
+        assert_eq!(back.data[2], 1.0, "above 1 clamps to 1");
+        assert_eq!(back.data[3], 0.0, "NaN becomes 0");
+        // Alpha is linear: 0.5 → code 128 → 128/255, not curve-decoded.
+        let rgba = Image::from_vec(1, 1, 4, vec![0.2, 0.2, 0.2, 0.5]).unwrap();
+        let back = decode(&encode_png8(&rgba).unwrap(), Format::Png).unwrap();
+        assert_eq!(back.data[3], 128.0 / 255.0);
+    }
+
+    #[test]
+    fn jpeg_round_trip_within_quantisation() {
+        let img = gradient(64, 48, 3);
+        let bytes = encode_any(&img, Format::Jpeg).unwrap();
+        assert_eq!(Format::sniff(&bytes), Some(Format::Jpeg));
+        let back = decode(&bytes, Format::Jpeg).unwrap();
+        assert_eq!((back.width, back.height, back.channels), (64, 48, 3));
+        // Compare in the encoded (sRGB) domain, where JPEG's error is roughly uniform. Chroma is
+        // subsampled 2x2, so single samples at colour edges may be off by several codes; the mean
+        // error of a smooth gradient at quality 95 stays below a code.
+        let mut sum = 0.0;
+        let mut max = 0.0f32;
+        for (&a, &b) in img.data.iter().zip(&back.data) {
+            let e = (linear_to_srgb(a) - linear_to_srgb(b)).abs() * 255.0;
+            sum += e;
+            max = max.max(e);
+        }
+        let mean = sum / img.data.len() as f32;
+        assert!(mean < 1.0, "mean error {mean} codes");
+        assert!(max < 12.0, "max error {max} codes");
+        assert!(
+            back.get(0, 0, 0) < back.get(63, 47, 0),
+            "top-left is darkest"
+        );
+        // Alpha is dropped; gray stays gray.
+        let rgba = gradient(16, 16, 4);
+        assert_eq!(
+            decode(&encode_any(&rgba, Format::Jpeg).unwrap(), Format::Jpeg)
+                .unwrap()
+                .channels,
+            3
+        );
+        let gray = gradient(16, 16, 1);
+        assert_eq!(
+            decode(&encode_any(&gray, Format::Jpeg).unwrap(), Format::Jpeg)
+                .unwrap()
+                .channels,
+            1
+        );
+    }
+
+    #[test]
+    fn truncated_png_and_jpeg_are_errors() {
+        let img = gradient(40, 30, 4);
+        // PNG: every cut that loses pixel data is an error. (A PNG missing only its 12-byte IEND
+        // chunk still holds every pixel and decodes.)
+        let png = encode_any(&img, Format::Png).unwrap();
+        for len in (0..png.len() - 12).step_by(5) {
+            assert!(
+                decode(&png[..len], Format::Png).is_err(),
+                "PNG cut at {len}"
+            );
+        }
+        // JPEG: like libjpeg, the decoder pads a stream cut inside the entropy-coded scan (with a
+        // warning, gray pixels), so only cuts before the scan must fail; later cuts must simply
+        // not panic.
+        let jpeg = encode_any(&img, Format::Jpeg).unwrap();
+        let sos = jpeg.windows(2).position(|w| w == [0xFF, 0xDA]).unwrap();
+        for len in 0..jpeg.len() {
+            let r = decode(&jpeg[..len], Format::Jpeg);
+            if len <= sos + 2 {
+                assert!(r.is_err(), "JPEG cut at {len} (scan at {sos})");
+            }
+        }
+        // Garbage after a valid magic number.
+        for (format, bytes) in [(Format::Png, &png), (Format::Jpeg, &jpeg)] {
+            let mut junk = bytes[..8].to_vec();
+            junk.extend(std::iter::repeat_n(0xAB, 200));
+            assert!(decode(&junk, format).is_err());
+        }
+    }
+
+    #[test]
+    fn huge_png_header_is_rejected_without_allocating() {
+        // A PNG header claiming 100000 x 100000 RGBA16 (80 GB) with no data.
+        let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
+        let mut ihdr = b"IHDR".to_vec();
+        ihdr.extend(100_000u32.to_be_bytes());
+        ihdr.extend(100_000u32.to_be_bytes());
+        ihdr.extend([16, 6, 0, 0, 0]);
+        png.extend(13u32.to_be_bytes());
+        png.extend(&ihdr);
+        png.extend(crc32(&ihdr).to_be_bytes());
+        assert!(decode(&png, Format::Png).is_err());
+    }
+
+    fn crc32(bytes: &[u8]) -> u32 {
+        let mut crc = 0xFFFF_FFFFu32;
+        for &b in bytes {
+            crc ^= b as u32;
+            for _ in 0..8 {
+                crc = if crc & 1 != 0 {
+                    (crc >> 1) ^ 0xEDB8_8320
+                } else {
+                    crc >> 1
+                };
+            }
+        }
+        !crc
+    }
+}
