@@ -612,6 +612,56 @@ mod tests {
         assert_eq!(img.data, expect);
     }
 
+    #[test]
+    fn multipart_picks_the_first_part_with_rgb() {
+        let plane = |v: f32| FlatSamples::F32(vec![v; 6]);
+        let layer = |name: &str, channels: &[(&str, f32)]| {
+            let list = channels
+                .iter()
+                .map(|&(c, v)| AnyChannel::new(c, plane(v)))
+                .collect::<Vec<_>>();
+            Layer::new(
+                (3, 2),
+                LayerAttributes::named(name),
+                Encoding::SMALL_LOSSLESS,
+                AnyChannels::sort(SmallVec::from_vec(list)),
+            )
+        };
+        let write = |layers: Vec<Layer<AnyChannels<FlatSamples>>>| {
+            let attributes = exr::meta::header::ImageAttributes::new(
+                exr::meta::attribute::IntegerBounds::new((0, 0), (3, 2)),
+            );
+            let image = exr::image::Image::from_layers(attributes, SmallVec::from_vec(layers));
+            let mut bytes = Vec::new();
+            image.write().to_buffered(Cursor::new(&mut bytes)).unwrap();
+            bytes
+        };
+        // Part 1 has only depth, part 2 has colour + alpha: part 2 is chosen.
+        let bytes = write(vec![
+            layer("depth", &[("Z", 9.0)]),
+            layer("beauty", &[("R", 1.0), ("G", 2.0), ("B", 3.0), ("A", 0.5)]),
+        ]);
+        let img = decode(&bytes).unwrap();
+        assert_eq!(img.channels, 4);
+        assert_eq!(img.pixel(2, 1), &[1.0, 2.0, 3.0, 0.5]);
+        // No part has RGB: the first part's Y (+A, as RGBA).
+        let bytes = write(vec![
+            layer("luma", &[("Y", 0.25), ("A", 1.0)]),
+            layer("depth", &[("Z", 9.0)]),
+        ]);
+        assert_eq!(
+            decode(&bytes).unwrap().pixel(0, 0),
+            &[0.25, 0.25, 0.25, 1.0]
+        );
+        // Neither: the first part's first channel.
+        let bytes = write(vec![
+            layer("depth", &[("Z", 9.0)]),
+            layer("n", &[("N", 1.0)]),
+        ]);
+        let img = decode(&bytes).unwrap();
+        assert_eq!((img.channels, img.data[0]), (1, 9.0));
+    }
+
     /// A deep-scanline header as OpenEXR 2 writes it (no pixel data needed to detect it).
     fn deep_scanline_file() -> Vec<u8> {
         fn attr(out: &mut Vec<u8>, name: &str, ty: &str, value: &[u8]) {
