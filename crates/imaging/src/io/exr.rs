@@ -137,6 +137,10 @@ pub fn decode(bytes: &[u8]) -> Result<Image, ImageError> {
             .all_channels()
             .all_layers()
             .all_attributes()
+            // Sequential decompression: exr's parallel mode runs blocks in `rayon::spawn`ed jobs
+            // of a pool it builds per file, where a decoder panic would abort the process rather
+            // than reach `guard`; vfxgraph parallelises across nodes and frames instead.
+            .non_parallel()
             .from_buffered(Cursor::new(bytes))
             .map_err(map_exr_error)
     })?;

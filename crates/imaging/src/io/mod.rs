@@ -405,4 +405,29 @@ mod tests {
             assert!(decode(&junk, f).is_err(), "{f} garbage");
         }
     }
+
+    #[test]
+    fn corrupted_bytes_never_panic() {
+        // Deterministic byte corruption (a 64-bit LCG): every decode returns Ok or Err.
+        let img = Image::from_fn(20, 12, 4, |x, y, c| (x + 2 * y + c) as f32 * 0.05);
+        let mut state = 0x9E37_79B9_7F4A_7C15u64;
+        let mut next = move || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (state >> 33) as usize
+        };
+        for f in Format::ALL {
+            let bytes = encode(&img, f).unwrap();
+            for _ in 0..300 {
+                let mut b = bytes.clone();
+                for _ in 0..1 + next() % 4 {
+                    let i = next() % b.len();
+                    b[i] = next() as u8;
+                }
+                let result = std::panic::catch_unwind(|| decode(&b, f).is_ok());
+                assert!(result.is_ok(), "{f}: decoder panicked on corrupted input");
+            }
+        }
+    }
 }
