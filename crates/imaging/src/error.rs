@@ -39,14 +39,10 @@ pub enum ImageError {
     #[error("OpenEXR deep data is not supported: {0}")]
     DeepData(String),
 
-    /// The image could not be encoded (for example a channel count the format cannot store).
-    #[error("cannot encode {format} image: {reason}")]
-    Encode {
-        /// The target format.
-        format: Format,
-        /// What went wrong, in words.
-        reason: String,
-    },
+    /// The image could not be encoded (for example a channel count the format cannot store);
+    /// the message names the format.
+    #[error("cannot encode image: {0}")]
+    Encode(String),
 
     /// Width, height or channel count are zero, do not match the data, or are too large.
     #[error("invalid image dimensions: {0}")]
@@ -91,9 +87,6 @@ impl ImageError {
     }
 
     pub(crate) fn encode(format: Format, reason: impl Into<String>) -> ImageError {
-        ImageError::Encode {
-            format,
-            reason: reason.into(),
-        }
+        ImageError::Encode(format!("{format}: {}", reason.into()))
     }
 }

@@ -78,7 +78,8 @@ impl Image {
         })
     }
 
-    /// An image whose sample `(x, y, c)` is `f(x, y, c)`.
+    /// An image whose sample `(x, y, c)` is `f(x, y, c)`. Panics on dimensions [`Image::new`]
+    /// rejects.
     pub fn from_fn(
         width: usize,
         height: usize,

@@ -14,6 +14,24 @@
 //!
 //! No function of this crate panics on the content of a file: malformed, truncated or huge inputs
 //! give an [`ImageError`].
+//!
+//! ```
+//! use vfxgraph_imaging::{decode, encode, tonemap, Format, Image, Operator};
+//!
+//! // A 2x1 HDR image: a dim and a very bright pixel, in linear light.
+//! let hdr = Image::from_vec(2, 1, 3, vec![0.1, 0.1, 0.1, 40.0, 20.0, 10.0])?;
+//! let exr = encode(&hdr, Format::Exr)?; // 32-bit float, ZIP: exact
+//! assert_eq!(decode(&exr, Format::Exr)?, hdr);
+//!
+//! // For display: Reinhard (L / (1 + L) on luminance) one stop brighter, then 8-bit sRGB PNG.
+//! let ldr = tonemap(&hdr, Operator::Reinhard, 1.0);
+//! assert!(ldr.data.iter().all(|v| (0.0..=1.0).contains(v)));
+//! let png = encode(&ldr, Format::Png)?;
+//! assert_eq!(Format::sniff(&png), Some(Format::Png));
+//! # Ok::<(), vfxgraph_imaging::ImageError>(())
+//! ```
+
+#![warn(missing_docs)]
 
 pub mod color;
 mod error;

@@ -9,7 +9,8 @@ use crate::image::Image;
 const LARGE: f32 = 1e30;
 
 /// Photographic exposure: multiply the colour channels by `2^stops` (alpha untouched).
-/// `+1` doubles, `-1` halves. NaN and infinite samples stay as they are.
+/// `+1` doubles, `-1` halves. NaN and infinite samples stay as they are (and a non-finite
+/// `stops` gives non-finite samples: validate parameters before calling).
 pub fn exposure(img: &Image, stops: f32) -> Image {
     let k = stops.exp2();
     img.map_color(|v| v * k)
@@ -67,7 +68,8 @@ impl std::str::FromStr for Operator {
 /// The result is still **linear light**, every sample in [0, 1] and finite, ready for an sRGB
 /// encoder ([`crate::io::encode`] to PNG/JPEG). Non-finite input is made finite first: NaN → 0,
 /// +∞ → a very large value (so it maps to white), negative values and −∞ → 0 (a display emits no
-/// negative light). Alpha is not exposed or tone mapped, only clamped to [0, 1] (NaN → 0).
+/// negative light). A non-finite `exposure_stops` is treated as 0. Alpha is not exposed or tone
+/// mapped, only clamped to [0, 1] (NaN → 0).
 pub fn tonemap(img: &Image, op: Operator, exposure_stops: f32) -> Image {
     let k = if exposure_stops.is_finite() {
         exposure_stops.exp2()

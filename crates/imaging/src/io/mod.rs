@@ -255,3 +255,179 @@ pub(crate) fn f32_from(bytes: [u8; 4], little_endian: bool) -> f32 {
         f32::from_be_bytes(bytes)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::PathBuf;
+
+    fn gradient() -> Image {
+        Image::from_fn(24, 16, 3, |x, y, c| {
+            (x as f32 / 23.0) * 0.5 + (y as f32 / 15.0) * 0.4 + c as f32 * 0.05
+        })
+    }
+
+    #[test]
+    fn format_from_path_sniff_and_extension_agree() {
+        for f in Format::ALL {
+            let p = PathBuf::from(format!("dir.x/frame.0001.{}", f.extension()));
+            assert_eq!(Format::from_path(&p), Some(f));
+            let bytes = encode(&gradient(), f).unwrap();
+            assert_eq!(Format::sniff(&bytes), Some(f), "{f}");
+        }
+        assert_eq!(Format::from_path(Path::new("A.JPEG")), Some(Format::Jpeg));
+        assert_eq!(Format::from_path(Path::new("a.Hdr")), Some(Format::Hdr));
+        assert_eq!(Format::from_path(Path::new("a.tif")), None);
+        assert_eq!(Format::from_path(Path::new("exr")), None);
+        assert_eq!(Format::sniff(b"Pf\n1 1\n-1\n"), Some(Format::Pfm));
+        assert_eq!(Format::sniff(b"#?RGBE\n"), Some(Format::Hdr));
+        assert_eq!(Format::sniff(b"PFX"), None);
+        assert_eq!(Format::sniff(b""), None);
+        assert_eq!(Format::sniff(&[0xFF, 0xD8]), None);
+    }
+
+    #[test]
+    fn write_then_read_every_format_through_files() {
+        let dir = tempfile::tempdir().unwrap();
+        let img = gradient();
+        for f in Format::ALL {
+            let path = dir.path().join(format!("out.{}", f.extension()));
+            write_image(&path, &img).unwrap();
+            let back = read_image(&path).unwrap();
+            assert_eq!((back.width, back.height, back.channels), (24, 16, 3), "{f}");
+            let tol = match f {
+                Format::Exr | Format::Pfm => 0.0,
+                Format::Hdr => 0.01,
+                Format::Png => 0.005,
+                Format::Jpeg => 0.03,
+            };
+            let err = img.max_abs_diff(&back).unwrap();
+            assert!(err <= tol, "{f}: error {err}");
+            // Orientation: (0, 0) is the top-left, darkest pixel.
+            assert!(
+                back.get(0, 0, 0) < back.get(23, 0, 0) && back.get(0, 0, 0) < back.get(0, 15, 0)
+            );
+        }
+        // Only the written files remain: no temporary files left behind.
+        let names: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().into_string().unwrap())
+            .collect();
+        assert_eq!(names.len(), Format::ALL.len(), "{names:?}");
+    }
+
+    #[test]
+    fn write_replaces_existing_file_atomically() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a.pfm");
+        write_image(&path, &gradient()).unwrap();
+        let other = Image::new(2, 2, 1);
+        write_image(&path, &other).unwrap();
+        assert_eq!(read_image(&path).unwrap(), other);
+    }
+
+    #[test]
+    fn magic_bytes_win_over_a_wrong_extension() {
+        let dir = tempfile::tempdir().unwrap();
+        let exr_bytes = encode(&gradient(), Format::Exr).unwrap();
+        let mislabelled = dir.path().join("really_exr.png");
+        std::fs::write(&mislabelled, &exr_bytes).unwrap();
+        assert_eq!(read_image(&mislabelled).unwrap(), gradient());
+        let no_ext = dir.path().join("noext");
+        std::fs::write(&no_ext, &exr_bytes).unwrap();
+        assert_eq!(read_image(&no_ext).unwrap(), gradient());
+    }
+
+    #[test]
+    fn errors_name_the_path() {
+        let dir = tempfile::tempdir().unwrap();
+        // Missing file.
+        let missing = dir.path().join("missing.exr");
+        let e = read_image(&missing).unwrap_err();
+        assert!(matches!(e, ImageError::Io { .. }));
+        assert!(e.to_string().contains("missing.exr"), "{e}");
+        // Corrupt content.
+        let bad = dir.path().join("bad.pfm");
+        std::fs::write(&bad, b"PF\n2 2\n-1\n\x00\x01").unwrap();
+        let e = read_image(&bad).unwrap_err();
+        assert!(e.to_string().contains("bad.pfm"), "{e}");
+        assert!(
+            matches!(
+                e.kind(),
+                ImageError::Decode {
+                    format: Format::Pfm,
+                    ..
+                }
+            ),
+            "{e:?}"
+        );
+        // Unknown extension and unknown content.
+        let unknown = dir.path().join("notes.txt");
+        std::fs::write(&unknown, b"hello").unwrap();
+        let e = read_image(&unknown).unwrap_err();
+        assert!(matches!(e.kind(), ImageError::UnsupportedFormat(_)));
+        assert!(e.to_string().contains("notes.txt"), "{e}");
+        // Writing: unknown extension, missing directory.
+        let e = write_image(&dir.path().join("out.bmp"), &gradient()).unwrap_err();
+        assert!(matches!(e.kind(), ImageError::UnsupportedFormat(_)));
+        assert!(e.to_string().contains("out.bmp"), "{e}");
+        let e = write_image(&dir.path().join("no/such/dir/out.png"), &gradient()).unwrap_err();
+        assert!(matches!(e, ImageError::Io { .. }), "{e:?}");
+        assert!(e.to_string().contains("no/such/dir"), "{e}");
+        // Writing an image that no format can hold.
+        let broken = Image {
+            width: 3,
+            height: 3,
+            channels: 3,
+            data: vec![0.0; 5],
+        };
+        let e = write_image(&dir.path().join("broken.exr"), &broken).unwrap_err();
+        assert!(matches!(e.kind(), ImageError::Encode(_)), "{e:?}");
+        assert!(!dir.path().join("broken.exr").exists());
+    }
+
+    #[test]
+    fn truncated_files_of_every_format_are_errors_not_panics() {
+        let img = Image::from_fn(33, 21, 4, |x, y, c| (x * y + c) as f32 * 0.01);
+        for f in Format::ALL {
+            let bytes = encode(&img, f).unwrap();
+            for frac in [0.0, 0.01, 0.1, 0.25, 0.5, 0.75, 0.9] {
+                let len = (bytes.len() as f64 * frac) as usize;
+                let r = decode(&bytes[..len], f);
+                // JPEG decoders pad a cut entropy-coded scan (see png_jpeg's tests).
+                if f != Format::Jpeg || frac < 0.1 {
+                    assert!(r.is_err(), "{f} cut at {len} of {}", bytes.len());
+                }
+            }
+            // Random-looking garbage behind each magic number.
+            let mut junk = bytes[..4.min(bytes.len())].to_vec();
+            junk.extend((0..500u32).map(|i| (i.wrapping_mul(2_654_435_761) >> 13) as u8));
+            assert!(decode(&junk, f).is_err(), "{f} garbage");
+        }
+    }
+
+    #[test]
+    fn corrupted_bytes_never_panic() {
+        // Deterministic byte corruption (a 64-bit LCG): every decode returns Ok or Err.
+        let img = Image::from_fn(20, 12, 4, |x, y, c| (x + 2 * y + c) as f32 * 0.05);
+        let mut state = 0x9E37_79B9_7F4A_7C15u64;
+        let mut next = move || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (state >> 33) as usize
+        };
+        for f in Format::ALL {
+            let bytes = encode(&img, f).unwrap();
+            for _ in 0..300 {
+                let mut b = bytes.clone();
+                for _ in 0..1 + next() % 4 {
+                    let i = next() % b.len();
+                    b[i] = next() as u8;
+                }
+                let result = std::panic::catch_unwind(|| decode(&b, f).is_ok());
+                assert!(result.is_ok(), "{f}: decoder panicked on corrupted input");
+            }
+        }
+    }
+}
