@@ -1,1 +1,417 @@
-fn main() {}
+//! `vfxgraph`: the command line. It parses arguments and wires the engine to the node catalog;
+//! nothing algorithmic lives here.
+
+mod bench;
+mod progress;
+mod report;
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use clap::{Args, Parser, Subcommand};
+use vfxgraph_engine::exec::{self, default_cache_dir, RunOptions};
+use vfxgraph_engine::graph::{self, LoadError, Overrides};
+use vfxgraph_engine::store::Store;
+use vfxgraph_engine::{Graph, Registry};
+
+/// vfxgraph — a dataflow node-graph engine for visual effects.
+///
+/// Graphs are YAML files of typed nodes; `run` executes them in parallel and caches every
+/// node's outputs by content, so a second run only recomputes what changed.
+#[derive(Parser)]
+#[command(name = "vfxgraph", version, about, long_about = None)]
+struct Cli {
+    /// More log output (-v info, -vv debug).
+    #[arg(short, long, action = clap::ArgAction::Count, global = true)]
+    verbose: u8,
+    /// Only errors; no progress bars or summary table.
+    #[arg(short, long, global = true)]
+    quiet: bool,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Run a graph (cached nodes are not recomputed).
+    Run {
+        #[command(flatten)]
+        graph: GraphArgs,
+        #[command(flatten)]
+        cache: CacheArgs,
+        /// Worker threads (default: one per core).
+        #[arg(short, long)]
+        jobs: Option<usize>,
+        /// Run NODE even if it is cached (repeatable).
+        #[arg(long, value_name = "NODE")]
+        force: Vec<String>,
+        /// Print the per-instance report as JSON on stdout.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Validate a graph and report every problem with its line and column.
+    Check {
+        #[command(flatten)]
+        graph: GraphArgs,
+    },
+    /// Show what a run would do: per node instance, cached / run / blocked and why.
+    Plan {
+        #[command(flatten)]
+        graph: GraphArgs,
+        #[command(flatten)]
+        cache: CacheArgs,
+        /// Treat NODE as not cached (repeatable).
+        #[arg(long, value_name = "NODE")]
+        force: Vec<String>,
+        /// Print the plan as JSON on stdout.
+        #[arg(long)]
+        json: bool,
+    },
+    /// List the node types.
+    Nodes,
+    /// Describe a node type: ports, params, defaults, ranges.
+    Describe {
+        /// The node type.
+        #[arg(value_name = "TYPE")]
+        node_type: String,
+    },
+    /// Print the graph in Graphviz dot, coloured by plan (green cached, orange run, grey blocked).
+    Dot {
+        #[command(flatten)]
+        graph: GraphArgs,
+        #[command(flatten)]
+        cache: CacheArgs,
+    },
+    /// Inspect or clean the cache.
+    Cache {
+        #[command(subcommand)]
+        action: CacheAction,
+    },
+    /// Benchmarks.
+    Bench {
+        #[command(subcommand)]
+        what: bench::BenchCommand,
+    },
+}
+
+#[derive(Args)]
+struct GraphArgs {
+    /// The graph file (YAML).
+    graph: PathBuf,
+    /// Override a parameter: node.param=value (repeatable).
+    #[arg(long = "set", value_name = "NODE.PARAM=VALUE")]
+    set: Vec<String>,
+    /// Override the frame range, e.g. 0..=239 or 1-10,15,20-40:2.
+    #[arg(long)]
+    frames: Option<String>,
+}
+
+#[derive(Args)]
+struct CacheArgs {
+    /// Cache folder (default: .vfxgraph/ beside the graph file).
+    #[arg(long, value_name = "DIR")]
+    cache: Option<PathBuf>,
+    /// Neither read nor write the cache.
+    #[arg(long)]
+    no_cache: bool,
+}
+
+#[derive(Args)]
+struct CacheLocation {
+    /// Cache folder.
+    #[arg(long, value_name = "DIR")]
+    cache: Option<PathBuf>,
+    /// A graph file whose default cache (.vfxgraph/ beside it) to use.
+    graph: Option<PathBuf>,
+}
+
+#[derive(Subcommand)]
+enum CacheAction {
+    /// List cached node instances, most recently used first.
+    Ls {
+        #[command(flatten)]
+        at: CacheLocation,
+    },
+    /// Disk usage, in total and by artifact type.
+    Du {
+        #[command(flatten)]
+        at: CacheLocation,
+    },
+    /// Remove unreferenced objects; with --max-size, also the least recently used entries.
+    Gc {
+        #[command(flatten)]
+        at: CacheLocation,
+        /// Size to shrink to, e.g. 500M, 2G, 100000 (bytes).
+        #[arg(long, value_parser = parse_size)]
+        max_size: Option<u64>,
+    },
+    /// Delete the whole cache.
+    Clear {
+        #[command(flatten)]
+        at: CacheLocation,
+    },
+}
+
+fn parse_size(s: &str) -> Result<u64, String> {
+    let s = s.trim();
+    let (num, mult) = match s.char_indices().find(|(_, c)| c.is_ascii_alphabetic()) {
+        Some((i, _)) => {
+            let unit = s[i..].to_ascii_uppercase();
+            let m: u64 = match unit.trim_end_matches("IB").trim_end_matches('B') {
+                "" => 1,
+                "K" => 1 << 10,
+                "M" => 1 << 20,
+                "G" => 1 << 30,
+                "T" => 1 << 40,
+                _ => return Err(format!("unknown size unit in `{s}` (use K, M, G, T)")),
+            };
+            (&s[..i], m)
+        }
+        None => (s, 1),
+    };
+    let n: f64 = num
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{s}` is not a size"))?;
+    if !(n >= 0.0 && n.is_finite()) {
+        return Err(format!("`{s}` is not a size"));
+    }
+    Ok((n * mult as f64) as u64)
+}
+
+/// Exit codes: 0 success, 1 a node failed, 2 the graph or the command line is wrong.
+const EXIT_FAILED: u8 = 1;
+const EXIT_INVALID: u8 = 2;
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    init_logging(cli.verbose, cli.quiet);
+    let registry = vfxgraph_nodes::registry();
+    match dispatch(cli, &registry) {
+        Ok(code) => ExitCode::from(code),
+        Err(msg) => {
+            eprintln!("error: {msg}");
+            ExitCode::from(EXIT_INVALID)
+        }
+    }
+}
+
+fn init_logging(verbose: u8, quiet: bool) {
+    let level = match (quiet, verbose) {
+        (true, _) => tracing::Level::ERROR,
+        (false, 0) => tracing::Level::WARN,
+        (false, 1) => tracing::Level::INFO,
+        (false, _) => tracing::Level::DEBUG,
+    };
+    tracing_subscriber::fmt()
+        .with_max_level(level)
+        .with_writer(std::io::stderr)
+        .with_target(false)
+        .without_time()
+        .init();
+}
+
+/// Loads a graph, printing its diagnostics on failure.
+fn load_graph(args: &GraphArgs, registry: &Registry) -> Result<Graph, u8> {
+    let overrides = Overrides {
+        set: args.set.clone(),
+        frames: args.frames.clone(),
+    };
+    match graph::load(&args.graph, registry, &overrides) {
+        Ok(g) => Ok(g),
+        Err(LoadError::Io { path, source }) => {
+            eprintln!("error: cannot read graph file {}: {source}", path.display());
+            Err(EXIT_INVALID)
+        }
+        Err(LoadError::Invalid(d)) => {
+            report::print_diagnostics(&d);
+            Err(EXIT_INVALID)
+        }
+    }
+}
+
+fn cache_dir(graph_file: &Path, args: &CacheArgs) -> Option<PathBuf> {
+    if args.no_cache {
+        None
+    } else {
+        Some(
+            args.cache
+                .clone()
+                .unwrap_or_else(|| default_cache_dir(graph_file)),
+        )
+    }
+}
+
+fn dispatch(cli: Cli, registry: &Registry) -> Result<u8, String> {
+    let quiet = cli.quiet;
+    match cli.command {
+        Command::Run {
+            graph,
+            cache,
+            jobs,
+            force,
+            json,
+        } => {
+            let g = match load_graph(&graph, registry) {
+                Ok(g) => g,
+                Err(code) => return Ok(code),
+            };
+            let opts = RunOptions {
+                jobs,
+                cache_dir: cache_dir(&graph.graph, &cache),
+                force,
+            };
+            let bars = progress::Bars::new(&g, quiet || json);
+            let rep = exec::run(&g, registry, &opts, &bars).map_err(|e| e.to_string())?;
+            bars.finish();
+            if json {
+                println!(
+                    "{}",
+                    serde_json::to_string_pretty(&rep).map_err(|e| e.to_string())?
+                );
+            } else {
+                report::print_failures(&rep);
+                if !quiet {
+                    report::print_table(&rep);
+                }
+            }
+            Ok(if rep.failed() { EXIT_FAILED } else { 0 })
+        }
+        Command::Check { graph } => match load_graph(&graph, registry) {
+            Ok(g) => {
+                if !quiet {
+                    let instances: usize = g
+                        .nodes
+                        .iter()
+                        .map(|n| if n.per_frame { g.frames.len() } else { 1 })
+                        .sum();
+                    println!(
+                        "{}: ok ({} nodes, {} instances, frames {})",
+                        graph.graph.display(),
+                        g.nodes.len(),
+                        instances,
+                        if g.frames.is_empty() {
+                            "none".to_string()
+                        } else {
+                            g.frames.to_string()
+                        }
+                    );
+                }
+                Ok(0)
+            }
+            Err(code) => Ok(code),
+        },
+        Command::Plan {
+            graph,
+            cache,
+            force,
+            json,
+        } => {
+            let g = match load_graph(&graph, registry) {
+                Ok(g) => g,
+                Err(code) => return Ok(code),
+            };
+            let opts = RunOptions {
+                jobs: None,
+                cache_dir: cache_dir(&graph.graph, &cache),
+                force,
+            };
+            let p = exec::plan(&g, &opts).map_err(|e| e.to_string())?;
+            if json {
+                println!(
+                    "{}",
+                    serde_json::to_string_pretty(&p).map_err(|e| e.to_string())?
+                );
+            } else {
+                report::print_plan(&p);
+            }
+            Ok(0)
+        }
+        Command::Nodes => {
+            report::print_nodes(registry);
+            Ok(0)
+        }
+        Command::Describe { node_type } => match registry.node(&node_type) {
+            Some(n) => {
+                report::print_describe(n.spec(), registry);
+                Ok(0)
+            }
+            None => Err(format!(
+                "unknown node type `{node_type}` (`vfxgraph nodes` lists them)"
+            )),
+        },
+        Command::Dot { graph, cache } => {
+            let g = match load_graph(&graph, registry) {
+                Ok(g) => g,
+                Err(code) => return Ok(code),
+            };
+            let opts = RunOptions {
+                jobs: None,
+                cache_dir: cache_dir(&graph.graph, &cache),
+                force: vec![],
+            };
+            let p = exec::plan(&g, &opts).map_err(|e| e.to_string())?;
+            print!("{}", report::dot(&g, &p));
+            Ok(0)
+        }
+        Command::Cache { action } => cache_command(action),
+        Command::Bench { what } => bench::run(what, registry),
+    }
+}
+
+fn open_cache(at: &CacheLocation) -> Result<Store, String> {
+    let dir = match (&at.cache, &at.graph) {
+        (Some(d), _) => d.clone(),
+        (None, Some(g)) => default_cache_dir(g),
+        (None, None) => PathBuf::from(".vfxgraph"),
+    };
+    if !dir.is_dir() {
+        return Err(format!("no cache at {}", dir.display()));
+    }
+    Store::open(&dir).map_err(|e| format!("cannot open cache {}: {e}", dir.display()))
+}
+
+fn cache_command(action: CacheAction) -> Result<u8, String> {
+    match action {
+        CacheAction::Ls { at } => {
+            let store = open_cache(&at)?;
+            report::print_cache_ls(&store.list());
+        }
+        CacheAction::Du { at } => {
+            let store = open_cache(&at)?;
+            report::print_cache_du(&store);
+        }
+        CacheAction::Gc { at, max_size } => {
+            let store = open_cache(&at)?;
+            let r = store.gc(max_size);
+            println!(
+                "removed {} entries and {} objects, freed {}; {} left",
+                r.actions_removed,
+                r.objects_removed,
+                report::human_bytes(r.bytes_freed),
+                report::human_bytes(r.bytes_left)
+            );
+        }
+        CacheAction::Clear { at } => {
+            let store = open_cache(&at)?;
+            store.clear().map_err(|e| e.to_string())?;
+            println!("cleared {}", store.root().display());
+        }
+    }
+    Ok(0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::parse_size;
+
+    #[test]
+    fn sizes() {
+        assert_eq!(parse_size("100"), Ok(100));
+        assert_eq!(parse_size("2K"), Ok(2048));
+        assert_eq!(parse_size("1.5M"), Ok(1_572_864));
+        assert_eq!(parse_size("1GiB"), Ok(1 << 30));
+        assert!(parse_size("3X").is_err());
+        assert!(parse_size("-1").is_err());
+    }
+}

@@ -218,17 +218,18 @@ impl fmt::Display for Report {
         if let Some(s) = self.diag.span {
             write!(f, ":{}:{}", s.line, s.col)?;
         }
-        write!(f, ": {}", self.diag.message)
+        write!(
+            f,
+            ": error[{}]: {}",
+            self.diag.kind.code(),
+            self.diag.message
+        )
     }
 }
 
 impl std::error::Error for Report {}
 
 impl miette::Diagnostic for Report {
-    fn code<'a>(&'a self) -> Option<Box<dyn fmt::Display + 'a>> {
-        Some(Box::new(self.diag.kind.code()))
-    }
-
     fn help<'a>(&'a self) -> Option<Box<dyn fmt::Display + 'a>> {
         self.diag
             .help

@@ -11,7 +11,8 @@
 //!
 //! Validation reports every problem at once, each at its file:line:column.
 
-use std::collections::{BTreeMap, HashMap};
+use std::cmp::Reverse;
+use std::collections::{BTreeMap, BinaryHeap, HashMap};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -609,7 +610,7 @@ pub fn parse(
             g.add_edge(e.from, i, ());
         }
     }
-    let mut sccs = tarjan_scc(&g);
+    let sccs = tarjan_scc(&g);
     let mut cyclic = vec![false; raws.len()];
     for scc in &sccs {
         let self_loop = scc.len() == 1 && g.contains_edge(scc[0], scc[0]);
@@ -633,9 +634,33 @@ pub fn parse(
             );
         }
     }
-    // tarjan_scc returns SCCs in reverse topological order.
-    sccs.reverse();
-    let order: Vec<usize> = sccs.into_iter().flatten().collect();
+    // Topological order that keeps the file's order where dependencies allow (Kahn's
+    // algorithm, always taking the earliest-declared ready node); nodes on cycles go last.
+    let order: Vec<usize> = {
+        let n = raws.len();
+        let mut indegree = vec![0usize; n];
+        let mut consumers: Vec<Vec<usize>> = vec![Vec::new(); n];
+        for (i, es) in edges.iter().enumerate() {
+            for (e, _) in es {
+                indegree[i] += 1;
+                consumers[e.from].push(i);
+            }
+        }
+        let mut ready: BinaryHeap<Reverse<usize>> =
+            (0..n).filter(|&i| indegree[i] == 0).map(Reverse).collect();
+        let mut order = Vec::with_capacity(n);
+        while let Some(Reverse(i)) = ready.pop() {
+            order.push(i);
+            for &c in &consumers[i] {
+                indegree[c] -= 1;
+                if indegree[c] == 0 {
+                    ready.push(Reverse(c));
+                }
+            }
+        }
+        order.extend((0..n).filter(|&i| cyclic[i]));
+        order
+    };
 
     // Per-frame resolution and type checks, in topological order.
     let mut per_frame = vec![false; raws.len()];

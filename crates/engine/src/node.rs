@@ -281,6 +281,16 @@ impl<'a> Context<'a> {
         resolve_path(self.graph_dir, self.params.str(param), self.frame)
     }
 
+    /// The name of the node's `i`-th declared input port (for nodes shared by several types).
+    pub fn input_port(&self, i: usize) -> &'static str {
+        self.spec.inputs[i].name
+    }
+
+    /// The name of the node's `i`-th declared output port.
+    pub fn output_port(&self, i: usize) -> &'static str {
+        self.spec.outputs[i].name
+    }
+
     /// The value on input `port`.
     pub fn input<T: ArtifactType>(&self, port: &str) -> Result<&T, NodeError> {
         self.input_opt(port)?

@@ -1,1 +1,44 @@
-//! vfxgraph-nodes
+//! # vfxgraph-nodes
+//!
+//! The node catalog. Each module is one family of nodes; each node is a thin adapter: it reads
+//! its params and inputs from the engine's [`Context`](vfxgraph_engine::Context), calls the
+//! algorithm crate, and sets its outputs. No algorithm lives here.
+//!
+//! [`registry`] returns every artifact and node type, for the CLI and for tests.
+
+pub mod artifacts;
+pub mod image_io;
+pub mod image_ops;
+
+use vfxgraph_engine::{Context, Node, NodeError, NodeSpec, Registry};
+
+/// A node type made of a spec and a plain function: every node of the catalog is one.
+pub struct FnNode {
+    spec: NodeSpec,
+    run: fn(&mut Context<'_>) -> Result<(), NodeError>,
+}
+
+impl FnNode {
+    /// Pairs a spec with its compute function.
+    pub fn new(spec: NodeSpec, run: fn(&mut Context<'_>) -> Result<(), NodeError>) -> Self {
+        FnNode { spec, run }
+    }
+}
+
+impl Node for FnNode {
+    fn spec(&self) -> &NodeSpec {
+        &self.spec
+    }
+    fn run(&self, ctx: &mut Context<'_>) -> Result<(), NodeError> {
+        (self.run)(ctx)
+    }
+}
+
+/// All artifact and node types of vfxgraph.
+pub fn registry() -> Registry {
+    let mut r = Registry::new();
+    artifacts::register(&mut r);
+    image_io::register(&mut r);
+    image_ops::register(&mut r);
+    r
+}

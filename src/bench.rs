@@ -1,0 +1,100 @@
+//! `vfxgraph bench …`: benchmarks that print their figures (and ratios against peers where a
+//! peer exists).
+
+use std::path::Path;
+use std::time::Instant;
+
+use clap::Subcommand;
+use vfxgraph_engine::exec::{self, Quiet, RunOptions};
+use vfxgraph_engine::graph::{self, Overrides};
+use vfxgraph_engine::{PlanStatus, Registry, Status};
+
+#[derive(Subcommand)]
+pub enum BenchCommand {
+    /// Plan + cache check of a generated, fully cached graph of N node instances
+    /// (goal: under 1 s for 10 000).
+    Plan {
+        /// Node instances (half per-frame generators, half per-frame consumers).
+        #[arg(long, default_value_t = 10_000)]
+        instances: usize,
+        /// Print the figures as JSON.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+pub fn run(cmd: BenchCommand, registry: &Registry) -> Result<u8, String> {
+    match cmd {
+        BenchCommand::Plan { instances, json } => bench_plan(instances, json, registry),
+    }
+}
+
+fn bench_plan(instances: usize, json: bool, registry: &Registry) -> Result<u8, String> {
+    let frames = (instances / 2).max(1);
+    let dir = tempfile_dir()?;
+    let graph_path = dir.join("bench.yaml");
+    let text = format!(
+        "version: 1\nframes: 0..{frames}\nnodes:\n  src: {{type: constant, per_frame: true, params: {{width: 4, height: 4}}}}\n  lit: {{type: exposure, inputs: {{image: src.image}}, params: {{stops: 1}}}}\n"
+    );
+    std::fs::write(&graph_path, text).map_err(|e| e.to_string())?;
+    let opts = RunOptions {
+        jobs: None,
+        cache_dir: Some(dir.join(".vfxgraph")),
+        force: vec![],
+    };
+    let load =
+        || graph::load(&graph_path, registry, &Overrides::default()).map_err(|e| e.to_string());
+    let t = Instant::now();
+    let g = load()?;
+    let fill = exec::run(&g, registry, &opts, &Quiet).map_err(|e| e.to_string())?;
+    let fill_s = t.elapsed().as_secs_f64();
+    if fill.failed() {
+        return Err("the benchmark graph failed".into());
+    }
+    // Best of three: load + validate + plan over a fully cached graph.
+    let mut plan_s = f64::INFINITY;
+    let mut n = 0;
+    for _ in 0..3 {
+        let t = Instant::now();
+        let g = load()?;
+        let p = exec::plan(&g, &opts).map_err(|e| e.to_string())?;
+        plan_s = plan_s.min(t.elapsed().as_secs_f64());
+        n = p.nodes.len();
+        if p.nodes.iter().any(|x| x.status != PlanStatus::Cached) {
+            return Err("benchmark graph is not fully cached".into());
+        }
+    }
+    let t = Instant::now();
+    let r = exec::run(&load()?, registry, &opts, &Quiet).map_err(|e| e.to_string())?;
+    let cached_run_s = t.elapsed().as_secs_f64();
+    if r.nodes.iter().any(|x| x.status != Status::Cached) {
+        return Err("second run was not fully cached".into());
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+    if json {
+        println!(
+            "{}",
+            serde_json::json!({
+                "instances": n,
+                "fill_run_seconds": fill_s,
+                "plan_seconds": plan_s,
+                "cached_run_seconds": cached_run_s,
+                "goal_seconds": 1.0,
+            })
+        );
+    } else {
+        println!("instances            {n}");
+        println!("first run (fill)     {fill_s:.3} s");
+        println!(
+            "plan, fully cached   {plan_s:.3} s  (load + validate + key + cache check; goal < 1 s)"
+        );
+        println!("run, fully cached    {cached_run_s:.3} s");
+    }
+    Ok(0)
+}
+
+fn tempfile_dir() -> Result<std::path::PathBuf, String> {
+    let base = std::env::temp_dir().join(format!("vfxgraph-bench-{}", std::process::id()));
+    std::fs::create_dir_all(&base).map_err(|e| e.to_string())?;
+    Ok(Path::new(&base).to_path_buf())
+}

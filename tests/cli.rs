@@ -1,0 +1,387 @@
+//! End-to-end tests of the `vfxgraph` binary: the example graph, partial reruns, crash safety,
+//! determinism across thread counts, exit codes.
+
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+use serde_json::Value as Json;
+use vfxgraph_engine::artifact::content_digest;
+use vfxgraph_engine::store::Store;
+use vfxgraph_engine::Digest;
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_vfxgraph"))
+}
+
+fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn vfx(dir: &Path, args: &[&str]) -> Output {
+    let out = bin().current_dir(dir).args(args).output().unwrap();
+    out
+}
+
+fn run_json(dir: &Path, args: &[&str]) -> Vec<Json> {
+    let mut a = vec!["run", "--json"];
+    a.extend_from_slice(args);
+    let out = vfx(dir, &a);
+    assert!(
+        out.status.success(),
+        "vfxgraph {a:?} failed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: Json = serde_json::from_slice(&out.stdout).expect("json on stdout");
+    v["nodes"].as_array().unwrap().clone()
+}
+
+fn statuses<'a>(nodes: &'a [Json], status: &str) -> Vec<(&'a str, Option<i64>)> {
+    nodes
+        .iter()
+        .filter(|n| n["status"] == status)
+        .map(|n| (n["id"].as_str().unwrap(), n["frame"].as_i64()))
+        .collect()
+}
+
+fn copy_dir(from: &Path, to: &Path) {
+    fs::create_dir_all(to).unwrap();
+    for e in fs::read_dir(from).unwrap() {
+        let e = e.unwrap();
+        let name = e.file_name();
+        if name == ".vfxgraph" || name == "out" {
+            continue;
+        }
+        let p = e.path();
+        if p.is_dir() {
+            copy_dir(&p, &to.join(&name));
+        } else {
+            fs::copy(&p, to.join(&name)).unwrap();
+        }
+    }
+}
+
+#[test]
+fn example_graph_runs_then_is_cached_then_reruns_one_branch() {
+    let tmp = tempfile::tempdir().unwrap();
+    let g = tmp.path().join("graphs");
+    copy_dir(&repo().join("graphs"), &g);
+    let first = run_json(&g, &["tonemap_hdri.yaml"]);
+    assert!(first.iter().all(|n| n["status"] == "ran"), "{first:?}");
+    for f in [
+        "studio_small_03_reinhard.png",
+        "studio_small_03_srgb.png",
+        "studio_small_03_exposed.exr",
+    ] {
+        let img = vfxgraph_imaging::read_image(&g.join("out").join(f)).unwrap();
+        assert_eq!((img.width, img.height), (1024, 512), "{f}");
+    }
+    // The Reinhard output lies in [0, 1] and is not black.
+    let png = vfxgraph_imaging::read_image(&g.join("out/studio_small_03_reinhard.png")).unwrap();
+    let mean = png.data.iter().sum::<f32>() / png.data.len() as f32;
+    assert!(mean > 0.05 && mean < 0.95, "mean {mean}");
+    let second = run_json(&g, &["tonemap_hdri.yaml"]);
+    assert!(second.iter().all(|n| n["status"] == "cached"), "{second:?}");
+    let third = run_json(&g, &["tonemap_hdri.yaml", "--set", "reinhard.exposure=1.5"]);
+    let ran = statuses(&third, "ran");
+    assert_eq!(ran, vec![("reinhard", None), ("png_reinhard", None)]);
+    let reason = third.iter().find(|n| n["id"] == "reinhard").unwrap()["reason"]
+        .as_str()
+        .unwrap()
+        .to_string();
+    assert!(reason.contains("exposure"), "{reason}");
+    // plan --json has the documented schema.
+    let out = vfx(
+        &g,
+        &[
+            "plan",
+            "--json",
+            "tonemap_hdri.yaml",
+            "--set",
+            "expose.stops=0",
+        ],
+    );
+    let plan: Json = serde_json::from_slice(&out.stdout).unwrap();
+    for n in plan["nodes"].as_array().unwrap() {
+        for k in ["id", "type", "frame", "status", "reason", "seconds"] {
+            assert!(n.get(k).is_some(), "plan entry lacks {k}: {n}");
+        }
+        let expect = match n["id"].as_str().unwrap() {
+            "dome" => "cached",
+            "expose" => "run",
+            _ => "blocked",
+        };
+        assert_eq!(n["status"], expect, "{n}");
+    }
+}
+
+fn write_frames(dir: &Path, frames: std::ops::RangeInclusive<i64>) {
+    fs::create_dir_all(dir.join("plate")).unwrap();
+    for f in frames {
+        let img = vfxgraph_imaging::Image::from_fn(16, 8, 3, |x, y, c| {
+            ((x + y + c) as f32 * 0.03 + f as f32 * 0.01).min(1.0)
+        });
+        vfxgraph_imaging::write_image(&dir.join(format!("plate/{f:04}.png")), &img).unwrap();
+    }
+}
+
+const SEQ: &str = "version: 1
+frames: 1-5
+nodes:
+  plate: {type: read_image_sequence, params: {path: plate/%04d.png}}
+  bright: {type: exposure, inputs: {image: plate.sequence}, params: {stops: 1}}
+  out: {type: write_image_sequence, inputs: {sequence: bright.image}, params: {path: out/####.exr}}
+";
+
+#[test]
+fn changing_one_plate_frame_reruns_one_frame() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    write_frames(d, 1..=5);
+    fs::write(d.join("seq.yaml"), SEQ).unwrap();
+    let r = run_json(d, &["seq.yaml"]);
+    assert_eq!(statuses(&r, "ran").len(), 15);
+    assert!(d.join("out/0005.exr").is_file());
+    // Rewrite frame 3 with other content.
+    let img = vfxgraph_imaging::Image::from_fn(16, 8, 3, |_, _, _| 0.5);
+    vfxgraph_imaging::write_image(&d.join("plate/0003.png"), &img).unwrap();
+    let r = run_json(d, &["seq.yaml"]);
+    assert_eq!(
+        statuses(&r, "ran"),
+        vec![("plate", Some(3)), ("bright", Some(3)), ("out", Some(3))]
+    );
+    assert_eq!(statuses(&r, "cached").len(), 12);
+    let out3 = vfxgraph_imaging::read_image(&d.join("out/0003.exr")).unwrap();
+    let expect = 2.0
+        * vfxgraph_imaging::color::srgb8_to_linear(vfxgraph_imaging::color::linear_to_srgb8(0.5));
+    assert!(
+        out3.data.iter().all(|&v| (v - expect).abs() < 1e-5),
+        "{:?}",
+        &out3.data[..3]
+    );
+}
+
+/// Every object in the cache matches its digest; every action's objects exist.
+fn assert_cache_sound(cache: &Path) {
+    let store = Store::open(cache).unwrap();
+    let entries = store.list();
+    assert!(!entries.is_empty());
+    for e in &entries {
+        for o in &e.entry.outputs {
+            let d = Digest::from_hex(&o.digest).unwrap();
+            let (ty, bytes) = store
+                .get_object(&d)
+                .expect("object of a recorded action exists and verifies");
+            assert_eq!(content_digest(&ty, &bytes), d);
+        }
+    }
+}
+
+fn long_graph(frames: usize) -> String {
+    format!(
+        "version: 1
+frames: 0..{frames}
+nodes:
+  src: {{type: constant, per_frame: true, params: {{width: 1200, height: 900, ramp: 2.0}}}}
+  lit: {{type: exposure, inputs: {{image: src.image}}, params: {{stops: 0.5}}}}
+  tm: {{type: tonemap, inputs: {{image: lit.image}}, params: {{operator: reinhard}}}}
+  out: {{type: write_image_sequence, inputs: {{sequence: tm.image}}, params: {{path: out/f.####.exr}}}}
+"
+    )
+}
+
+#[test]
+#[cfg(unix)]
+fn sigkill_mid_run_then_rerun_reuses_work_and_matches_a_clean_run() {
+    let frames = 40;
+    let tmp = tempfile::tempdir().unwrap();
+    let (a, b) = (tmp.path().join("killed"), tmp.path().join("clean"));
+    for d in [&a, &b] {
+        fs::create_dir_all(d).unwrap();
+        fs::write(d.join("g.yaml"), long_graph(frames)).unwrap();
+    }
+    let mut child = bin()
+        .current_dir(&a)
+        .args(["run", "-q", "--jobs", "1", "g.yaml"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    // Wait until a few outputs exist, then SIGKILL.
+    let t0 = Instant::now();
+    loop {
+        let done = fs::read_dir(a.join("out")).map(|r| r.count()).unwrap_or(0);
+        if done >= 3 {
+            break;
+        }
+        if let Some(st) = child.try_wait().unwrap() {
+            panic!("run finished ({st}) before it could be killed; make the graph longer");
+        }
+        assert!(t0.elapsed() < Duration::from_secs(120), "no progress");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    child.kill().unwrap(); // SIGKILL
+    child.wait().unwrap();
+    let finished_before = fs::read_dir(a.join("out"))
+        .unwrap()
+        .filter(|e| {
+            e.as_ref()
+                .unwrap()
+                .file_name()
+                .to_string_lossy()
+                .ends_with(".exr")
+        })
+        .count();
+    assert!(finished_before < frames, "killed too late");
+    assert_cache_sound(&a.join(".vfxgraph"));
+
+    let r = run_json(&a, &["g.yaml"]);
+    let cached = statuses(&r, "cached");
+    assert!(!cached.is_empty(), "finished work was reused");
+    assert!(
+        statuses(&r, "cached")
+            .iter()
+            .filter(|(id, _)| *id == "out")
+            .count()
+            + 1
+            >= finished_before,
+        "written frames were reused"
+    );
+    assert!(statuses(&r, "failed").is_empty());
+    assert_cache_sound(&a.join(".vfxgraph"));
+
+    run_json(&b, &["g.yaml"]);
+    for f in 0..frames {
+        let name = format!("out/f.{f:04}.exr");
+        assert_eq!(
+            fs::read(a.join(&name)).unwrap(),
+            fs::read(b.join(&name)).unwrap(),
+            "{name}"
+        );
+    }
+    // No stray temporaries beside the outputs.
+    for e in fs::read_dir(a.join("out")).unwrap() {
+        let n = e.unwrap().file_name().to_string_lossy().into_owned();
+        assert!(n.ends_with(".exr") && !n.starts_with('.'), "stray file {n}");
+    }
+}
+
+#[test]
+fn outputs_identical_with_one_and_eight_jobs() {
+    let tmp = tempfile::tempdir().unwrap();
+    let mut outs = Vec::new();
+    for jobs in ["1", "8"] {
+        let d = tmp.path().join(jobs);
+        fs::create_dir_all(&d).unwrap();
+        write_frames(&d, 1..=5);
+        fs::write(d.join("seq.yaml"), SEQ).unwrap();
+        run_json(&d, &["seq.yaml", "--jobs", jobs]);
+        let files: Vec<Vec<u8>> = (1..=5)
+            .map(|f| fs::read(d.join(format!("out/{f:04}.exr"))).unwrap())
+            .collect();
+        let mut keys: Vec<(String, Vec<String>)> = Store::open(&d.join(".vfxgraph"))
+            .unwrap()
+            .list()
+            .into_iter()
+            .map(|e| {
+                (
+                    e.key,
+                    e.entry.outputs.into_iter().map(|o| o.digest).collect(),
+                )
+            })
+            .collect();
+        keys.sort();
+        outs.push((files, keys));
+    }
+    assert_eq!(outs[0], outs[1]);
+}
+
+#[test]
+fn exit_codes_and_messages() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    fs::write(
+        d.join("bad.yaml"),
+        "version: 1\nnodes:\n  x: {type: tonemapp}\n",
+    )
+    .unwrap();
+    let out = vfx(d, &["check", "bad.yaml"]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("bad.yaml:3:13") && err.contains("did you mean `tonemap`"),
+        "{err}"
+    );
+
+    fs::write(
+        d.join("fail.yaml"),
+        "version: 1\nnodes:\n  img: {type: read_image, params: {path: missing.png}}\n  t: {type: tonemap, inputs: {image: img.image}}\n  ok: {type: constant}\n",
+    )
+    .unwrap();
+    let out = vfx(d, &["run", "--json", "fail.yaml"]);
+    assert_eq!(out.status.code(), Some(1));
+    let v: Json = serde_json::from_slice(&out.stdout).unwrap();
+    let by_id = |id: &str| {
+        v["nodes"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|n| n["id"] == id)
+            .unwrap()
+            .clone()
+    };
+    assert_eq!(by_id("img")["status"], "failed");
+    assert!(by_id("img")["reason"]
+        .as_str()
+        .unwrap()
+        .contains("missing.png"));
+    assert_eq!(by_id("t")["status"], "skipped");
+    assert_eq!(by_id("ok")["status"], "ran");
+
+    let out = vfx(d, &["run", "nope.yaml"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("nope.yaml"));
+}
+
+#[test]
+fn describe_nodes_dot_and_cache_commands() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let out = vfx(d, &["nodes"]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    for n in [
+        "read_image",
+        "write_image",
+        "read_image_sequence",
+        "write_image_sequence",
+        "exposure",
+        "tonemap",
+    ] {
+        assert!(text.contains(n), "{n} missing from `vfxgraph nodes`");
+    }
+    let out = vfx(d, &["describe", "tonemap"]);
+    assert!(String::from_utf8_lossy(&out.stdout).contains("srgb | reinhard"));
+    write_frames(d, 1..=5);
+    fs::write(d.join("seq.yaml"), SEQ).unwrap();
+    let dot = String::from_utf8_lossy(&vfx(d, &["dot", "seq.yaml"]).stdout).into_owned();
+    assert!(
+        dot.starts_with("digraph") && dot.contains("orange"),
+        "{dot}"
+    );
+    run_json(d, &["seq.yaml"]);
+    let dot = String::from_utf8_lossy(&vfx(d, &["dot", "seq.yaml"]).stdout).into_owned();
+    assert!(
+        dot.contains("palegreen") && !dot.contains("orange"),
+        "{dot}"
+    );
+    let ls = String::from_utf8_lossy(&vfx(d, &["cache", "ls", "seq.yaml"]).stdout).into_owned();
+    assert!(ls.contains("15 entries"), "{ls}");
+    let gc = vfx(d, &["cache", "gc", "seq.yaml", "--max-size", "0"]);
+    assert!(gc.status.success());
+    let ls = String::from_utf8_lossy(&vfx(d, &["cache", "ls", "seq.yaml"]).stdout).into_owned();
+    assert!(ls.contains("0 entries"), "{ls}");
+    let r = run_json(d, &["seq.yaml"]);
+    assert_eq!(statuses(&r, "ran").len(), 15, "evicted entries run again");
+    assert!(vfx(d, &["cache", "clear", "seq.yaml"]).status.success());
+}
