@@ -895,14 +895,13 @@ impl<'a> Runner<'a> {
         }
         let mut out = Computed::new();
         for p in &spec.outputs {
-            let Some(v) = ctx.outputs.remove(p.name) else {
+            let Some(encoded) = ctx.outputs.remove(p.name) else {
                 return Err(format!(
                     "node did not produce output `{}` (a bug in the node)",
                     p.name
                 ));
             };
-            let bytes = v.encode();
-            out.insert(p.name, (v, bytes));
+            out.insert(p.name, encoded);
         }
         Ok(out)
     }

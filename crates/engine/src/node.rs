@@ -224,7 +224,7 @@ pub struct Context<'a> {
     pub(crate) inputs: BTreeMap<&'static str, InputValue>,
     pub(crate) seed: u64,
     pub(crate) progress: &'a (dyn Fn(f32) + Sync),
-    pub(crate) outputs: BTreeMap<&'static str, Value>,
+    pub(crate) outputs: BTreeMap<&'static str, (Value, Vec<u8>)>,
 }
 
 impl<'a> Context<'a> {
@@ -351,12 +351,15 @@ impl<'a> Context<'a> {
             "node {} output `{port}` type",
             self.spec.name
         );
-        self.outputs.insert(spec.name, Value::new(value));
+        self.outputs.insert(spec.name, Value::new_encoded(value));
     }
 
     /// Takes an output set earlier (for tests of nodes).
     pub fn take_output<T: ArtifactType + Clone>(&mut self, port: &str) -> Option<T> {
-        self.outputs.get(port).and_then(|v| v.get::<T>()).cloned()
+        self.outputs
+            .get(port)
+            .and_then(|(v, _)| v.get::<T>())
+            .cloned()
     }
 }
 
