@@ -23,6 +23,7 @@ pub mod points;
 pub mod ransac;
 pub mod rotation;
 pub mod synthetic;
+pub mod two_view;
 
 pub use camera::{Camera, Frustum, Intrinsics, Pose};
 pub use error::{Result, VisionError};
