@@ -17,6 +17,7 @@
 pub mod calibration;
 pub mod camera;
 pub mod error;
+pub mod formats;
 pub mod normalize;
 pub mod optimize;
 pub mod points;
