@@ -5,7 +5,11 @@ use nalgebra::{Matrix3x4, Point2, Point3};
 use rand::Rng;
 
 use super::dlt::{dlt, DLT_MIN_POINTS};
+use super::factor::factor_camera;
+use super::restricted::{refine_camera, IntrinsicsModel};
+use crate::camera::{Camera, Intrinsics};
 use crate::error::{check_pairs, Result};
+use crate::optimize::LmOptions;
 use crate::ransac::{ransac, Estimator, RansacParams};
 
 /// Reprojection error in pixels of X ↔ x under P (∞ when X projects to infinity).
@@ -73,6 +77,74 @@ pub fn resect_ransac<R: Rng + ?Sized>(
     })
 }
 
+/// Result of [`resect_known_k`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct PoseEstimate {
+    /// The camera: the given K and the estimated [R|t].
+    pub camera: Camera,
+    /// Inlier flags.
+    pub inliers: Vec<bool>,
+    /// Number of inliers.
+    pub num_inliers: usize,
+    /// RANSAC iterations.
+    pub iterations: usize,
+}
+
+/// Pose of a camera with known K from 3D↔2D matches with outliers (the PnP problem): RANSAC
+/// resection, factoring of the consensus DLT with K′ replaced by the known K (as the book's
+/// matchmove does, §7), then Levenberg–Marquardt on the pose over the inliers, whose set is
+/// re-marked with the refined camera.
+pub fn resect_known_k<R: Rng + ?Sized>(
+    points3d: &[Point3<f64>],
+    points2d: &[Point2<f64>],
+    k: &Intrinsics,
+    params: &RansacParams,
+    rng: &mut R,
+) -> Result<PoseEstimate> {
+    let res = resect_ransac(points3d, points2d, params, rng)?;
+    let factored = factor_camera(&res.p)?;
+    let mut camera = Camera {
+        intrinsics: k.clone(),
+        pose: factored.pose,
+    };
+    let mut inliers = res.inliers;
+    let lm = LmOptions {
+        max_iterations: 50,
+        ..LmOptions::default()
+    };
+    for _ in 0..2 {
+        let p3: Vec<_> = points3d
+            .iter()
+            .zip(&inliers)
+            .filter(|(_, &f)| f)
+            .map(|(p, _)| *p)
+            .collect();
+        let p2: Vec<_> = points2d
+            .iter()
+            .zip(&inliers)
+            .filter(|(_, &f)| f)
+            .map(|(p, _)| *p)
+            .collect();
+        camera = refine_camera(&p3, &p2, &camera, IntrinsicsModel::Fixed(k.clone()), &lm)?.0;
+        let flags: Vec<bool> = points3d
+            .iter()
+            .zip(points2d)
+            .map(|(p, x)| camera.reprojection_error(p, x) <= params.threshold)
+            .collect();
+        if flags == inliers || flags.iter().filter(|&&f| f).count() < DLT_MIN_POINTS {
+            break;
+        }
+        inliers = flags;
+    }
+    let num_inliers = inliers.iter().filter(|&&f| f).count();
+    Ok(PoseEstimate {
+        camera,
+        inliers,
+        num_inliers,
+        iterations: res.iterations,
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -95,5 +167,17 @@ mod tests {
             .count();
         assert_eq!(wrong, 0);
         assert!(res.num_inliers >= 130, "{}", res.num_inliers);
+        let est = resect_known_k(
+            &pts,
+            &obs,
+            &cam.intrinsics,
+            &RansacParams::with_threshold(2.0),
+            &mut rng,
+        )
+        .unwrap();
+        let er =
+            crate::rotation::rotation_angle_between(&est.camera.pose.r, &cam.pose.r).to_degrees();
+        assert!(er < 0.05, "{er}");
+        assert!(est.inliers.iter().zip(&outlier).all(|(i, o)| !(*i && *o)));
     }
 }

@@ -223,17 +223,27 @@ pub fn reconstruct_two_view<R: Rng + ?Sized>(
         EpipolarResidual::Sampson => options.ransac.threshold * 2.0,
         EpipolarResidual::Algebraic => 2.0,
     };
-    let h_params = RansacParams {
-        threshold: h_threshold,
-        ..options.ransac.clone()
-    };
-    let h_result = ransac(&HomographyEstimator, &data, &h_params, rng).ok();
     // F's support measured like H's: Sampson distance within the same pixel threshold.
     let f_inliers = f_result.as_ref().map_or(0, |r| {
         data.iter()
             .filter(|(xa, xb)| sampson_distance(&r.model, xa, xb) <= h_threshold)
             .count()
     });
+    // A homography that matters explains ≥ homography_ratio of F's support: sample only as
+    // long as needed to find such a one (or half of the matches when F failed).
+    let h_ratio = if f_inliers > 0 {
+        options.homography_ratio * f_inliers as f64 / n as f64
+    } else {
+        0.5
+    };
+    let h_iterations = crate::ransac::adaptive_iterations(h_ratio, 4, options.ransac.confidence);
+    let h_params = RansacParams {
+        threshold: h_threshold,
+        max_iterations: h_iterations.clamp(1, options.ransac.max_iterations),
+        min_iterations: 1,
+        ..options.ransac.clone()
+    };
+    let h_result = ransac(&HomographyEstimator, &data, &h_params, rng).ok();
     if let Some(h) = &h_result {
         if h.num_inliers as f64 >= options.homography_ratio * f_inliers as f64 && h.num_inliers >= 8
         {
