@@ -46,6 +46,8 @@ pub struct TwoViewOptions {
     /// Report a zero baseline / planar scene when a homography explains at least this fraction
     /// of the F inliers (within the same threshold).
     pub homography_ratio: f64,
+    /// Fewer inliers than this after triangulation is reported as [`VisionError::NoConsensus`].
+    pub min_inliers: usize,
 }
 
 impl Default for TwoViewOptions {
@@ -56,6 +58,7 @@ impl Default for TwoViewOptions {
             refine_pose: true,
             refine_points: true,
             homography_ratio: 0.95,
+            min_inliers: 15,
         }
     }
 }
@@ -331,11 +334,12 @@ pub fn reconstruct_two_view<R: Rng + ?Sized>(
         indices.push(i);
     }
     let m = points.len();
-    if m < 8 {
+    let needed = options.min_inliers.max(8);
+    if m < needed {
         return Err(VisionError::NoConsensus {
             best: m,
             total: n,
-            needed: 8,
+            needed,
         });
     }
     parallax.sort_by(f64::total_cmp);
