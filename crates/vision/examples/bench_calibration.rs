@@ -15,10 +15,10 @@ use serde_json::{json, Value};
 use vfxgraph_vision::calibration::{calibrate_restricted, resect_known_k, tsai_refine};
 use vfxgraph_vision::optimize::LmOptions;
 use vfxgraph_vision::ransac::RansacParams;
+use vfxgraph_vision::synthetic::two_view_scene_with;
 use vfxgraph_vision::synthetic::{
     gaussian, observe, random_camera, random_points_in_frustum, random_rotation,
 };
-use vfxgraph_vision::two_view::scene::two_view_scene_with;
 use vfxgraph_vision::two_view::{reconstruct_two_view, TwoViewOptions};
 use vfxgraph_vision::{Camera, Intrinsics, Pose};
 

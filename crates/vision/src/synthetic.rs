@@ -2,11 +2,12 @@
 //! cameras, 3D points in front of them, Gaussian pixel noise and gross outliers. All randomness
 //! comes from the caller's generator.
 
-use nalgebra::{Point2, Point3, Vector3};
+use nalgebra::{Matrix3, Point2, Point3, Vector3};
 use rand::Rng;
 
-use crate::camera::{Camera, Intrinsics};
+use crate::camera::{Camera, Intrinsics, Pose};
 use crate::rotation::axis_angle_to_r;
+use crate::two_view::fundamental_from_pose;
 
 /// Image width of the synthetic cameras.
 pub const WIDTH: u32 = 1280;
@@ -141,4 +142,86 @@ pub fn observe<R: Rng + ?Sized>(
         outlier[i] = true;
     }
     (obs, outlier)
+}
+
+/// Two cameras sharing K, 3D points seen by both, and their noisy observations.
+#[derive(Clone, Debug)]
+pub struct TwoViewScene {
+    /// Shared intrinsics.
+    pub k: Intrinsics,
+    /// Pose of camera B (camera A is [I|0]).
+    pub pose_b: Pose,
+    /// The 3D points.
+    pub points: Vec<Point3<f64>>,
+    /// Observations in A.
+    pub a: Vec<Point2<f64>>,
+    /// Observations in B.
+    pub b: Vec<Point2<f64>>,
+    /// True outlier flags.
+    pub outlier: Vec<bool>,
+}
+
+impl TwoViewScene {
+    /// Camera A.
+    pub fn camera_a(&self) -> Camera {
+        Camera::new(self.k.clone(), Matrix3::identity(), Vector3::zeros())
+    }
+    /// Camera B.
+    pub fn camera_b(&self) -> Camera {
+        Camera {
+            intrinsics: self.k.clone(),
+            pose: self.pose_b.clone(),
+        }
+    }
+    /// The true F.
+    pub fn fundamental(&self) -> Matrix3<f64> {
+        fundamental_from_pose(&self.k, &self.k, &self.pose_b)
+    }
+}
+
+/// A random scene: camera A at the origin, points at depth 3–10 in A's view, camera B moved
+/// by a baseline of length `baseline` in a random direction and turned by up to 15° so that
+/// it still sees the points; noise `sigma` px; a fraction `outliers` of matches in B replaced
+/// by random pixels.
+pub fn two_view_scene_with<R: Rng + ?Sized>(
+    rng: &mut R,
+    n: usize,
+    sigma: f64,
+    outliers: f64,
+    baseline: f64,
+) -> TwoViewScene {
+    let k = random_intrinsics(rng);
+    let cam_a = Camera::new(k.clone(), Matrix3::identity(), Vector3::zeros());
+    let dir = Vector3::new(gaussian(rng), 0.3 * gaussian(rng), 0.3 * gaussian(rng)).normalize();
+    let c_b = dir * baseline;
+    // Look roughly at the centre of the point cloud (depth 6).
+    let target = Vector3::new(0.0, 0.0, 6.0);
+    let z = (target - c_b).normalize();
+    let x = Vector3::y().cross(&z).normalize();
+    let y = z.cross(&x);
+    let look = Matrix3::from_rows(&[x.transpose(), y.transpose(), z.transpose()]);
+    let r = random_rotation(rng, 5f64.to_radians()) * look;
+    let pose_b = Pose::new(r, -(r * c_b));
+    let cam_b = Camera {
+        intrinsics: k.clone(),
+        pose: pose_b.clone(),
+    };
+    let mut points = Vec::new();
+    while points.len() < n {
+        let px = Point2::new(rng.random_range(0.0..1279.0), rng.random_range(0.0..719.0));
+        let p = Point3::from(k.unproject(&px) * rng.random_range(3.0..10.0));
+        if crate::synthetic::visible(&cam_b, &p) {
+            points.push(p);
+        }
+    }
+    let (a, _) = observe(&cam_a, &points, sigma, 0.0, rng);
+    let (b, outlier) = observe(&cam_b, &points, sigma, outliers, rng);
+    TwoViewScene {
+        k,
+        pose_b,
+        points,
+        a,
+        b,
+        outlier,
+    }
 }

@@ -11,8 +11,8 @@ use vfxgraph_vision::calibration::{
 };
 use vfxgraph_vision::optimize::LmOptions;
 use vfxgraph_vision::ransac::RansacParams;
+use vfxgraph_vision::synthetic::two_view_scene_with;
 use vfxgraph_vision::synthetic::{observe, random_camera, random_points_in_frustum};
-use vfxgraph_vision::two_view::scene::two_view_scene_with;
 use vfxgraph_vision::two_view::{
     decompose_essential, fundamental_8point, reconstruct_two_view, triangulate_linear,
     TwoViewOptions,

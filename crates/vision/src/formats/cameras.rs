@@ -84,13 +84,19 @@ pub fn format_cameras(path: &CameraPath) -> String {
     s
 }
 
-/// Read a cameras file.
+/// Read a cameras file (the JSON form when the name ends in `.json`).
 pub fn read_cameras(path: &Path) -> Result<CameraPath> {
+    if super::is_json(path) {
+        return super::read_json(path);
+    }
     parse_cameras(&read_text(path)?, &path.display().to_string())
 }
 
-/// Write a cameras file.
+/// Write a cameras file (the JSON form when the name ends in `.json`).
 pub fn write_cameras(path: &Path, cameras: &CameraPath) -> Result<()> {
+    if super::is_json(path) {
+        return super::write_json(path, cameras);
+    }
     write_text(path, &format_cameras(cameras))
 }
 

@@ -33,13 +33,19 @@ pub fn format_intrinsics(k: &Intrinsics) -> String {
         .collect()
 }
 
-/// Read an intrinsics file.
+/// Read an intrinsics file (the JSON form when the name ends in `.json`).
 pub fn read_intrinsics(path: &Path) -> Result<Intrinsics> {
+    if super::is_json(path) {
+        return super::read_json(path);
+    }
     parse_intrinsics(&read_text(path)?, &path.display().to_string())
 }
 
-/// Write an intrinsics file.
+/// Write an intrinsics file (the JSON form when the name ends in `.json`).
 pub fn write_intrinsics(path: &Path, k: &Intrinsics) -> Result<()> {
+    if super::is_json(path) {
+        return super::write_json(path, k);
+    }
     write_text(path, &format_intrinsics(k))
 }
 

@@ -8,7 +8,7 @@ use std::path::Path;
 use nalgebra::Point2;
 use serde::{Deserialize, Serialize};
 
-use super::{data_lines, number, parse_error, read_text};
+use super::{data_lines, number, parse_error, read_text, write_text};
 use crate::error::Result;
 use crate::points::Points2d;
 
@@ -94,9 +94,20 @@ pub fn format_marked_points(m: &MarkedPoints) -> String {
     s
 }
 
-/// Read a marked-points file.
+/// Read a marked-points file (the JSON form when the name ends in `.json`).
 pub fn read_marked_points(path: &Path) -> Result<MarkedPoints> {
+    if super::is_json(path) {
+        return super::read_json(path);
+    }
     parse_marked_points(&read_text(path)?, &path.display().to_string())
+}
+
+/// Write a marked-points file (the JSON form when the name ends in `.json`).
+pub fn write_marked_points(path: &Path, m: &MarkedPoints) -> Result<()> {
+    if super::is_json(path) {
+        return super::write_json(path, m);
+    }
+    write_text(path, &format_marked_points(m))
 }
 
 #[cfg(test)]

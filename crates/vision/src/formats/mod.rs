@@ -15,10 +15,12 @@ pub use cameras::{
 };
 pub use intrinsics::{format_intrinsics, parse_intrinsics, read_intrinsics, write_intrinsics};
 pub use marked_points::{
-    format_marked_points, parse_marked_points, read_marked_points, MarkedFrame, MarkedPoints,
+    format_marked_points, parse_marked_points, read_marked_points, write_marked_points,
+    MarkedFrame, MarkedPoints,
 };
 pub use points::{
     format_points2d, format_points3d, parse_points2d, parse_points3d, read_points2d, read_points3d,
+    write_points2d, write_points3d,
 };
 
 use std::path::Path;
@@ -27,6 +29,13 @@ use serde::de::DeserializeOwned;
 use serde::Serialize;
 
 use crate::error::{Result, VisionError};
+
+/// True when `path` ends in `.json` (case-insensitive): the readers and writers of this module
+/// then use the type's JSON form instead of the book's text format.
+pub fn is_json(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("json"))
+}
 
 /// Read a whole text file.
 pub fn read_text(path: &Path) -> Result<String> {
@@ -102,4 +111,63 @@ pub(crate) fn data_lines(text: &str) -> Vec<(usize, Vec<&str>)> {
             (!t.is_empty()).then_some((i + 1, t))
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::camera::{Camera, Intrinsics, Pose};
+    use crate::points::{Points2d, Points3d};
+    use nalgebra::{Point2, Point3};
+
+    #[test]
+    fn files_round_trip_in_text_and_json() {
+        let dir =
+            std::env::temp_dir().join(format!("vfxgraph-vision-formats-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let k = Intrinsics::new(1000.0, 1001.0, 640.0, 360.0);
+        let p2 = Points2d(vec![Point2::new(1.0, 2.0), Point2::new(3.5, -4.0)]);
+        let p3 = Points3d(vec![Point3::new(1.0, 2.0, 3.0)]);
+        let cams = CameraPath {
+            frames: vec![FramePose {
+                frame: 3,
+                pose: Pose::identity(),
+            }],
+        };
+        let marked = MarkedPoints {
+            frames: vec![MarkedFrame {
+                frame: 7,
+                points: p2.clone(),
+            }],
+        };
+        for ext in ["txt", "json"] {
+            let f = |name: &str| dir.join(format!("{name}.{ext}"));
+            write_intrinsics(&f("k"), &k).unwrap();
+            assert_eq!(read_intrinsics(&f("k")).unwrap(), k);
+            write_points2d(&f("p2"), &p2).unwrap();
+            assert_eq!(read_points2d(&f("p2")).unwrap(), p2);
+            write_points3d(&f("p3"), &p3).unwrap();
+            assert_eq!(read_points3d(&f("p3")).unwrap(), p3);
+            write_cameras(&f("cams"), &cams).unwrap();
+            assert_eq!(read_cameras(&f("cams")).unwrap(), cams);
+            write_marked_points(&f("marked"), &marked).unwrap();
+            assert_eq!(read_marked_points(&f("marked")).unwrap(), marked);
+        }
+        // A camera in the `write_camera` JSON form.
+        let cam = Camera::new(
+            k,
+            nalgebra::Matrix3::identity(),
+            nalgebra::Vector3::new(0.0, 0.0, 2.0),
+        );
+        write_json(&dir.join("camera.json"), &cam).unwrap();
+        assert_eq!(read_json::<Camera>(&dir.join("camera.json")).unwrap(), cam);
+        let e = read_intrinsics(&dir.join("missing.txt")).unwrap_err();
+        assert!(matches!(e, VisionError::Io { .. }));
+        std::fs::write(dir.join("bad.json"), "{\"K\": [[1, 0]]}").unwrap();
+        assert!(matches!(
+            read_intrinsics(&dir.join("bad.json")),
+            Err(VisionError::Parse { line: 1, .. })
+        ));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }

@@ -7,7 +7,7 @@ use std::path::Path;
 
 use nalgebra::{Point2, Point3};
 
-use super::{data_lines, number, parse_error, read_text};
+use super::{data_lines, number, parse_error, read_text, write_text};
 use crate::error::Result;
 use crate::points::{Points2d, Points3d};
 
@@ -51,13 +51,19 @@ pub fn parse_points3d(text: &str, file: &str) -> Result<Points3d> {
     ))
 }
 
-/// Read a 2D point list.
+/// Read a 2D point list (the JSON form `[[u, v], …]` when the name ends in `.json`).
 pub fn read_points2d(path: &Path) -> Result<Points2d> {
+    if super::is_json(path) {
+        return super::read_json(path);
+    }
     parse_points2d(&read_text(path)?, &path.display().to_string())
 }
 
-/// Read a 3D point list.
+/// Read a 3D point list (the JSON form `[[x, y, z], …]` when the name ends in `.json`).
 pub fn read_points3d(path: &Path) -> Result<Points3d> {
+    if super::is_json(path) {
+        return super::read_json(path);
+    }
     parse_points3d(&read_text(path)?, &path.display().to_string())
 }
 
@@ -77,6 +83,22 @@ pub fn format_points3d(p: &Points3d) -> String {
         let _ = writeln!(s, "{} {} {}", x.x, x.y, x.z);
     }
     s
+}
+
+/// Write a 2D point list (JSON when the name ends in `.json`).
+pub fn write_points2d(path: &Path, p: &Points2d) -> Result<()> {
+    if super::is_json(path) {
+        return super::write_json(path, p);
+    }
+    write_text(path, &format_points2d(p))
+}
+
+/// Write a 3D point list (JSON when the name ends in `.json`).
+pub fn write_points3d(path: &Path, p: &Points3d) -> Result<()> {
+    if super::is_json(path) {
+        return super::write_json(path, p);
+    }
+    write_text(path, &format_points3d(p))
 }
 
 #[cfg(test)]
