@@ -11,6 +11,7 @@
 //! Conventions: f64; pixels with the origin at the top-left pixel's centre, x right, y down;
 //! a camera maps X to K(RX + t) and looks down +z.
 
+#![warn(missing_docs)]
 // `!(x > 0.0)` is used on purpose: it is also true for NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 

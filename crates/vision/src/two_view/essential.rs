@@ -18,7 +18,7 @@ pub fn essential_from_fundamental(
     kb.k().transpose() * f * ka.k()
 }
 
-/// F = K_b⁻ᵀ [t]× R K_a⁻¹ of the cameras K_a[I|0] and K_b[R|t].
+/// F = K_b⁻ᵀ \[t\]× R K_a⁻¹ of the cameras K_a[I|0] and K_b[R|t].
 pub fn fundamental_from_pose(ka: &Intrinsics, kb: &Intrinsics, pose: &Pose) -> Matrix3<f64> {
     kb.k_inv().transpose() * skew(&pose.t) * pose.r * ka.k_inv()
 }
