@@ -276,14 +276,21 @@ mod tests {
     /// Must-show: Tsai + LM recovers f within 0.5 % and the rotation within 0.05° (0.5 px noise).
     #[test]
     fn tsai_with_noise_recovers_ground_truth() {
+        let mut worst = [0.0f64; 2];
         for seed in 0..10 {
             let (cam, p3, p2) = planar_scene(200 + seed, 300, 0.5);
             let pp = Point2::new(cam.intrinsics.u0, cam.intrinsics.v0);
             let (est, _) = tsai_refine(&p3, &p2, pp, &LmOptions::default()).unwrap();
             let ef = ((est.intrinsics.f1 - cam.intrinsics.f1) / cam.intrinsics.f1).abs();
             let er = rotation_angle_between(&est.pose.r, &cam.pose.r).to_degrees();
+            worst[0] = worst[0].max(ef);
+            worst[1] = worst[1].max(er);
             assert!(ef < 0.005 && er < 0.05, "seed {seed}: f {ef} R {er}°");
         }
+        println!(
+            "tsai (f rel, R deg) worst over seeds: ef {:.4}, er {:.4}",
+            worst[0], worst[1]
+        );
     }
 
     #[test]
