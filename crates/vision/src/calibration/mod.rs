@@ -204,7 +204,7 @@ mod tests {
     use crate::synthetic::{
         observe, random_camera, random_points_in_front, random_points_in_frustum,
     };
-    use rand::SeedableRng;
+    use rand::{Rng, SeedableRng};
     use rand_pcg::Pcg64;
 
     /// Must-show with RANSAC: 0.5 px noise and 30 % outliers; f within 0.5 %, principal point
@@ -240,6 +240,50 @@ mod tests {
             assert!(rep.rms < 1.0, "{}", rep.rms);
         }
         println!("restricted+ransac 30% outliers (f rel, pp px, R deg) worst over seeds: ef {:.4}, epp {:.4}, er {:.4}", worst[0], worst[1], worst[2]);
+    }
+
+    #[test]
+    fn tsai_and_dlt_methods_with_ransac() {
+        let mut rng = Pcg64::seed_from_u64(77);
+        let cam = random_camera(&mut rng);
+        // Planar target: points of the plane z = 0 in front of the camera.
+        let mut p3 = Vec::new();
+        while p3.len() < 200 {
+            let p = Point3::new(
+                rng.random_range(-3.0..3.0),
+                rng.random_range(-3.0..3.0),
+                0.0,
+            );
+            if crate::synthetic::visible(&cam, &p) {
+                p3.push(p);
+            }
+        }
+        let mut cam = cam;
+        cam.intrinsics.f2 = cam.intrinsics.f1;
+        let (obs, outlier) = observe(&cam, &p3, 0.5, 0.3, &mut rng);
+        let opts = CalibrationOptions {
+            method: CalibrationMethod::Tsai,
+            principal_point: Some(Point2::new(cam.intrinsics.u0, cam.intrinsics.v0)),
+            ransac: Some(RansacParams::with_threshold(2.0)),
+            ..Default::default()
+        };
+        let (est, rep) = calibrate_camera(&p3, &obs, &opts, &mut rng).unwrap();
+        assert!(
+            ((est.intrinsics.f1 - cam.intrinsics.f1) / cam.intrinsics.f1).abs() < 0.01,
+            "{est:?}"
+        );
+        assert!(rep.inliers.iter().zip(&outlier).all(|(i, o)| !(*i && *o)));
+        // DLT method on a non-planar set.
+        let pts = random_points_in_frustum(&cam, 200, 2.0, 10.0, &mut rng);
+        let (obs, _) = observe(&cam, &pts, 0.5, 0.3, &mut rng);
+        let opts = CalibrationOptions {
+            method: CalibrationMethod::Dlt,
+            ransac: Some(RansacParams::with_threshold(2.0)),
+            ..Default::default()
+        };
+        let (est, rep) = calibrate_camera(&pts, &obs, &opts, &mut rng).unwrap();
+        assert!(rep.lm.is_none() && rep.rms < 1.0);
+        assert!(rotation_angle_between(&est.pose.r, &cam.pose.r).to_degrees() < 0.2);
     }
 
     #[test]
