@@ -145,6 +145,19 @@ fn two_view_degenerate_inputs() {
             "sigma {sigma} outliers {outliers}: {e:?}"
         );
     }
+    // A planar scene seen with a baseline: F is not determined, H explains every match.
+    let cam_a = s.camera_a();
+    let cam_b = s.camera_b();
+    let plane: Vec<Point3<f64>> =
+        s.a.iter()
+            .map(|x| Point3::from(s.k.unproject(x) * 6.0))
+            .filter(|p| vfxgraph_vision::synthetic::visible(&cam_b, p))
+            .collect();
+    assert!(plane.len() >= 20);
+    let (pa, _) = observe(&cam_a, &plane, 0.3, 0.0, &mut rng);
+    let (pb, _) = observe(&cam_b, &plane, 0.3, 0.0, &mut rng);
+    let e = reconstruct_two_view(&pa, &pb, &s.k, &s.k, &opts, &mut rng);
+    assert!(matches!(e, Err(VisionError::Degenerate(_))), "{e:?}");
     // Identical images (no motion at all): also a zero baseline.
     let e = reconstruct_two_view(&s.a, &s.a, &s.k, &s.k, &opts, &mut rng);
     assert!(matches!(e, Err(VisionError::ZeroBaseline)), "{e:?}");
