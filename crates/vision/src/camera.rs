@@ -57,6 +57,17 @@ impl Intrinsics {
         self
     }
 
+    /// Check that every parameter is finite and both focal lengths are non-zero.
+    pub fn validate(&self) -> Result<()> {
+        let v = [self.f1, self.f2, self.s, self.u0, self.v0];
+        if v.iter().any(|x| !x.is_finite()) || self.f1 == 0.0 || self.f2 == 0.0 {
+            return Err(VisionError::InvalidInput(format!(
+                "intrinsics must be finite with non-zero focal lengths: {v:?}"
+            )));
+        }
+        Ok(())
+    }
+
     /// The matrix K (the book's `calib_kmatrix_alloc`).
     pub fn k(&self) -> Matrix3<f64> {
         Matrix3::new(

@@ -190,4 +190,15 @@ fn two_view_degenerate_inputs() {
         Err(VisionError::PointsAtInfinity)
     ));
     assert!(decompose_essential(&Matrix3::zeros()).is_err());
+    // Invalid intrinsics.
+    let bad_k = Intrinsics::new(0.0, 1000.0, 640.0, 360.0);
+    assert!(matches!(
+        reconstruct_two_view(&s.a, &s.b, &bad_k, &s.k, &opts, &mut rng),
+        Err(VisionError::InvalidInput(_))
+    ));
+    let nan_k = Intrinsics::new(f64::NAN, 1000.0, 640.0, 360.0);
+    assert!(matches!(
+        reconstruct_two_view(&s.a, &s.b, &s.k, &nan_k, &opts, &mut rng),
+        Err(VisionError::InvalidInput(_))
+    ));
 }

@@ -101,6 +101,7 @@ pub fn resect_known_k<R: Rng + ?Sized>(
     params: &RansacParams,
     rng: &mut R,
 ) -> Result<PoseEstimate> {
+    k.validate()?;
     let res = resect_ransac(points3d, points2d, params, rng)?;
     let factored = factor_camera(&res.p)?;
     let mut camera = Camera {

@@ -163,6 +163,12 @@ pub fn refine_camera(
 ) -> Result<(Camera, LmReport)> {
     let needed = (model.num_params() + 6).div_ceil(2).max(3);
     check_pairs(points3d.len(), points2d.len(), needed)?;
+    crate::error::check_finite("3D points", points3d.iter().flat_map(|p| p.coords.iter()))?;
+    crate::error::check_finite("2D points", points2d.iter().flat_map(|p| p.coords.iter()))?;
+    initial.intrinsics.validate()?;
+    if let IntrinsicsModel::Fixed(k) = &model {
+        k.validate()?;
+    }
     let problem = ReprojectionProblem::new(points3d, points2d, model);
     let z0 = problem.encode(initial);
     if problem.residuals(&z0).iter().any(|v| !v.is_finite()) {

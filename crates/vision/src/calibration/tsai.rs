@@ -44,6 +44,7 @@ pub fn tsai(
     check_finite("3D points", points3d.iter().flat_map(|p| p.coords.iter()))?;
     check_finite("2D points", points2d.iter().flat_map(|p| p.coords.iter()))?;
     check_planar(points3d)?;
+    check_finite("principal point", principal_point.coords.iter())?;
     let n = points3d.len();
     // Centred pixels (eq. 4.23); scale the target for conditioning (the system is homogeneous in
     // x', so scaling x' is harmless; scaling X by 1/β scales r̂ by β).

@@ -201,6 +201,8 @@ pub fn reconstruct_two_view<R: Rng + ?Sized>(
 ) -> Result<TwoViewReconstruction> {
     check_pairs(a.len(), b.len(), fundamental::EIGHT_POINT_MIN)?;
     check_finite("2D points", a.iter().chain(b).flat_map(|p| p.coords.iter()))?;
+    ka.validate()?;
+    kb.validate()?;
     let n = a.len();
     let data: Vec<_> = a.iter().copied().zip(b.iter().copied()).collect();
     let est = FundamentalEstimator {
