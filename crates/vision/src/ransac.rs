@@ -4,8 +4,9 @@
 //!
 //! Beyond the book's fixed iteration count, the number of iterations adapts to the best inlier
 //! ratio w found so far: N = log(1 − p) / log(1 − wˢ) for confidence p and sample size s
-//! (Hartley & Zisserman §4.7.1). The winner is refitted on its consensus set, and the consensus
-//! set is recomputed with the refitted model.
+//! (Hartley & Zisserman §4.7.1). Each new best model is refitted on its consensus set (LO-RANSAC,
+//! Chum et al. 2003), and the winner is refitted again on its final consensus set, which is then
+//! recomputed with the refitted model.
 
 use nalgebra::{Matrix2, Point2, Vector2};
 use rand::Rng;
@@ -55,6 +56,11 @@ pub struct RansacParams {
     pub min_iterations: usize,
     /// Refit on the consensus set (then recompute the consensus) this many times; 0 disables.
     pub refit_rounds: usize,
+    /// Local optimization (LO-RANSAC, Chum, Matas & Kittler 2003): each time a sample gives a new
+    /// best model, refit it on its consensus set and keep the refit when it scores better. Noisy
+    /// minimal samples under-count the inliers; the refit recovers them, so the adaptive count
+    /// stops much earlier.
+    pub local_optimization: bool,
 }
 
 impl Default for RansacParams {
@@ -65,6 +71,7 @@ impl Default for RansacParams {
             max_iterations: 10_000,
             min_iterations: 20,
             refit_rounds: 2,
+            local_optimization: true,
         }
     }
 }
@@ -170,6 +177,16 @@ where
                 Some((_, _, c, sc)) => count > *c || (count == *c && score < *sc),
             };
             if better {
+                let (mut model, mut flags, mut count, mut score) = (model, flags, count, score);
+                if params.local_optimization && count > s {
+                    let idx: Vec<usize> = (0..n).filter(|&i| flags[i]).collect();
+                    if let Some(lo) = est.refit(data, &idx, &model) {
+                        let (f2, c2, s2) = consensus(est, data, &lo, params.threshold);
+                        if c2 > count || (c2 == count && s2 < score) {
+                            (model, flags, count, score) = (lo, f2, c2, s2);
+                        }
+                    }
+                }
                 needed = adaptive_iterations(count as f64 / n as f64, s, params.confidence);
                 best = Some((model, flags, count, score));
             }
