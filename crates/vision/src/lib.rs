@@ -1,1 +1,32 @@
-//! vfxgraph-vision
+//! vfxgraph-vision: camera geometry and calibration after chapters 2–5 of *Introduction to
+//! Visual Effects: A Computational Approach* (Madeira & Velho, 2023).
+//!
+//! - [`camera`]: the K[R|t] camera of chapter 2, [`rotation`]: axis–angle (§4.5.2);
+//! - [`optimize`]: chapter 3's tools (golden section, Brent, least squares, min ‖Ax‖, LM) and
+//!   [`ransac`] (§3.6) generic over an [`ransac::Estimator`];
+//! - [`calibration`]: one camera (chapter 4): DLT, factoring, restricted LM, Tsai, resection;
+//! - [`two_view`]: two cameras (chapter 5): F, E, relative pose, triangulation;
+//! - [`formats`]: the book's text files and their JSON forms.
+//!
+//! Conventions: f64; pixels with the origin at the top-left pixel's centre, x right, y down;
+//! a camera maps X to K(RX + t) and looks down +z.
+
+#![warn(missing_docs)]
+// `!(x > 0.0)` is used on purpose: it is also true for NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
+pub mod calibration;
+pub mod camera;
+pub mod error;
+pub mod formats;
+pub mod normalize;
+pub mod optimize;
+pub mod points;
+pub mod ransac;
+pub mod rotation;
+pub mod synthetic;
+pub mod two_view;
+
+pub use camera::{Camera, Frustum, Intrinsics, Pose};
+pub use error::{Result, VisionError};
+pub use points::{Points2d, Points3d};
