@@ -385,3 +385,59 @@ fn describe_nodes_dot_and_cache_commands() {
     assert_eq!(statuses(&r, "ran").len(), 15, "evicted entries run again");
     assert!(vfx(d, &["cache", "clear", "seq.yaml"]).status.success());
 }
+
+/// The book's HDR-camera calibration graph, with a synthetic 3D set made by back-projecting the
+/// six marked points from a known camera at known depths: the graph must give that camera back.
+#[test]
+fn calibrate_hdr_camera_graph_recovers_a_known_camera() {
+    let data = repo().join("../shared/data/book-demo/calib_projs.txt");
+    if !data.is_file() {
+        eprintln!("skipping: {} is absent", data.display());
+        return;
+    }
+    let projs = vfxgraph_vision::formats::read_points2d(&data).unwrap().0;
+    let k = vfxgraph_vision::Intrinsics::new(3100.0, 3100.0, 2000.0, 1500.0);
+    let r = vfxgraph_vision::rotation::axis_angle_to_r(&nalgebra::Vector3::new(0.1, -0.4, 0.05));
+    let truth = vfxgraph_vision::Camera::new(k.clone(), r, nalgebra::Vector3::new(0.2, -0.1, 3.0));
+    let inv = truth.pose.inverse();
+    let depths = [4.0, 6.5, 5.0, 8.0, 3.5, 7.0];
+    let mut text = String::new();
+    for (x, d) in projs.iter().zip(depths) {
+        let p = inv.transform(&nalgebra::Point3::from(k.unproject(x) * d));
+        text.push_str(&format!("{} {} {}\n", p.x, p.y, p.z));
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let g = tmp.path().join("graphs");
+    fs::create_dir_all(g.join("data")).unwrap();
+    let yaml = fs::read_to_string(repo().join("graphs/calibrate_hdr_camera.yaml"))
+        .unwrap()
+        .replace(
+            "../../shared/data",
+            &repo().join("../shared/data").display().to_string(),
+        );
+    fs::write(g.join("calibrate_hdr_camera.yaml"), yaml).unwrap();
+    let pts = tmp.path().join("points3d.txt");
+    fs::write(&pts, text).unwrap();
+    let set = format!("world.path={}", pts.display());
+    let r1 = run_json(&g, &["calibrate_hdr_camera.yaml", "--set", &set]);
+    assert_eq!(statuses(&r1, "ran").len(), 5);
+    let cam: Json =
+        serde_json::from_slice(&fs::read(g.join("out/hdr_camera.json")).unwrap()).unwrap();
+    assert!(
+        (cam["K"][0][0].as_f64().unwrap() - 3100.0).abs() < 1e-3,
+        "{cam}"
+    );
+    assert!(
+        (cam["K"][1][2].as_f64().unwrap() - 1500.0).abs() < 1e-3,
+        "{cam}"
+    );
+    for i in 0..3 {
+        for j in 0..3 {
+            assert!((cam["R"][i][j].as_f64().unwrap() - r[(i, j)]).abs() < 1e-6);
+        }
+    }
+    let rep: Json =
+        serde_json::from_slice(&fs::read(g.join("out/hdr_camera_report.json")).unwrap()).unwrap();
+    assert!(rep["rms"].as_f64().unwrap() < 1e-6, "{rep}");
+    assert_eq!(rep["errors"].as_array().unwrap().len(), 6);
+}

@@ -2,6 +2,7 @@
 //! engine's `ArtifactType` is implemented here so the algorithm crates stay engine-free).
 
 use vfxgraph_engine::artifact::codec::{put_f32s, put_u64, Reader};
+use vfxgraph_engine::artifact::{decode_json, encode_json};
 use vfxgraph_engine::{ArtifactType, Registry};
 use vfxgraph_imaging::Image;
 
@@ -33,9 +34,72 @@ impl ArtifactType for ImageArt {
     }
 }
 
+/// A newtype artifact stored as canonical JSON (serde, no hash maps).
+macro_rules! json_artifact {
+    ($(#[$doc:meta])* $name:ident($inner:ty), $type_name:expr, $type_doc:expr) => {
+        $(#[$doc])*
+        #[derive(Clone, Debug, PartialEq)]
+        pub struct $name(pub $inner);
+
+        impl ArtifactType for $name {
+            const NAME: &'static str = $type_name;
+            const DOC: &'static str = $type_doc;
+            fn encode(&self, out: &mut Vec<u8>) {
+                encode_json(&self.0, out)
+            }
+            fn decode(bytes: &[u8]) -> Result<Self, String> {
+                decode_json(bytes).map($name)
+            }
+        }
+    };
+}
+
+json_artifact!(
+    /// Camera intrinsics K (`intrinsics`).
+    IntrinsicsArt(vfxgraph_vision::Intrinsics),
+    "intrinsics",
+    "Camera intrinsics K: f1, f2, skew, principal point (pixels), optional image size."
+);
+json_artifact!(
+    /// A calibrated camera K[R|t] (`camera`).
+    CameraArt(vfxgraph_vision::Camera),
+    "camera",
+    "A calibrated camera K[R|t]: maps world X to pixels K(RX + t), looking down +z."
+);
+json_artifact!(
+    /// Pixel positions (`points2d`).
+    Points2dArt(vfxgraph_vision::Points2d),
+    "points2d",
+    "A list of image points (pixels, origin at the top-left pixel centre, y down)."
+);
+json_artifact!(
+    /// World points (`points3d`).
+    Points3dArt(vfxgraph_vision::Points3d),
+    "points3d",
+    "A list of 3D points in world coordinates."
+);
+json_artifact!(
+    /// Indices into another list (`indices`).
+    IndicesArt(Vec<usize>),
+    "indices",
+    "A list of indices into another artifact's list (e.g. the inliers of a fit)."
+);
+json_artifact!(
+    /// Any report of figures, as a JSON document (`report`).
+    ReportArt(serde_json::Value),
+    "report",
+    "A report of figures (errors, inliers, timings) as a JSON document."
+);
+
 /// Registers the artifact types of this crate.
 pub fn register(r: &mut Registry) {
     r.register_artifact::<ImageArt>();
+    r.register_artifact::<IntrinsicsArt>();
+    r.register_artifact::<CameraArt>();
+    r.register_artifact::<Points2dArt>();
+    r.register_artifact::<Points3dArt>();
+    r.register_artifact::<IndicesArt>();
+    r.register_artifact::<ReportArt>();
 }
 
 #[cfg(test)]

@@ -7,6 +7,7 @@
 //! [`registry`] returns every artifact and node type, for the CLI and for tests.
 
 pub mod artifacts;
+pub mod calibration;
 pub mod image_io;
 pub mod image_ops;
 
@@ -38,6 +39,7 @@ impl Node for FnNode {
 pub fn registry() -> Registry {
     let mut r = Registry::new();
     artifacts::register(&mut r);
+    calibration::register(&mut r);
     image_io::register(&mut r);
     image_ops::register(&mut r);
     r

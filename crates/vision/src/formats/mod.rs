@@ -46,10 +46,23 @@ pub fn read_text(path: &Path) -> Result<String> {
 }
 
 /// Write a whole text file.
+///
+/// The write is atomic: a temporary file beside `path`, then a rename, so readers never see a
+/// partial file.
 pub fn write_text(path: &Path, text: &str) -> Result<()> {
-    std::fs::write(path, text).map_err(|source| VisionError::Io {
+    let io = |source| VisionError::Io {
         path: path.to_path_buf(),
         source,
+    };
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let tmp = path.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
+    std::fs::write(&tmp, text).map_err(io)?;
+    std::fs::rename(&tmp, path).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        io(e)
     })
 }
 
