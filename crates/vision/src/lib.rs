@@ -1,1 +1,3 @@
 //! vfxgraph-vision
+
+pub mod bundle;

@@ -1,0 +1,466 @@
+//! The reduced camera system: Schur complement of the point blocks
+//! (Triggs et al. 2000, section 6.1; Agarwal et al. 2010, section 4; Ceres' `SchurEliminator`).
+//!
+//! With the camera-side parameters (pose and intrinsics blocks, the "f-blocks") first and the
+//! points last, the damped normal equations are `[B E; Eᵀ C] [δf; δp] = −[g_f; g_p]` with C
+//! block-diagonal (one 3×3 block per point). Eliminating the points gives
+//! `S δf = −g_f + E C⁻¹ g_p` with `S = B − E C⁻¹ Eᵀ`, and then `δp = C⁻¹(−g_p − Eᵀ δf)`.
+//!
+//! S is stored as its upper block triangle: block row r holds the blocks (r, c), c ≥ r, of the
+//! f-blocks that share a point with r. Rows are assembled in parallel, each by one task in a
+//! fixed order, so S is bit-identical for any number of threads. Per observation pair (a, b) of
+//! a point the contribution is `Jcₐᵀ (δₐᵦ I − Vₐ Jpᵦᵀ) Jcᵦ` with `Vₐ = Jpₐ C⁻¹` (2×3), which never
+//! forms the 9×3 blocks of E.
+
+use rayon::prelude::*;
+
+use super::evaluate::Linearization;
+use super::problem::Problem;
+
+const NONE: u32 = u32::MAX;
+
+/// What a reduced (camera-side) block parameterises.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum FBlock {
+    /// Pose of camera i: `[ω, t]`, 6 parameters.
+    Pose(usize),
+    /// Intrinsics block k: 3 parameters.
+    Intrinsics(usize),
+}
+
+/// The fixed block structure of a problem (built once per solve).
+pub(crate) struct Structure {
+    pub fblocks: Vec<FBlock>,
+    pub fblock_dim: Vec<usize>,
+    pub fblock_offset: Vec<usize>,
+    /// Components of each f-block held constant by the gauge.
+    pub fblock_mask: Vec<[bool; 6]>,
+    pub n_reduced: usize,
+    /// Per observation: pose f-block, intrinsics f-block (NONE when fixed).
+    pub obs_fb: Vec<[u32; 2]>,
+    pub point_free: Vec<bool>,
+    /// Point of each observation.
+    pub obs_point: Vec<u32>,
+    point_ptr: Vec<usize>,
+    point_obs: Vec<u32>,
+    row_ptr: Vec<usize>,
+    row_obs: Vec<(u32, u8)>,
+    /// Upper block pattern: for each row, its column blocks (sorted) and value offsets.
+    pub row_cols: Vec<Vec<u32>>,
+    pub row_val_offset: Vec<Vec<usize>>,
+    /// Start of each row's values in the flat value array, and its total length.
+    pub row_start: Vec<usize>,
+    pub n_values: usize,
+}
+
+impl Structure {
+    /// Builds the f-block numbering, the incidence lists and the pattern of S.
+    pub fn new(problem: &Problem) -> Structure {
+        let masks = problem.pose_masks();
+        let mut fblocks = Vec::new();
+        let mut fblock_dim = Vec::new();
+        let mut fblock_mask = Vec::new();
+        let mut cam_fb = vec![NONE; problem.cameras.len()];
+        let mut intr_fb = vec![NONE; problem.intrinsics.len()];
+        for (i, c) in problem.cameras.iter().enumerate() {
+            if !c.fixed && masks[i].iter().any(|m| !m) {
+                cam_fb[i] = fblocks.len() as u32;
+                fblocks.push(FBlock::Pose(i));
+                fblock_dim.push(6);
+                fblock_mask.push(masks[i]);
+            }
+            let k = c.intrinsics;
+            if !problem.intrinsics[k].fixed && intr_fb[k] == NONE {
+                intr_fb[k] = fblocks.len() as u32;
+                fblocks.push(FBlock::Intrinsics(k));
+                fblock_dim.push(3);
+                fblock_mask.push([false; 6]);
+            }
+        }
+        let mut fblock_offset = Vec::with_capacity(fblocks.len());
+        let mut n_reduced = 0;
+        for d in &fblock_dim {
+            fblock_offset.push(n_reduced);
+            n_reduced += d;
+        }
+        let obs_fb: Vec<[u32; 2]> = problem
+            .observations
+            .iter()
+            .map(|o| {
+                let c = &problem.cameras[o.camera];
+                [cam_fb[o.camera], intr_fb[c.intrinsics]]
+            })
+            .collect();
+        let point_free: Vec<bool> = problem.points.iter().map(|p| !p.fixed).collect();
+
+        let (point_ptr, point_obs) = csr(
+            problem.points.len(),
+            problem
+                .observations
+                .iter()
+                .enumerate()
+                .map(|(i, o)| (o.point, i as u32)),
+        );
+        let (row_ptr, row_obs) = csr(
+            fblocks.len(),
+            obs_fb.iter().enumerate().flat_map(|(i, fb)| {
+                let mut v = Vec::with_capacity(2);
+                if fb[0] != NONE {
+                    v.push((fb[0] as usize, (i as u32, 0u8)));
+                }
+                if fb[1] != NONE {
+                    v.push((fb[1] as usize, (i as u32, 6u8)));
+                }
+                v
+            }),
+        );
+
+        let mut st = Structure {
+            fblocks,
+            fblock_dim,
+            fblock_offset,
+            fblock_mask,
+            n_reduced,
+            obs_fb,
+            point_free,
+            obs_point: problem
+                .observations
+                .iter()
+                .map(|o| o.point as u32)
+                .collect(),
+            point_ptr,
+            point_obs,
+            row_ptr,
+            row_obs,
+            row_cols: Vec::new(),
+            row_val_offset: Vec::new(),
+            row_start: Vec::new(),
+            n_values: 0,
+        };
+        st.build_pattern();
+        st
+    }
+
+    fn build_pattern(&mut self) {
+        let nf = self.fblocks.len();
+        let this = &*self;
+        let row_cols: Vec<Vec<u32>> = (0..nf)
+            .into_par_iter()
+            .map_init(
+                || vec![false; nf],
+                |mark, r| {
+                    let mut cols = Vec::new();
+                    for &(a, _) in this.row_observations(r) {
+                        let p = this.point_of(a as usize);
+                        let partners: &[u32] = if this.point_free[p] {
+                            this.point_observations(p)
+                        } else {
+                            std::slice::from_ref(&a)
+                        };
+                        for &b in partners {
+                            for &c in &this.obs_fb[b as usize] {
+                                if c != NONE && c as usize >= r && !mark[c as usize] {
+                                    mark[c as usize] = true;
+                                    cols.push(c);
+                                }
+                            }
+                        }
+                    }
+                    if !mark[r] {
+                        // A block with no observations still gets its diagonal.
+                        cols.push(r as u32);
+                    }
+                    for &c in &cols {
+                        mark[c as usize] = false;
+                    }
+                    cols.sort_unstable();
+                    cols
+                },
+            )
+            .collect();
+        let mut row_val_offset = Vec::with_capacity(nf);
+        let mut row_start = Vec::with_capacity(nf);
+        let mut n = 0;
+        for (r, cols) in row_cols.iter().enumerate() {
+            row_start.push(n);
+            let mut offs = Vec::with_capacity(cols.len());
+            let mut local = 0;
+            for &c in cols {
+                offs.push(local);
+                local += self.fblock_dim[r] * self.fblock_dim[c as usize];
+            }
+            n += local;
+            row_val_offset.push(offs);
+        }
+        self.row_cols = row_cols;
+        self.row_val_offset = row_val_offset;
+        self.row_start = row_start;
+        self.n_values = n;
+    }
+
+    pub fn num_fblocks(&self) -> usize {
+        self.fblocks.len()
+    }
+
+    /// Observations of point p.
+    pub fn point_observations(&self, p: usize) -> &[u32] {
+        &self.point_obs[self.point_ptr[p]..self.point_ptr[p + 1]]
+    }
+
+    fn point_of(&self, a: usize) -> usize {
+        self.obs_point[a] as usize
+    }
+
+    /// Observations touching f-block r, with the local column offset (0 pose, 6 intrinsics).
+    pub fn row_observations(&self, r: usize) -> &[(u32, u8)] {
+        &self.row_obs[self.row_ptr[r]..self.row_ptr[r + 1]]
+    }
+
+    /// Which of the 9 camera columns of observation i are not optimised.
+    pub fn obs_mask(&self, _i: usize, fb: [u32; 2]) -> [bool; 9] {
+        let mut m = [true; 9];
+        if fb[0] != NONE {
+            let pm = &self.fblock_mask[fb[0] as usize];
+            m[..6].copy_from_slice(pm);
+        }
+        if fb[1] != NONE {
+            m[6..].copy_from_slice(&[false; 3]);
+        }
+        m
+    }
+}
+
+/// Compressed rows from (row, value) pairs, keeping the input order within a row.
+fn csr<T: Copy + Default>(
+    n: usize,
+    items: impl Iterator<Item = (usize, T)> + Clone,
+) -> (Vec<usize>, Vec<T>) {
+    let mut ptr = vec![0usize; n + 1];
+    for (r, _) in items.clone() {
+        ptr[r + 1] += 1;
+    }
+    for i in 0..n {
+        ptr[i + 1] += ptr[i];
+    }
+    let mut fill = ptr.clone();
+    let mut out = vec![T::default(); ptr[n]];
+    for (r, v) in items {
+        out[fill[r]] = v;
+        fill[r] += 1;
+    }
+    (ptr, out)
+}
+
+/// The damped reduced camera system `S δf = b` (upper block triangle of S).
+pub(crate) struct ReducedSystem {
+    pub values: Vec<f64>,
+    pub rhs: Vec<f64>,
+    /// C⁻¹ per point (row-major 3×3; zero for fixed points).
+    pub c_inv: Vec<[f64; 9]>,
+}
+
+/// Ceres' LM damping of one diagonal entry: λ·clamp(d) with the clamp of Ceres' Jacobi-scaled
+/// diagonal ([1e-6, 1e32] on d/(1+√d)²) mapped back to unscaled units.
+#[inline]
+pub(crate) fn damping(lambda: f64, d: f64) -> f64 {
+    let s = 1.0 + d.sqrt();
+    let scaled = (d / (s * s)).clamp(1e-6, 1e32);
+    lambda * scaled * s * s
+}
+
+fn inv3(m: &[f64; 9]) -> Option<[f64; 9]> {
+    let [a, b, c, d, e, f, g, h, i] = *m;
+    let c0 = e * i - f * h;
+    let c1 = f * g - d * i;
+    let c2 = d * h - e * g;
+    let det = a * c0 + b * c1 + c * c2;
+    if !(det.is_finite() && det.abs() > 0.0) {
+        return None;
+    }
+    let id = 1.0 / det;
+    Some([
+        c0 * id,
+        (c * h - b * i) * id,
+        (b * f - c * e) * id,
+        c1 * id,
+        (a * i - c * g) * id,
+        (c * d - a * f) * id,
+        c2 * id,
+        (b * g - a * h) * id,
+        (a * e - b * d) * id,
+    ])
+}
+
+impl Structure {
+    /// Assembles S and its right-hand side for damping λ = 1/radius.
+    pub fn assemble(&self, lin: &Linearization, lambda: f64) -> ReducedSystem {
+        // Point blocks: C = JpᵀJp + D, inverted; V = Jp C⁻¹.
+        let c_inv: Vec<[f64; 9]> = lin
+            .jtj_p
+            .par_iter()
+            .enumerate()
+            .map(|(p, h)| {
+                if !self.point_free[p] {
+                    return [0.0; 9];
+                }
+                let mut m = *h;
+                for k in 0..3 {
+                    m[4 * k] += damping(lambda, h[4 * k]);
+                }
+                inv3(&m).unwrap_or([0.0; 9])
+            })
+            .collect();
+        let mut v = vec![[0.0; 6]; lin.jp.len()];
+        v.par_chunks_mut(super::evaluate::CHUNK)
+            .enumerate()
+            .for_each(|(ci, chunk)| {
+                for (k, out) in chunk.iter_mut().enumerate() {
+                    let a = ci * super::evaluate::CHUNK + k;
+                    let ci_ = &c_inv[self.obs_point[a] as usize];
+                    let j = &lin.jp[a];
+                    for row in 0..2 {
+                        for col in 0..3 {
+                            out[3 * row + col] = j[3 * row] * ci_[col]
+                                + j[3 * row + 1] * ci_[3 + col]
+                                + j[3 * row + 2] * ci_[6 + col];
+                        }
+                    }
+                }
+            });
+
+        let mut values = vec![0.0; self.n_values];
+        let mut rhs = vec![0.0; self.n_reduced];
+        // Split the flat arrays into per-row slices.
+        let mut row_slices: Vec<(&mut [f64], &mut [f64])> = Vec::with_capacity(self.fblocks.len());
+        {
+            let mut rest_v: &mut [f64] = &mut values;
+            let mut rest_r: &mut [f64] = &mut rhs;
+            for r in 0..self.fblocks.len() {
+                let len = if r + 1 < self.fblocks.len() {
+                    self.row_start[r + 1] - self.row_start[r]
+                } else {
+                    self.n_values - self.row_start[r]
+                };
+                let (a, b) = std::mem::take(&mut rest_v).split_at_mut(len);
+                let (c, d) = std::mem::take(&mut rest_r).split_at_mut(self.fblock_dim[r]);
+                row_slices.push((a, c));
+                rest_v = b;
+                rest_r = d;
+            }
+        }
+        let nf = self.fblocks.len();
+        row_slices.into_par_iter().enumerate().for_each_init(
+            || vec![NONE; nf],
+            |lookup, (r, (vals, b))| {
+                self.assemble_row(r, vals, b, lin, &v, lambda, lookup);
+            },
+        );
+        ReducedSystem { values, rhs, c_inv }
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn assemble_row(
+        &self,
+        r: usize,
+        vals: &mut [f64],
+        b: &mut [f64],
+        lin: &Linearization,
+        v: &[[f64; 6]],
+        lambda: f64,
+        lookup: &mut [u32],
+    ) {
+        let dr = self.fblock_dim[r];
+        let cols = &self.row_cols[r];
+        for (k, &c) in cols.iter().enumerate() {
+            lookup[c as usize] = k as u32;
+        }
+        let ro = self.fblock_offset[r];
+        for u in 0..dr {
+            b[u] = -lin.g_f[ro + u];
+        }
+        for &(a, oa) in self.row_observations(r) {
+            let a = a as usize;
+            let oa = oa as usize;
+            let p = self.obs_point[a] as usize;
+            let jca = &lin.jc[a];
+            let va = &v[a];
+            let free = self.point_free[p];
+            // rhs: + Jcₐᵀ (Vₐ g_p)
+            if free {
+                let g = &lin.g_p[p];
+                let w0 = va[0] * g[0] + va[1] * g[1] + va[2] * g[2];
+                let w1 = va[3] * g[0] + va[4] * g[1] + va[5] * g[2];
+                for u in 0..dr {
+                    b[u] += jca[oa + u] * w0 + jca[9 + oa + u] * w1;
+                }
+            }
+            let single = [a as u32];
+            let partners: &[u32] = if free {
+                self.point_observations(p)
+            } else {
+                &single
+            };
+            for &bi in partners {
+                let bi = bi as usize;
+                // Q = δ I − Vₐ Jpᵦᵀ (2×2)
+                let jpb = &lin.jp[bi];
+                let mut q = [0.0; 4];
+                if free {
+                    for row in 0..2 {
+                        for col in 0..2 {
+                            q[2 * row + col] = -(va[3 * row] * jpb[3 * col]
+                                + va[3 * row + 1] * jpb[3 * col + 1]
+                                + va[3 * row + 2] * jpb[3 * col + 2]);
+                        }
+                    }
+                }
+                if bi == a {
+                    q[0] += 1.0;
+                    q[3] += 1.0;
+                }
+                // T = Q Jcᵦ (2×9)
+                let jcb = &lin.jc[bi];
+                let mut t = [0.0; 18];
+                for col in 0..9 {
+                    t[col] = q[0] * jcb[col] + q[1] * jcb[9 + col];
+                    t[9 + col] = q[2] * jcb[col] + q[3] * jcb[9 + col];
+                }
+                for (slot, &c) in self.obs_fb[bi].iter().enumerate() {
+                    if c == NONE || (c as usize) < r {
+                        continue;
+                    }
+                    let oc = if slot == 0 { 0 } else { 6 };
+                    let dc = self.fblock_dim[c as usize];
+                    let k = lookup[c as usize] as usize;
+                    let blk = &mut vals[self.row_val_offset[r][k]..][..dr * dc];
+                    for u in 0..dr {
+                        let (a0, a1) = (jca[oa + u], jca[9 + oa + u]);
+                        let row = &mut blk[u * dc..(u + 1) * dc];
+                        for (w, x) in row.iter_mut().enumerate() {
+                            *x += a0 * t[oc + w] + a1 * t[9 + oc + w];
+                        }
+                    }
+                }
+            }
+        }
+        // Damping on the diagonal block; components held by the gauge get a unit pivot.
+        let k = lookup[r] as usize;
+        let blk = &mut vals[self.row_val_offset[r][k]..][..dr * dr];
+        let mask = &self.fblock_mask[r];
+        for u in 0..dr {
+            if dr == 6 && mask[u] {
+                for w in 0..dr {
+                    blk[u * dr + w] = 0.0;
+                    blk[w * dr + u] = 0.0;
+                }
+                blk[u * dr + u] = 1.0;
+                b[u] = 0.0;
+            } else {
+                blk[u * dr + u] += damping(lambda, lin.diag_f[ro + u]);
+            }
+        }
+        for &c in cols {
+            lookup[c as usize] = NONE;
+        }
+    }
+}
