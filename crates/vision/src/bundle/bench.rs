@@ -65,6 +65,9 @@ pub struct BalBenchReport {
     pub linear_solver: LinearSolverKind,
     /// Why it stopped.
     pub termination: TerminationReason,
+    /// `[seconds since the solve started, cost]` at the start and after every step, to measure
+    /// the time to reach a given cost.
+    pub trace: Vec<[f64; 2]>,
 }
 
 /// Reads a BAL file and bundle-adjusts it with everything free (the `vfxgraph bench ba` command).
@@ -96,5 +99,8 @@ pub fn solve_bal_file(
         points: problem.points.len(),
         linear_solver: report.linear_solver,
         termination: report.termination,
+        trace: std::iter::once([0.0, report.initial_cost])
+            .chain(report.steps.iter().map(|s| [s.elapsed_seconds, s.cost]))
+            .collect(),
     })
 }

@@ -62,7 +62,7 @@ pub(crate) fn linearize(problem: &Problem, loss: &Loss, st: &Structure) -> Linea
         .for_each(|(ci, ((rr, jjc), jjp))| {
             for k in 0..rr.len() {
                 let i = ci * CHUNK + k;
-                let o = &problem.observations[i];
+                let o = &problem.observations[st.perm[i] as usize];
                 let cam = &problem.cameras[o.camera];
                 let intr = &problem.intrinsics[cam.intrinsics];
                 let x = &problem.points[o.point].position;
@@ -87,8 +87,7 @@ pub(crate) fn linearize(problem: &Problem, loss: &Loss, st: &Structure) -> Linea
                     p[3 + col] = js * (a1 - alpha_sq * r.y * dot);
                 }
                 // Zero the columns that are not optimised.
-                let fb = st.obs_fb[i];
-                let mask = st.obs_mask(i, fb);
+                let mask = st.obs_mask(st.obs_fb[i]);
                 for col in 0..9 {
                     if mask[col] {
                         c[col] = 0.0;
@@ -136,11 +135,12 @@ pub(crate) fn linearize(problem: &Problem, loss: &Loss, st: &Structure) -> Linea
             let d = st.fblock_dim[b];
             let mut g = vec![0.0; d];
             let mut dg = vec![0.0; d];
-            for &(a, off) in st.row_observations(b) {
+            let cols = st.cols(b);
+            for &a in st.row_observations(b) {
                 let (j, r) = (&jc[a as usize], &residuals[a as usize]);
-                let off = off as usize;
                 for u in 0..d {
-                    let (j0, j1) = (j[off + u], j[9 + off + u]);
+                    let cu = cols[u] as usize;
+                    let (j0, j1) = (j[cu], j[9 + cu]);
                     g[u] += j0 * r[0] + j1 * r[1];
                     dg[u] += j0 * j0 + j1 * j1;
                 }

@@ -19,7 +19,7 @@ use super::linear_solver::{LinearSolver, LinearSolverKind};
 use super::loss::Loss;
 use super::problem::{CameraPose, Intrinsics, Point, Problem};
 use super::report::{reprojection_errors, IterationSummary, SolverReport, TerminationReason};
-use super::schur::{FBlock, Structure};
+use super::schur::{Structure, NONE};
 
 /// Options of [`solve`]; the defaults are Ceres' defaults.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -131,16 +131,13 @@ fn restore(p: &mut Problem, s: &Saved) {
 fn apply_step(p: &mut Problem, st: &Structure, df: &[f64], dp: &[[f64; 3]]) {
     for (b, blk) in st.fblocks.iter().enumerate() {
         let d = &df[st.fblock_offset[b]..][..st.fblock_dim[b]];
-        match *blk {
-            FBlock::Pose(i) => {
-                let c = &mut p.cameras[i];
-                c.rotation += Vector3::new(d[0], d[1], d[2]);
-                c.translation += Vector3::new(d[3], d[4], d[5]);
-            }
-            FBlock::Intrinsics(k) => {
-                for (v, dv) in p.intrinsics[k].params.iter_mut().zip(d) {
-                    *v += dv;
-                }
+        for (&col, dv) in st.cols(b).iter().zip(d) {
+            let col = col as usize;
+            match (col, blk.camera, blk.intrinsics) {
+                (0..3, Some(i), _) => p.cameras[i].rotation[col] += dv,
+                (3..6, Some(i), _) => p.cameras[i].translation[col - 3] += dv,
+                (_, _, Some(k)) => p.intrinsics[k].params[col - 6] += dv,
+                _ => {}
             }
         }
     }
@@ -154,11 +151,11 @@ fn apply_step(p: &mut Problem, st: &Structure, df: &[f64], dp: &[[f64; 3]]) {
 fn free_parameter_norm(p: &Problem, st: &Structure) -> f64 {
     let mut s = 0.0;
     for blk in &st.fblocks {
-        match *blk {
-            FBlock::Pose(i) => {
-                s += p.cameras[i].rotation.norm_squared() + p.cameras[i].translation.norm_squared()
-            }
-            FBlock::Intrinsics(k) => s += p.intrinsics[k].params.iter().map(|v| v * v).sum::<f64>(),
+        if let Some(i) = blk.camera {
+            s += p.cameras[i].rotation.norm_squared() + p.cameras[i].translation.norm_squared();
+        }
+        if let Some(k) = blk.intrinsics {
+            s += p.intrinsics[k].params.iter().map(|v| v * v).sum::<f64>();
         }
     }
     s += p
@@ -206,15 +203,14 @@ fn back_substitute(
 fn camera_jdelta(st: &Structure, lin: &Linearization, a: usize, df: &[f64]) -> [f64; 2] {
     let jc = &lin.jc[a];
     let mut out = [0.0; 2];
-    for (slot, &b) in st.obs_fb[a].iter().enumerate() {
-        if b == u32::MAX {
+    for &b in &st.obs_fb[a] {
+        if b == NONE {
             continue;
         }
-        let (o, d) = (st.fblock_offset[b as usize], st.fblock_dim[b as usize]);
-        let lo = if slot == 0 { 0 } else { 6 };
-        for u in 0..d {
-            out[0] += jc[lo + u] * df[o + u];
-            out[1] += jc[9 + lo + u] * df[o + u];
+        let o = st.fblock_offset[b as usize];
+        for (u, &c) in st.cols(b as usize).iter().enumerate() {
+            out[0] += jc[c as usize] * df[o + u];
+            out[1] += jc[9 + c as usize] * df[o + u];
         }
     }
     out
@@ -326,6 +322,7 @@ fn solve_inner(problem: &mut Problem, o: &SolverOptions) -> Result<SolverReport,
                 radius,
                 relative_decrease: 0.0,
                 accepted: false,
+                elapsed_seconds: start.elapsed().as_secs_f64(),
             });
             radius /= decrease_factor;
             decrease_factor *= 2.0;
@@ -356,6 +353,7 @@ fn solve_inner(problem: &mut Problem, o: &SolverOptions) -> Result<SolverReport,
                 radius,
                 relative_decrease: rho,
                 accepted: true,
+                elapsed_seconds: start.elapsed().as_secs_f64(),
             });
             successful_steps += 1;
             cost = new_cost;
@@ -376,6 +374,7 @@ fn solve_inner(problem: &mut Problem, o: &SolverOptions) -> Result<SolverReport,
                 radius,
                 relative_decrease: rho,
                 accepted: false,
+                elapsed_seconds: start.elapsed().as_secs_f64(),
             });
             if converged_f {
                 break TerminationReason::FunctionTolerance;

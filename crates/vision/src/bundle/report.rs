@@ -47,6 +47,8 @@ pub struct IterationSummary {
     pub relative_decrease: f64,
     /// Whether the step was accepted.
     pub accepted: bool,
+    /// Seconds since the solve started, at the end of this step.
+    pub elapsed_seconds: f64,
 }
 
 /// The result of [`solve`](super::solve).

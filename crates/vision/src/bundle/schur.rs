@@ -17,15 +17,18 @@ use rayon::prelude::*;
 use super::evaluate::Linearization;
 use super::problem::Problem;
 
-const NONE: u32 = u32::MAX;
+pub(crate) const NONE: u32 = u32::MAX;
 
-/// What a reduced (camera-side) block parameterises.
+/// What a reduced (camera-side) block parameterises: some of the 9 local camera columns
+/// `[ω, t, k]` of its observations. A camera's pose and its own (unshared) free intrinsics form
+/// one block of up to 9 parameters; an intrinsics block shared by several cameras is a block of
+/// its own (columns 6..9).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum FBlock {
-    /// Pose of camera i: `[ω, t]`, 6 parameters.
-    Pose(usize),
-    /// Intrinsics block k: 3 parameters.
-    Intrinsics(usize),
+pub(crate) struct FBlock {
+    /// The camera whose pose (and exclusive intrinsics) this block holds.
+    pub camera: Option<usize>,
+    /// The intrinsics block updated by columns 6..9 of this block, if any.
+    pub intrinsics: Option<usize>,
 }
 
 /// The fixed block structure of a problem (built once per solve).
@@ -33,10 +36,16 @@ pub(crate) struct Structure {
     pub fblocks: Vec<FBlock>,
     pub fblock_dim: Vec<usize>,
     pub fblock_offset: Vec<usize>,
+    /// Local camera columns (0..9) of each f-block's parameters, `fblock_dim` of them.
+    pub fblock_cols: Vec<[u8; 9]>,
     /// Components of each f-block held constant by the gauge.
-    pub fblock_mask: Vec<[bool; 6]>,
+    pub fblock_mask: Vec<[bool; 9]>,
     pub n_reduced: usize,
-    /// Per observation: pose f-block, intrinsics f-block (NONE when fixed).
+    /// Internal observation order → index in `Problem::observations`. Observations are
+    /// processed sorted by point so that the partners of an observation are contiguous in
+    /// memory (the Schur assembly reads them once per pair).
+    pub perm: Vec<u32>,
+    /// Per observation (internal order): its camera's f-block and its shared-intrinsics f-block (NONE if absent).
     pub obs_fb: Vec<[u32; 2]>,
     pub point_free: Vec<bool>,
     /// Point of each observation.
@@ -44,7 +53,7 @@ pub(crate) struct Structure {
     point_ptr: Vec<usize>,
     point_obs: Vec<u32>,
     row_ptr: Vec<usize>,
-    row_obs: Vec<(u32, u8)>,
+    row_obs: Vec<u32>,
     /// Upper block pattern: for each row, its column blocks (sorted) and value offsets.
     pub row_cols: Vec<Vec<u32>>,
     pub row_val_offset: Vec<Vec<usize>>,
@@ -57,24 +66,55 @@ impl Structure {
     /// Builds the f-block numbering, the incidence lists and the pattern of S.
     pub fn new(problem: &Problem) -> Structure {
         let masks = problem.pose_masks();
+        let mut users = vec![0usize; problem.intrinsics.len()];
+        for c in &problem.cameras {
+            users[c.intrinsics] += 1;
+        }
         let mut fblocks = Vec::new();
         let mut fblock_dim = Vec::new();
+        let mut fblock_cols = Vec::new();
         let mut fblock_mask = Vec::new();
         let mut cam_fb = vec![NONE; problem.cameras.len()];
-        let mut intr_fb = vec![NONE; problem.intrinsics.len()];
+        let mut shared_fb = vec![NONE; problem.intrinsics.len()];
         for (i, c) in problem.cameras.iter().enumerate() {
-            if !c.fixed && masks[i].iter().any(|m| !m) {
-                cam_fb[i] = fblocks.len() as u32;
-                fblocks.push(FBlock::Pose(i));
-                fblock_dim.push(6);
-                fblock_mask.push(masks[i]);
-            }
             let k = c.intrinsics;
-            if !problem.intrinsics[k].fixed && intr_fb[k] == NONE {
-                intr_fb[k] = fblocks.len() as u32;
-                fblocks.push(FBlock::Intrinsics(k));
+            let intr_free = !problem.intrinsics[k].fixed;
+            let mut cols = [0u8; 9];
+            let mut mask = [false; 9];
+            let mut d = 0;
+            if !c.fixed && masks[i].iter().any(|m| !m) {
+                for u in 0..6 {
+                    cols[d] = u as u8;
+                    mask[d] = masks[i][u];
+                    d += 1;
+                }
+            }
+            let exclusive = intr_free && users[k] == 1;
+            if exclusive {
+                for u in 6..9 {
+                    cols[d] = u as u8;
+                    d += 1;
+                }
+            }
+            if d > 0 {
+                cam_fb[i] = fblocks.len() as u32;
+                fblocks.push(FBlock {
+                    camera: Some(i),
+                    intrinsics: exclusive.then_some(k),
+                });
+                fblock_dim.push(d);
+                fblock_cols.push(cols);
+                fblock_mask.push(mask);
+            }
+            if intr_free && !exclusive && shared_fb[k] == NONE {
+                shared_fb[k] = fblocks.len() as u32;
+                fblocks.push(FBlock {
+                    camera: None,
+                    intrinsics: Some(k),
+                });
                 fblock_dim.push(3);
-                fblock_mask.push([false; 6]);
+                fblock_cols.push([6, 7, 8, 0, 0, 0, 0, 0, 0]);
+                fblock_mask.push([false; 9]);
             }
         }
         let mut fblock_offset = Vec::with_capacity(fblocks.len());
@@ -83,35 +123,35 @@ impl Structure {
             fblock_offset.push(n_reduced);
             n_reduced += d;
         }
-        let obs_fb: Vec<[u32; 2]> = problem
-            .observations
+        let mut perm: Vec<u32> = (0..problem.observations.len() as u32).collect();
+        perm.sort_by_key(|&i| {
+            let o = &problem.observations[i as usize];
+            (o.point, o.camera)
+        });
+        let obs = |k: &u32| &problem.observations[*k as usize];
+        let obs_fb: Vec<[u32; 2]> = perm
             .iter()
+            .map(obs)
             .map(|o| {
                 let c = &problem.cameras[o.camera];
-                [cam_fb[o.camera], intr_fb[c.intrinsics]]
+                [cam_fb[o.camera], shared_fb[c.intrinsics]]
             })
             .collect();
         let point_free: Vec<bool> = problem.points.iter().map(|p| !p.fixed).collect();
 
         let (point_ptr, point_obs) = csr(
             problem.points.len(),
-            problem
-                .observations
-                .iter()
+            perm.iter()
+                .map(obs)
                 .enumerate()
                 .map(|(i, o)| (o.point, i as u32)),
         );
         let (row_ptr, row_obs) = csr(
             fblocks.len(),
             obs_fb.iter().enumerate().flat_map(|(i, fb)| {
-                let mut v = Vec::with_capacity(2);
-                if fb[0] != NONE {
-                    v.push((fb[0] as usize, (i as u32, 0u8)));
-                }
-                if fb[1] != NONE {
-                    v.push((fb[1] as usize, (i as u32, 6u8)));
-                }
-                v
+                fb.iter()
+                    .filter(|b| **b != NONE)
+                    .map(move |b| (*b as usize, i as u32))
             }),
         );
 
@@ -119,15 +159,13 @@ impl Structure {
             fblocks,
             fblock_dim,
             fblock_offset,
+            fblock_cols,
             fblock_mask,
             n_reduced,
             obs_fb,
             point_free,
-            obs_point: problem
-                .observations
-                .iter()
-                .map(|o| o.point as u32)
-                .collect(),
+            obs_point: perm.iter().map(obs).map(|o| o.point as u32).collect(),
+            perm,
             point_ptr,
             point_obs,
             row_ptr,
@@ -150,8 +188,8 @@ impl Structure {
                 || vec![false; nf],
                 |mark, r| {
                     let mut cols = Vec::new();
-                    for &(a, _) in this.row_observations(r) {
-                        let p = this.point_of(a as usize);
+                    for &a in this.row_observations(r) {
+                        let p = this.obs_point[a as usize] as usize;
                         let partners: &[u32] = if this.point_free[p] {
                             this.point_observations(p)
                         } else {
@@ -207,24 +245,27 @@ impl Structure {
         &self.point_obs[self.point_ptr[p]..self.point_ptr[p + 1]]
     }
 
-    fn point_of(&self, a: usize) -> usize {
-        self.obs_point[a] as usize
-    }
-
-    /// Observations touching f-block r, with the local column offset (0 pose, 6 intrinsics).
-    pub fn row_observations(&self, r: usize) -> &[(u32, u8)] {
+    /// Observations touching f-block r.
+    pub fn row_observations(&self, r: usize) -> &[u32] {
         &self.row_obs[self.row_ptr[r]..self.row_ptr[r + 1]]
     }
 
-    /// Which of the 9 camera columns of observation i are not optimised.
-    pub fn obs_mask(&self, _i: usize, fb: [u32; 2]) -> [bool; 9] {
+    /// The local camera columns of f-block b.
+    #[inline]
+    pub fn cols(&self, b: usize) -> &[u8] {
+        &self.fblock_cols[b][..self.fblock_dim[b]]
+    }
+
+    /// Which of the 9 camera columns of an observation with f-blocks `fb` are not optimised.
+    pub fn obs_mask(&self, fb: [u32; 2]) -> [bool; 9] {
         let mut m = [true; 9];
-        if fb[0] != NONE {
-            let pm = &self.fblock_mask[fb[0] as usize];
-            m[..6].copy_from_slice(pm);
-        }
-        if fb[1] != NONE {
-            m[6..].copy_from_slice(&[false; 3]);
+        for b in fb {
+            if b != NONE {
+                let b = b as usize;
+                for (u, &c) in self.cols(b).iter().enumerate() {
+                    m[c as usize] = self.fblock_mask[b][u];
+                }
+            }
         }
         m
     }
@@ -370,28 +411,34 @@ impl Structure {
         lookup: &mut [u32],
     ) {
         let dr = self.fblock_dim[r];
-        let cols = &self.row_cols[r];
-        for (k, &c) in cols.iter().enumerate() {
+        let cols_r = self.cols(r);
+        let row_cols = &self.row_cols[r];
+        for (k, &c) in row_cols.iter().enumerate() {
             lookup[c as usize] = k as u32;
         }
         let ro = self.fblock_offset[r];
         for u in 0..dr {
             b[u] = -lin.g_f[ro + u];
         }
-        for &(a, oa) in self.row_observations(r) {
+        let mut krow = [[0.0f64; 9]; 9];
+        for &a in self.row_observations(r) {
             let a = a as usize;
-            let oa = oa as usize;
             let p = self.obs_point[a] as usize;
             let jca = &lin.jc[a];
             let va = &v[a];
             let free = self.point_free[p];
+            // Rows of Jcₐᵀ restricted to this block's columns.
+            let mut ja = [[0.0f64; 2]; 9];
+            for (u, &cu) in cols_r.iter().enumerate() {
+                ja[u] = [jca[cu as usize], jca[9 + cu as usize]];
+            }
             // rhs: + Jcₐᵀ (Vₐ g_p)
             if free {
                 let g = &lin.g_p[p];
                 let w0 = va[0] * g[0] + va[1] * g[1] + va[2] * g[2];
                 let w1 = va[3] * g[0] + va[4] * g[1] + va[5] * g[2];
                 for u in 0..dr {
-                    b[u] += jca[oa + u] * w0 + jca[9 + oa + u] * w1;
+                    b[u] += ja[u][0] * w0 + ja[u][1] * w1;
                 }
             }
             let single = [a as u32];
@@ -402,6 +449,12 @@ impl Structure {
             };
             for &bi in partners {
                 let bi = bi as usize;
+                let fbs = self.obs_fb[bi];
+                if (fbs[0] == NONE || (fbs[0] as usize) < r)
+                    && (fbs[1] == NONE || (fbs[1] as usize) < r)
+                {
+                    continue;
+                }
                 // Q = δ I − Vₐ Jpᵦᵀ (2×2)
                 let jpb = &lin.jp[bi];
                 let mut q = [0.0; 4];
@@ -418,26 +471,45 @@ impl Structure {
                     q[0] += 1.0;
                     q[3] += 1.0;
                 }
-                // T = Q Jcᵦ (2×9)
+                // T = Q Jcᵦ (2×9), then K = Jcₐ[:, cols_r]ᵀ T (dr×9).
                 let jcb = &lin.jc[bi];
-                let mut t = [0.0; 18];
+                let mut t0 = [0.0; 9];
+                let mut t1 = [0.0; 9];
                 for col in 0..9 {
-                    t[col] = q[0] * jcb[col] + q[1] * jcb[9 + col];
-                    t[9 + col] = q[2] * jcb[col] + q[3] * jcb[9 + col];
+                    t0[col] = q[0] * jcb[col] + q[1] * jcb[9 + col];
+                    t1[col] = q[2] * jcb[col] + q[3] * jcb[9 + col];
                 }
-                for (slot, &c) in self.obs_fb[bi].iter().enumerate() {
+                for u in 0..dr {
+                    let (a0, a1) = (ja[u][0], ja[u][1]);
+                    let kr = &mut krow[u];
+                    for w in 0..9 {
+                        kr[w] = a0 * t0[w] + a1 * t1[w];
+                    }
+                }
+                for &c in &fbs {
                     if c == NONE || (c as usize) < r {
                         continue;
                     }
-                    let oc = if slot == 0 { 0 } else { 6 };
-                    let dc = self.fblock_dim[c as usize];
-                    let k = lookup[c as usize] as usize;
+                    let c = c as usize;
+                    let dc = self.fblock_dim[c];
+                    let k = lookup[c] as usize;
                     let blk = &mut vals[self.row_val_offset[r][k]..][..dr * dc];
-                    for u in 0..dr {
-                        let (a0, a1) = (jca[oa + u], jca[9 + oa + u]);
-                        let row = &mut blk[u * dc..(u + 1) * dc];
-                        for (w, x) in row.iter_mut().enumerate() {
-                            *x += a0 * t[oc + w] + a1 * t[9 + oc + w];
+                    if dc == 9 {
+                        for u in 0..dr {
+                            let row: &mut [f64] = &mut blk[u * 9..u * 9 + 9];
+                            let kr = &krow[u];
+                            for w in 0..9 {
+                                row[w] += kr[w];
+                            }
+                        }
+                    } else {
+                        let cols_c = self.cols(c);
+                        for u in 0..dr {
+                            let row = &mut blk[u * dc..(u + 1) * dc];
+                            let kr = &krow[u];
+                            for (x, &cw) in row.iter_mut().zip(cols_c) {
+                                *x += kr[cw as usize];
+                            }
                         }
                     }
                 }
@@ -448,7 +520,7 @@ impl Structure {
         let blk = &mut vals[self.row_val_offset[r][k]..][..dr * dr];
         let mask = &self.fblock_mask[r];
         for u in 0..dr {
-            if dr == 6 && mask[u] {
+            if mask[u] {
                 for w in 0..dr {
                     blk[u * dr + w] = 0.0;
                     blk[w * dr + u] = 0.0;
@@ -459,7 +531,7 @@ impl Structure {
                 blk[u * dr + u] += damping(lambda, lin.diag_f[ro + u]);
             }
         }
-        for &c in cols {
+        for &c in row_cols {
             lookup[c as usize] = NONE;
         }
     }
