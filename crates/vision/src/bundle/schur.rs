@@ -420,7 +420,6 @@ impl Structure {
         for u in 0..dr {
             b[u] = -lin.g_f[ro + u];
         }
-        let mut krow = [[0.0f64; 9]; 9];
         for &a in self.row_observations(r) {
             let a = a as usize;
             let p = self.obs_point[a] as usize;
@@ -471,20 +470,13 @@ impl Structure {
                     q[0] += 1.0;
                     q[3] += 1.0;
                 }
-                // T = Q Jcᵦ (2×9), then K = Jcₐ[:, cols_r]ᵀ T (dr×9).
+                // T = Q Jcᵦ (2×9); the block gains Jcₐ[:, cols_r]ᵀ T[:, cols_c].
                 let jcb = &lin.jc[bi];
                 let mut t0 = [0.0; 9];
                 let mut t1 = [0.0; 9];
                 for col in 0..9 {
                     t0[col] = q[0] * jcb[col] + q[1] * jcb[9 + col];
                     t1[col] = q[2] * jcb[col] + q[3] * jcb[9 + col];
-                }
-                for u in 0..dr {
-                    let (a0, a1) = (ja[u][0], ja[u][1]);
-                    let kr = &mut krow[u];
-                    for w in 0..9 {
-                        kr[w] = a0 * t0[w] + a1 * t1[w];
-                    }
                 }
                 for &c in &fbs {
                     if c == NONE || (c as usize) < r {
@@ -495,20 +487,20 @@ impl Structure {
                     let k = lookup[c] as usize;
                     let blk = &mut vals[self.row_val_offset[r][k]..][..dr * dc];
                     if dc == 9 {
-                        for u in 0..dr {
-                            let row: &mut [f64] = &mut blk[u * 9..u * 9 + 9];
-                            let kr = &krow[u];
+                        // The common case (pose + own intrinsics, or BAL): a full 9-wide row.
+                        for (u, row) in blk.chunks_exact_mut(9).enumerate() {
+                            let (a0, a1) = (ja[u][0], ja[u][1]);
                             for w in 0..9 {
-                                row[w] += kr[w];
+                                row[w] += a0 * t0[w] + a1 * t1[w];
                             }
                         }
                     } else {
                         let cols_c = self.cols(c);
-                        for u in 0..dr {
-                            let row = &mut blk[u * dc..(u + 1) * dc];
-                            let kr = &krow[u];
+                        for (u, row) in blk.chunks_exact_mut(dc).enumerate() {
+                            let (a0, a1) = (ja[u][0], ja[u][1]);
                             for (x, &cw) in row.iter_mut().zip(cols_c) {
-                                *x += kr[cw as usize];
+                                let cw = cw as usize;
+                                *x += a0 * t0[cw] + a1 * t1[cw];
                             }
                         }
                     }
