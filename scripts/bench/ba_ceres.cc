@@ -71,6 +71,8 @@ bool read_bal(const char* path, int& nc, int& np, std::vector<int>& cam, std::ve
 }  // namespace
 
 int main(int argc, char** argv) {
+  google::InitGoogleLogging(argv[0]);
+  FLAGS_minloglevel = 2;  // Ceres' "linear solver failure" warnings are part of normal LM.
   if (argc < 2) {
     std::fprintf(stderr, "usage: ba_ceres FILE [--solver sparse|dense|iterative] [--loss L] "
                          "[--max-iterations N] [--threads N]\n");

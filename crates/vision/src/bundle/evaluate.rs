@@ -6,7 +6,8 @@ use rayon::prelude::*;
 
 use super::loss::Loss;
 use super::problem::Problem;
-use super::residual::project_with_jacobians;
+use super::residual::{project_rt, project_with_jacobians_rj};
+use super::rotation::{angle_axis_to_matrix, rotation_and_left_jacobian};
 use super::schur::Structure;
 
 /// Observations per parallel chunk (fixed, so the reduction order never depends on threads).
@@ -34,12 +35,26 @@ pub(crate) struct Linearization {
 /// ½·Σ ρ(‖rᵢ‖²) at the problem's current parameters, reduced in a fixed order.
 pub(crate) fn cost(problem: &Problem, loss: &Loss) -> f64 {
     let n = problem.observations.len();
+    let rots: Vec<_> = problem
+        .cameras
+        .par_iter()
+        .map(|c| angle_axis_to_matrix(&c.rotation))
+        .collect();
     let partial: Vec<f64> = (0..n.div_ceil(CHUNK))
         .into_par_iter()
         .map(|c| {
             let mut s = 0.0;
             for i in c * CHUNK..((c + 1) * CHUNK).min(n) {
-                let r = problem.predict(i) - problem.observations[i].pixel;
+                let o = &problem.observations[i];
+                let cam = &problem.cameras[o.camera];
+                let k = &problem.intrinsics[cam.intrinsics];
+                let pred = project_rt(
+                    k,
+                    &rots[o.camera],
+                    &cam.translation,
+                    &problem.points[o.point].position,
+                );
+                let r = pred - o.pixel;
                 s += loss.evaluate(r.norm_squared())[0];
             }
             s
@@ -51,6 +66,11 @@ pub(crate) fn cost(problem: &Problem, loss: &Loss) -> f64 {
 /// Residuals, Jacobians and gradients at the problem's current parameters.
 pub(crate) fn linearize(problem: &Problem, loss: &Loss, st: &Structure) -> Linearization {
     let n = problem.observations.len();
+    let rots: Vec<_> = problem
+        .cameras
+        .par_iter()
+        .map(|c| rotation_and_left_jacobian(&c.rotation))
+        .collect();
     let mut residuals = vec![[0.0; 2]; n];
     let mut jc = vec![[0.0; 18]; n];
     let mut jp = vec![[0.0; 6]; n];
@@ -66,8 +86,9 @@ pub(crate) fn linearize(problem: &Problem, loss: &Loss, st: &Structure) -> Linea
                 let cam = &problem.cameras[o.camera];
                 let intr = &problem.intrinsics[cam.intrinsics];
                 let x = &problem.points[o.point].position;
+                let (rot, jl) = &rots[o.camera];
                 let (pred, j_cam, j_pt) =
-                    project_with_jacobians(intr, &cam.rotation, &cam.translation, x);
+                    project_with_jacobians_rj(intr, rot, jl, &cam.translation, x);
                 let r = pred - o.pixel;
                 let s = r.norm_squared();
                 let (rs, alpha_sq, js) = loss.corrector(s);

@@ -4,7 +4,11 @@
 use serde::{Deserialize, Serialize};
 
 use super::linear_solver::LinearSolverKind;
+use rayon::prelude::*;
+
 use super::problem::Problem;
+use super::residual::project_rt;
+use super::rotation::angle_axis_to_matrix;
 
 /// Why the Levenberg–Marquardt loop stopped (Ceres' termination types).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -91,8 +95,22 @@ pub fn reprojection_errors(problem: &Problem) -> (f64, Vec<f64>, Vec<f64>) {
     let mut cam = vec![(0.0, 0usize); problem.cameras.len()];
     let mut pt = vec![(0.0, 0usize); problem.points.len()];
     let mut total = 0.0;
-    for (i, o) in problem.observations.iter().enumerate() {
-        let e = (problem.predict(i) - o.pixel).norm_squared();
+    let rots: Vec<_> = problem
+        .cameras
+        .par_iter()
+        .map(|c| angle_axis_to_matrix(&c.rotation))
+        .collect();
+    let errors: Vec<f64> = problem
+        .observations
+        .par_iter()
+        .map(|o| {
+            let c = &problem.cameras[o.camera];
+            let k = &problem.intrinsics[c.intrinsics];
+            let x = &problem.points[o.point].position;
+            (project_rt(k, &rots[o.camera], &c.translation, x) - o.pixel).norm_squared()
+        })
+        .collect();
+    for (o, &e) in problem.observations.iter().zip(&errors) {
         total += e;
         cam[o.camera].0 += e;
         cam[o.camera].1 += 1;

@@ -8,7 +8,7 @@
 use nalgebra::{Matrix2x3, Matrix3, SMatrix, Vector2, Vector3};
 
 use super::problem::{CameraModel, Intrinsics};
-use super::rotation::{angle_axis_to_matrix, rotate_with_jacobian};
+use super::rotation::{angle_axis_to_matrix, rotation_and_left_jacobian, skew};
 
 /// 2×9 Jacobian with respect to `[ω, t, intrinsics]`.
 pub type CameraJacobian = SMatrix<f64, 2, 9>;
@@ -20,8 +20,17 @@ pub fn project(
     t: &Vector3<f64>,
     x: &Vector3<f64>,
 ) -> Vector2<f64> {
-    let p = angle_axis_to_matrix(omega) * x + t;
-    project_camera_frame(k, &p)
+    project_rt(k, &angle_axis_to_matrix(omega), t, x)
+}
+
+/// Predicted pixel of X with the rotation matrix already computed.
+pub fn project_rt(
+    k: &Intrinsics,
+    r: &Matrix3<f64>,
+    t: &Vector3<f64>,
+    x: &Vector3<f64>,
+) -> Vector2<f64> {
+    project_camera_frame(k, &(r * x + t))
 }
 
 fn project_camera_frame(k: &Intrinsics, p: &Vector3<f64>) -> Vector2<f64> {
@@ -48,7 +57,21 @@ pub fn project_with_jacobians(
     t: &Vector3<f64>,
     x: &Vector3<f64>,
 ) -> (Vector2<f64>, CameraJacobian, Matrix2x3<f64>) {
-    let (rx, d_rx_d_omega, r) = rotate_with_jacobian(omega, x);
+    let (r, jl) = rotation_and_left_jacobian(omega);
+    project_with_jacobians_rj(k, &r, &jl, t, x)
+}
+
+/// [`project_with_jacobians`] with `(R, J_l)` of the camera's ω precomputed
+/// ([`rotation_and_left_jacobian`]), as the solver does once per camera.
+pub fn project_with_jacobians_rj(
+    k: &Intrinsics,
+    r: &Matrix3<f64>,
+    jl: &Matrix3<f64>,
+    t: &Vector3<f64>,
+    x: &Vector3<f64>,
+) -> (Vector2<f64>, CameraJacobian, Matrix2x3<f64>) {
+    let rx = r * x;
+    let d_rx_d_omega = -skew(&rx) * jl;
     let p = rx + t;
     let iz = 1.0 / p.z;
     let (pred, d_pred_d_p, d_pred_d_k): (Vector2<f64>, Matrix2x3<f64>, Matrix2x3<f64>) =
@@ -96,7 +119,6 @@ pub fn project_with_jacobians(
     jc.fixed_view_mut::<2, 3>(0, 0).copy_from(&d_omega);
     jc.fixed_view_mut::<2, 3>(0, 3).copy_from(&d_pred_d_p);
     jc.fixed_view_mut::<2, 3>(0, 6).copy_from(&d_pred_d_k);
-    let _: &Matrix3<f64> = &r;
     (pred, jc, d_x)
 }
 

@@ -39,27 +39,30 @@ pub fn matrix_to_angle_axis(r: &Matrix3<f64>) -> Vector3<f64> {
     rot.scaled_axis()
 }
 
+/// `(R(ω), J_l(ω))`: the rotation and the left Jacobian of SO(3), so that
+/// `∂(R(ω)X)/∂ω = −[R(ω)X]ₓ · J_l(ω)` for any X (computed once per camera, used per observation).
+pub fn rotation_and_left_jacobian(omega: &Vector3<f64>) -> (Matrix3<f64>, Matrix3<f64>) {
+    let theta2 = omega.norm_squared();
+    let k = skew(omega);
+    if theta2 < SMALL_ANGLE * SMALL_ANGLE {
+        return (Matrix3::identity() + k, Matrix3::identity() + k * 0.5);
+    }
+    let theta = theta2.sqrt();
+    let (s, c) = theta.sin_cos();
+    let k2 = k * k;
+    let r = Matrix3::identity() + k * (s / theta) + k2 * ((1.0 - c) / theta2);
+    let jl = Matrix3::identity() + k * ((1.0 - c) / theta2) + k2 * ((theta - s) / (theta2 * theta));
+    (r, jl)
+}
+
 /// `R(ω)·X` with Jacobians: returns `(R X, ∂(R X)/∂ω, R)`; `∂(R X)/∂X = R`.
 pub fn rotate_with_jacobian(
     omega: &Vector3<f64>,
     x: &Vector3<f64>,
 ) -> (Vector3<f64>, Matrix3<f64>, Matrix3<f64>) {
-    let theta2 = omega.norm_squared();
-    let k = skew(omega);
-    let (r, jl) = if theta2 < SMALL_ANGLE * SMALL_ANGLE {
-        (Matrix3::identity() + k, Matrix3::identity() + k * 0.5)
-    } else {
-        let theta = theta2.sqrt();
-        let (s, c) = theta.sin_cos();
-        let k2 = k * k;
-        let r = Matrix3::identity() + k * (s / theta) + k2 * ((1.0 - c) / theta2);
-        let jl =
-            Matrix3::identity() + k * ((1.0 - c) / theta2) + k2 * ((theta - s) / (theta2 * theta));
-        (r, jl)
-    };
+    let (r, jl) = rotation_and_left_jacobian(omega);
     let rx = r * x;
-    let d_omega = -skew(&rx) * jl;
-    (rx, d_omega, r)
+    (rx, -skew(&rx) * jl, r)
 }
 
 #[cfg(test)]
