@@ -150,8 +150,9 @@ fn apply_step(p: &mut Problem, st: &Structure, df: &[f64], dp: &[[f64; 3]]) {
 
 fn free_parameter_norm(p: &Problem, st: &Structure) -> f64 {
     let mut s = 0.0;
-    for blk in &st.fblocks {
-        if let Some(i) = blk.camera {
+    for (b, blk) in st.fblocks.iter().enumerate() {
+        let has_pose = st.cols(b).first() == Some(&0);
+        if let (Some(i), true) = (blk.camera, has_pose) {
             s += p.cameras[i].rotation.norm_squared() + p.cameras[i].translation.norm_squared();
         }
         if let Some(k) = blk.intrinsics {

@@ -76,6 +76,29 @@ pub struct CameraPose {
     pub fixed: bool,
 }
 
+impl CameraPose {
+    /// A pose from a rotation matrix and translation (X ↦ R·X + t), with intrinsics block
+    /// `intrinsics`, free.
+    pub fn from_rt(r: &nalgebra::Matrix3<f64>, t: &Vector3<f64>, intrinsics: usize) -> Self {
+        CameraPose {
+            rotation: super::rotation::matrix_to_angle_axis(r),
+            translation: *t,
+            intrinsics,
+            fixed: false,
+        }
+    }
+
+    /// The rotation matrix R(ω) (book 4.5.2).
+    pub fn rotation_matrix(&self) -> nalgebra::Matrix3<f64> {
+        super::rotation::angle_axis_to_matrix(&self.rotation)
+    }
+
+    /// The camera centre c = −Rᵀt.
+    pub fn centre(&self) -> Vector3<f64> {
+        camera_centre(self)
+    }
+}
+
 /// A 3D point block.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Point {

@@ -472,3 +472,39 @@ fn fixed_points_give_resection_and_gauge_component_is_held() {
         assert_eq!(q.position, t.position);
     }
 }
+
+#[test]
+fn only_points_free_and_forced_sparse_solver() {
+    let s = video_like(&VideoConfig {
+        cameras: 8,
+        points: 200,
+        ..VideoConfig::default()
+    });
+    let mut p = s.problem.clone();
+    for (c, t) in p.cameras.iter_mut().zip(&s.truth.cameras) {
+        *c = CameraPose { fixed: true, ..*t };
+    }
+    for kind in [
+        LinearSolverKind::SparseSchur,
+        LinearSolverKind::IterativeSchur,
+    ] {
+        let mut q = p.clone();
+        let r = solve(
+            &mut q,
+            &SolverOptions {
+                linear_solver: kind,
+                ..SolverOptions::default()
+            },
+        )
+        .unwrap();
+        assert_eq!(r.reduced_size, 0);
+        assert!(r.termination.converged() && r.final_rms < 0.75, "{r:?}");
+        assert_eq!(q.cameras, p.cameras);
+    }
+    let c = CameraPose::from_rt(
+        &s.truth.cameras[3].rotation_matrix(),
+        &s.truth.cameras[3].translation,
+        0,
+    );
+    assert!((c.rotation - s.truth.cameras[3].rotation).norm() < 1e-12);
+}

@@ -67,6 +67,9 @@ impl LinearSolver {
         st: &Structure,
         pcg: pcg::PcgOptions,
     ) -> Result<LinearSolver, super::BundleError> {
+        if st.n_reduced == 0 {
+            return Ok(LinearSolver::Dense(dense::DenseSolver::new(st)));
+        }
         Ok(match kind.resolve(st.n_reduced) {
             LinearSolverKind::DenseSchur | LinearSolverKind::Auto => {
                 LinearSolver::Dense(dense::DenseSolver::new(st))
