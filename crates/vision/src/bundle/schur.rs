@@ -52,6 +52,13 @@ pub(crate) struct Structure {
     pub obs_point: Vec<u32>,
     point_ptr: Vec<usize>,
     point_obs: Vec<u32>,
+    /// True when no intrinsics block is shared: then f-block order follows camera order and,
+    /// observations of a point being sorted by camera, only the partners from an observation
+    /// onwards can land in the upper triangle of its row.
+    monotone: bool,
+    /// Per observation: the first observation of its point in the same camera (duplicated
+    /// observations of a point in one camera must all pair with each other).
+    upper_start: Vec<u32>,
     row_ptr: Vec<usize>,
     row_obs: Vec<u32>,
     /// Upper block pattern: for each row, its column blocks (sorted) and value offsets.
@@ -155,6 +162,14 @@ impl Structure {
             }),
         );
 
+        let mut upper_start: Vec<u32> = Vec::with_capacity(perm.len());
+        for k in 0..perm.len() {
+            let same = k > 0 && {
+                let (o, q) = (obs(&perm[k]), obs(&perm[k - 1]));
+                (o.point, o.camera) == (q.point, q.camera)
+            };
+            upper_start.push(if same { upper_start[k - 1] } else { k as u32 });
+        }
         let mut st = Structure {
             fblocks,
             fblock_dim,
@@ -168,6 +183,8 @@ impl Structure {
             perm,
             point_ptr,
             point_obs,
+            monotone: shared_fb.iter().all(|&b| b == NONE),
+            upper_start,
             row_ptr,
             row_obs,
             row_cols: Vec::new(),
@@ -191,7 +208,7 @@ impl Structure {
                     for &a in this.row_observations(r) {
                         let p = this.obs_point[a as usize] as usize;
                         let partners: &[u32] = if this.point_free[p] {
-                            this.point_observations(p)
+                            this.upper_partners(a as usize, p)
                         } else {
                             std::slice::from_ref(&a)
                         };
@@ -243,6 +260,19 @@ impl Structure {
     /// Observations of point p.
     pub fn point_observations(&self, p: usize) -> &[u32] {
         &self.point_obs[self.point_ptr[p]..self.point_ptr[p + 1]]
+    }
+
+    /// The observations of a's point that can contribute to the upper triangle of the row of
+    /// a's f-block r: all of them in general, those from a onwards when `monotone`.
+    #[inline]
+    fn upper_partners(&self, a: usize, p: usize) -> &[u32] {
+        if self.monotone {
+            // Internal order is point-major, so point p's observations are the internal
+            // indices point_ptr[p]..point_ptr[p + 1] and a sits among them.
+            &self.point_obs[self.upper_start[a] as usize..self.point_ptr[p + 1]]
+        } else {
+            self.point_observations(p)
+        }
     }
 
     /// Observations touching f-block r.
@@ -442,7 +472,7 @@ impl Structure {
             }
             let single = [a as u32];
             let partners: &[u32] = if free {
-                self.point_observations(p)
+                self.upper_partners(a, p)
             } else {
                 &single
             };
@@ -526,5 +556,43 @@ impl Structure {
         for &c in row_cols {
             lookup[c as usize] = NONE;
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bundle::evaluate::linearize;
+    use crate::bundle::loss::Loss;
+    use crate::bundle::synthetic::{video_like, SyntheticModel, VideoConfig};
+
+    #[test]
+    fn upper_triangle_shortcut_equals_the_general_path_even_with_duplicates() {
+        let s = video_like(&VideoConfig {
+            cameras: 10,
+            points: 300,
+            model: SyntheticModel::Bal,
+            ..VideoConfig::default()
+        });
+        let mut p = s.problem;
+        // The same point seen twice by one camera.
+        for i in (0..p.observations.len()).step_by(7) {
+            let mut o = p.observations[i];
+            o.pixel.x += 0.3;
+            p.observations.push(o);
+        }
+        let fast = Structure::new(&p);
+        assert!(fast.monotone);
+        let mut general = Structure::new(&p);
+        general.monotone = false;
+        general.build_pattern();
+        assert_eq!(fast.row_cols, general.row_cols);
+        let lin = linearize(&p, &Loss::Huber { scale: 1.0 }, &fast);
+        let a = fast.assemble(&lin, 1e-3);
+        let b = general.assemble(&lin, 1e-3);
+        for (x, y) in a.values.iter().zip(&b.values) {
+            assert!((x - y).abs() <= 1e-12 * (1.0 + x.abs()), "{x} vs {y}");
+        }
+        assert_eq!(a.rhs, b.rhs);
     }
 }
