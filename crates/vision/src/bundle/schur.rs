@@ -130,11 +130,18 @@ impl Structure {
             fblock_offset.push(n_reduced);
             n_reduced += d;
         }
-        let mut perm: Vec<u32> = (0..problem.observations.len() as u32).collect();
-        perm.sort_by_key(|&i| {
-            let o = &problem.observations[i as usize];
-            (o.point, o.camera)
-        });
+        // Point-major order: bucket by point (stable), then by camera within each point.
+        let (by_point_ptr, mut perm) = csr(
+            problem.points.len(),
+            problem
+                .observations
+                .iter()
+                .enumerate()
+                .map(|(i, o)| (o.point, i as u32)),
+        );
+        for w in by_point_ptr.windows(2) {
+            perm[w[0]..w[1]].sort_by_key(|&i| problem.observations[i as usize].camera);
+        }
         let obs = |k: &u32| &problem.observations[*k as usize];
         let obs_fb: Vec<[u32; 2]> = perm
             .iter()

@@ -15,6 +15,10 @@ pub mod sparse;
 /// Reduced systems up to this many unknowns are factored densely by [`LinearSolverKind::Auto`].
 pub const AUTO_DENSE_MAX: usize = 600;
 
+/// [`LinearSolverKind::DenseSchur`] refuses reduced systems larger than this (the matrix alone
+/// would take n²·8 bytes: 3.2 GB at this size).
+pub const DENSE_MAX: usize = 20_000;
+
 /// Which linear solver factors the reduced camera system (Ceres' `linear_solver_type`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "snake_case")]
@@ -72,6 +76,12 @@ impl LinearSolver {
         }
         Ok(match kind.resolve(st.n_reduced) {
             LinearSolverKind::DenseSchur | LinearSolverKind::Auto => {
+                if st.n_reduced > DENSE_MAX {
+                    return Err(super::BundleError::InvalidProblem(format!(
+                        "dense Schur with {} unknowns (more than {DENSE_MAX}); use the sparse solver",
+                        st.n_reduced
+                    )));
+                }
                 LinearSolver::Dense(dense::DenseSolver::new(st))
             }
             LinearSolverKind::SparseSchur => {
