@@ -31,6 +31,18 @@ pub(crate) struct FBlock {
     pub intrinsics: Option<usize>,
 }
 
+/// Consecutive block rows `rows` of S and the points (ascending) observed in any of them.
+/// A group streams through its points' observations in memory order, so the Schur assembly
+/// reads the per-observation data sequentially instead of jumping from point to point.
+struct RowGroup {
+    rows: std::ops::Range<usize>,
+    points: Vec<u32>,
+}
+
+/// Number of row groups (fixed, so the work split never depends on the thread count; the
+/// order of the sums inside each block does not depend on it either).
+const ROW_GROUPS: usize = 64;
+
 /// The fixed block structure of a problem (built once per solve).
 pub(crate) struct Structure {
     pub fblocks: Vec<FBlock>,
@@ -61,6 +73,11 @@ pub(crate) struct Structure {
     upper_start: Vec<u32>,
     row_ptr: Vec<usize>,
     row_obs: Vec<u32>,
+    /// Groups of consecutive block rows assembled by one task, with the points they touch.
+    groups: Vec<RowGroup>,
+    /// Assemble row by row instead of by groups (the reference path, for tests).
+    #[cfg(test)]
+    pub rowwise: bool,
     /// Upper block pattern: for each row, its column blocks (sorted) and value offsets.
     pub row_cols: Vec<Vec<u32>>,
     pub row_val_offset: Vec<Vec<usize>>,
@@ -192,6 +209,9 @@ impl Structure {
             point_obs,
             monotone: shared_fb.iter().all(|&b| b == NONE),
             upper_start,
+            groups: Vec::new(),
+            #[cfg(test)]
+            rowwise: false,
             row_ptr,
             row_obs,
             row_cols: Vec::new(),
@@ -200,7 +220,44 @@ impl Structure {
             n_values: 0,
         };
         st.build_pattern();
+        st.build_groups();
         st
+    }
+
+    fn build_groups(&mut self) {
+        let nf = self.fblocks.len();
+        let total = self.row_obs.len().max(1);
+        let target = total.div_ceil(ROW_GROUPS);
+        let mut bounds = vec![0];
+        let mut acc = 0;
+        for r in 0..nf {
+            acc += self.row_observations(r).len();
+            if acc >= target && r + 1 < nf {
+                bounds.push(r + 1);
+                acc = 0;
+            }
+        }
+        bounds.push(nf);
+        bounds.dedup();
+        let this = &*self;
+        self.groups = bounds
+            .par_windows(2)
+            .map(|w| {
+                let mut points: Vec<u32> = (w[0]..w[1])
+                    .flat_map(|r| {
+                        this.row_observations(r)
+                            .iter()
+                            .map(|&a| this.obs_point[a as usize])
+                    })
+                    .collect();
+                points.sort_unstable();
+                points.dedup();
+                RowGroup {
+                    rows: w[0]..w[1],
+                    points,
+                }
+            })
+            .collect();
     }
 
     fn build_pattern(&mut self) {
@@ -408,145 +465,216 @@ impl Structure {
 
         let mut values = vec![0.0; self.n_values];
         let mut rhs = vec![0.0; self.n_reduced];
-        // Split the flat arrays into per-row slices.
-        let mut row_slices: Vec<(&mut [f64], &mut [f64])> = Vec::with_capacity(self.fblocks.len());
+        #[cfg(test)]
+        if self.rowwise {
+            self.assemble_rowwise(&mut values, &mut rhs, lin, &v, lambda);
+            return ReducedSystem { values, rhs, c_inv };
+        }
+        // Split the flat arrays into per-group slices (groups are consecutive rows).
+        let mut slices: Vec<(&mut [f64], &mut [f64])> = Vec::with_capacity(self.groups.len());
         {
             let mut rest_v: &mut [f64] = &mut values;
             let mut rest_r: &mut [f64] = &mut rhs;
-            for r in 0..self.fblocks.len() {
-                let len = if r + 1 < self.fblocks.len() {
-                    self.row_start[r + 1] - self.row_start[r]
-                } else {
-                    self.n_values - self.row_start[r]
-                };
-                let (a, b) = std::mem::take(&mut rest_v).split_at_mut(len);
-                let (c, d) = std::mem::take(&mut rest_r).split_at_mut(self.fblock_dim[r]);
-                row_slices.push((a, c));
+            for g in &self.groups {
+                let v_end = self
+                    .row_start
+                    .get(g.rows.end)
+                    .copied()
+                    .unwrap_or(self.n_values);
+                let r_end = self
+                    .fblock_offset
+                    .get(g.rows.end)
+                    .copied()
+                    .unwrap_or(self.n_reduced);
+                let (a, b) =
+                    std::mem::take(&mut rest_v).split_at_mut(v_end - self.row_start[g.rows.start]);
+                let (c, d) = std::mem::take(&mut rest_r)
+                    .split_at_mut(r_end - self.fblock_offset[g.rows.start]);
+                slices.push((a, c));
                 rest_v = b;
                 rest_r = d;
             }
         }
-        let nf = self.fblocks.len();
-        row_slices.into_par_iter().enumerate().for_each_init(
-            || vec![NONE; nf],
-            |lookup, (r, (vals, b))| {
-                self.assemble_row(r, vals, b, lin, &v, lambda, lookup);
-            },
-        );
+        self.groups
+            .par_iter()
+            .zip(slices)
+            .for_each(|(g, (vals, b))| self.assemble_group(g, vals, b, lin, &v, lambda));
         ReducedSystem { values, rhs, c_inv }
     }
 
-    #[allow(clippy::too_many_arguments)]
-    fn assemble_row(
+    /// The group-wise assembly (see [`RowGroup`]); writes `vals`/`b`, the slices of the group's
+    /// rows.
+    fn assemble_group(
         &self,
-        r: usize,
+        g: &RowGroup,
         vals: &mut [f64],
         b: &mut [f64],
         lin: &Linearization,
         v: &[[f64; 6]],
         lambda: f64,
-        lookup: &mut [u32],
+    ) {
+        let v0 = self.row_start[g.rows.start];
+        let b0 = self.fblock_offset[g.rows.start];
+        for r in g.rows.clone() {
+            let ro = self.fblock_offset[r];
+            for u in 0..self.fblock_dim[r] {
+                b[ro - b0 + u] = -lin.g_f[ro + u];
+            }
+        }
+        for &p in &g.points {
+            let p = p as usize;
+            for a in self.point_ptr[p]..self.point_ptr[p + 1] {
+                for &r in &self.obs_fb[a] {
+                    if r == NONE || !g.rows.contains(&(r as usize)) {
+                        continue;
+                    }
+                    let r = r as usize;
+                    let ro = self.fblock_offset[r] - b0;
+                    let row_vals = &mut vals[self.row_start[r] - v0..];
+                    self.add_observation(
+                        r,
+                        a,
+                        row_vals,
+                        &mut b[ro..ro + self.fblock_dim[r]],
+                        lin,
+                        v,
+                        |c| {
+                            let k =
+                                self.row_cols[r]
+                                    .binary_search(&(c as u32))
+                                    .unwrap_or_else(|_| {
+                                        unreachable!("block ({r}, {c}) is in the pattern")
+                                    });
+                            self.row_val_offset[r][k]
+                        },
+                    );
+                }
+            }
+        }
+        for r in g.rows.clone() {
+            let ro = self.fblock_offset[r] - b0;
+            let dr = self.fblock_dim[r];
+            let k = self.row_cols[r]
+                .binary_search(&(r as u32))
+                .unwrap_or_else(|_| unreachable!("diagonal block {r} is in the pattern"));
+            let blk = &mut vals[self.row_start[r] - v0 + self.row_val_offset[r][k]..][..dr * dr];
+            self.damp_diagonal(r, blk, &mut b[ro..ro + dr], lin, lambda);
+        }
+    }
+
+    /// Adds observation a's terms to block row r (a belongs to f-block r): the rhs term and,
+    /// for every partner b of the same point whose f-blocks c ≥ r, `Jcₐᵀ (δₐᵦ I − Vₐ Jpᵦᵀ) Jcᵦ`.
+    /// `block_offset(c)` gives the offset of block (r, c) in `vals`.
+    #[inline]
+    #[allow(clippy::too_many_arguments)]
+    fn add_observation(
+        &self,
+        r: usize,
+        a: usize,
+        vals: &mut [f64],
+        b: &mut [f64],
+        lin: &Linearization,
+        v: &[[f64; 6]],
+        block_offset: impl Fn(usize) -> usize,
     ) {
         let dr = self.fblock_dim[r];
         let cols_r = self.cols(r);
-        let row_cols = &self.row_cols[r];
-        for (k, &c) in row_cols.iter().enumerate() {
-            lookup[c as usize] = k as u32;
+        let p = self.obs_point[a] as usize;
+        let jca = &lin.jc[a];
+        let va = &v[a];
+        let free = self.point_free[p];
+        // Rows of Jcₐᵀ restricted to this block's columns.
+        let mut ja = [[0.0f64; 2]; 9];
+        for (u, &cu) in cols_r.iter().enumerate() {
+            ja[u] = [jca[cu as usize], jca[9 + cu as usize]];
         }
-        let ro = self.fblock_offset[r];
-        for u in 0..dr {
-            b[u] = -lin.g_f[ro + u];
-        }
-        for &a in self.row_observations(r) {
-            let a = a as usize;
-            let p = self.obs_point[a] as usize;
-            let jca = &lin.jc[a];
-            let va = &v[a];
-            let free = self.point_free[p];
-            // Rows of Jcₐᵀ restricted to this block's columns.
-            let mut ja = [[0.0f64; 2]; 9];
-            for (u, &cu) in cols_r.iter().enumerate() {
-                ja[u] = [jca[cu as usize], jca[9 + cu as usize]];
+        // rhs: + Jcₐᵀ (Vₐ g_p)
+        if free {
+            let g = &lin.g_p[p];
+            let w0 = va[0] * g[0] + va[1] * g[1] + va[2] * g[2];
+            let w1 = va[3] * g[0] + va[4] * g[1] + va[5] * g[2];
+            for u in 0..dr {
+                b[u] += ja[u][0] * w0 + ja[u][1] * w1;
             }
-            // rhs: + Jcₐᵀ (Vₐ g_p)
+        }
+        let single = [a as u32];
+        let partners: &[u32] = if free {
+            self.upper_partners(a, p)
+        } else {
+            &single
+        };
+        for &bi in partners {
+            let bi = bi as usize;
+            let fbs = self.obs_fb[bi];
+            if (fbs[0] == NONE || (fbs[0] as usize) < r)
+                && (fbs[1] == NONE || (fbs[1] as usize) < r)
+            {
+                continue;
+            }
+            // Q = δ I − Vₐ Jpᵦᵀ (2×2)
+            let jpb = &lin.jp[bi];
+            let mut q = [0.0; 4];
             if free {
-                let g = &lin.g_p[p];
-                let w0 = va[0] * g[0] + va[1] * g[1] + va[2] * g[2];
-                let w1 = va[3] * g[0] + va[4] * g[1] + va[5] * g[2];
-                for u in 0..dr {
-                    b[u] += ja[u][0] * w0 + ja[u][1] * w1;
+                for row in 0..2 {
+                    for col in 0..2 {
+                        q[2 * row + col] = -(va[3 * row] * jpb[3 * col]
+                            + va[3 * row + 1] * jpb[3 * col + 1]
+                            + va[3 * row + 2] * jpb[3 * col + 2]);
+                    }
                 }
             }
-            let single = [a as u32];
-            let partners: &[u32] = if free {
-                self.upper_partners(a, p)
-            } else {
-                &single
-            };
-            for &bi in partners {
-                let bi = bi as usize;
-                let fbs = self.obs_fb[bi];
-                if (fbs[0] == NONE || (fbs[0] as usize) < r)
-                    && (fbs[1] == NONE || (fbs[1] as usize) < r)
-                {
+            if bi == a {
+                q[0] += 1.0;
+                q[3] += 1.0;
+            }
+            // T = Q Jcᵦ (2×9); the block gains Jcₐ[:, cols_r]ᵀ T[:, cols_c].
+            let jcb = &lin.jc[bi];
+            let mut t0 = [0.0; 9];
+            let mut t1 = [0.0; 9];
+            for col in 0..9 {
+                t0[col] = q[0] * jcb[col] + q[1] * jcb[9 + col];
+                t1[col] = q[2] * jcb[col] + q[3] * jcb[9 + col];
+            }
+            for &c in &fbs {
+                if c == NONE || (c as usize) < r {
                     continue;
                 }
-                // Q = δ I − Vₐ Jpᵦᵀ (2×2)
-                let jpb = &lin.jp[bi];
-                let mut q = [0.0; 4];
-                if free {
-                    for row in 0..2 {
-                        for col in 0..2 {
-                            q[2 * row + col] = -(va[3 * row] * jpb[3 * col]
-                                + va[3 * row + 1] * jpb[3 * col + 1]
-                                + va[3 * row + 2] * jpb[3 * col + 2]);
+                let c = c as usize;
+                let dc = self.fblock_dim[c];
+                let blk = &mut vals[block_offset(c)..][..dr * dc];
+                if dc == 9 {
+                    // The common case (pose + own intrinsics, or BAL): a full 9-wide row.
+                    for (u, row) in blk.chunks_exact_mut(9).enumerate() {
+                        let (a0, a1) = (ja[u][0], ja[u][1]);
+                        for w in 0..9 {
+                            row[w] += a0 * t0[w] + a1 * t1[w];
                         }
                     }
-                }
-                if bi == a {
-                    q[0] += 1.0;
-                    q[3] += 1.0;
-                }
-                // T = Q Jcᵦ (2×9); the block gains Jcₐ[:, cols_r]ᵀ T[:, cols_c].
-                let jcb = &lin.jc[bi];
-                let mut t0 = [0.0; 9];
-                let mut t1 = [0.0; 9];
-                for col in 0..9 {
-                    t0[col] = q[0] * jcb[col] + q[1] * jcb[9 + col];
-                    t1[col] = q[2] * jcb[col] + q[3] * jcb[9 + col];
-                }
-                for &c in &fbs {
-                    if c == NONE || (c as usize) < r {
-                        continue;
-                    }
-                    let c = c as usize;
-                    let dc = self.fblock_dim[c];
-                    let k = lookup[c] as usize;
-                    let blk = &mut vals[self.row_val_offset[r][k]..][..dr * dc];
-                    if dc == 9 {
-                        // The common case (pose + own intrinsics, or BAL): a full 9-wide row.
-                        for (u, row) in blk.chunks_exact_mut(9).enumerate() {
-                            let (a0, a1) = (ja[u][0], ja[u][1]);
-                            for w in 0..9 {
-                                row[w] += a0 * t0[w] + a1 * t1[w];
-                            }
-                        }
-                    } else {
-                        let cols_c = self.cols(c);
-                        for (u, row) in blk.chunks_exact_mut(dc).enumerate() {
-                            let (a0, a1) = (ja[u][0], ja[u][1]);
-                            for (x, &cw) in row.iter_mut().zip(cols_c) {
-                                let cw = cw as usize;
-                                *x += a0 * t0[cw] + a1 * t1[cw];
-                            }
+                } else {
+                    let cols_c = self.cols(c);
+                    for (u, row) in blk.chunks_exact_mut(dc).enumerate() {
+                        let (a0, a1) = (ja[u][0], ja[u][1]);
+                        for (x, &cw) in row.iter_mut().zip(cols_c) {
+                            let cw = cw as usize;
+                            *x += a0 * t0[cw] + a1 * t1[cw];
                         }
                     }
                 }
             }
         }
-        // Damping on the diagonal block; components held by the gauge get a unit pivot.
-        let k = lookup[r] as usize;
-        let blk = &mut vals[self.row_val_offset[r][k]..][..dr * dr];
+    }
+
+    /// Damping on the diagonal block; components held by the gauge get a unit pivot.
+    fn damp_diagonal(
+        &self,
+        r: usize,
+        blk: &mut [f64],
+        b: &mut [f64],
+        lin: &Linearization,
+        lambda: f64,
+    ) {
+        let dr = self.fblock_dim[r];
+        let ro = self.fblock_offset[r];
         let mask = &self.fblock_mask[r];
         for u in 0..dr {
             if mask[u] {
@@ -560,8 +688,43 @@ impl Structure {
                 blk[u * dr + u] += damping(lambda, lin.diag_f[ro + u]);
             }
         }
-        for &c in row_cols {
-            lookup[c as usize] = NONE;
+    }
+
+    /// Reference assembly, one block row at a time over the row's observations.
+    #[cfg(test)]
+    fn assemble_rowwise(
+        &self,
+        values: &mut [f64],
+        rhs: &mut [f64],
+        lin: &Linearization,
+        v: &[[f64; 6]],
+        lambda: f64,
+    ) {
+        for r in 0..self.fblocks.len() {
+            let dr = self.fblock_dim[r];
+            let ro = self.fblock_offset[r];
+            let base = self.row_start[r];
+            for u in 0..dr {
+                rhs[ro + u] = -lin.g_f[ro + u];
+            }
+            for &a in self.row_observations(r) {
+                let offs = |c: usize| {
+                    let k = self.row_cols[r].binary_search(&(c as u32)).unwrap();
+                    self.row_val_offset[r][k]
+                };
+                self.add_observation(
+                    r,
+                    a as usize,
+                    &mut values[base..],
+                    &mut rhs[ro..ro + dr],
+                    lin,
+                    v,
+                    offs,
+                );
+            }
+            let k = self.row_cols[r].binary_search(&(r as u32)).unwrap();
+            let blk = &mut values[base + self.row_val_offset[r][k]..][..dr * dr];
+            self.damp_diagonal(r, blk, &mut rhs[ro..ro + dr], lin, lambda);
         }
     }
 }
@@ -601,5 +764,9 @@ mod tests {
             assert!((x - y).abs() <= 1e-12 * (1.0 + x.abs()), "{x} vs {y}");
         }
         assert_eq!(a.rhs, b.rhs);
+        general.rowwise = true;
+        let c = general.assemble(&lin, 1e-3);
+        assert_eq!(a.values, c.values);
+        assert_eq!(a.rhs, c.rhs);
     }
 }
