@@ -7,10 +7,13 @@
 //! `S δf = −g_f + E C⁻¹ g_p` with `S = B − E C⁻¹ Eᵀ`, and then `δp = C⁻¹(−g_p − Eᵀ δf)`.
 //!
 //! S is stored as its upper block triangle: block row r holds the blocks (r, c), c ≥ r, of the
-//! f-blocks that share a point with r. Rows are assembled in parallel, each by one task in a
-//! fixed order, so S is bit-identical for any number of threads. Per observation pair (a, b) of
-//! a point the contribution is `Jcₐᵀ (δₐᵦ I − Vₐ Jpᵦᵀ) Jcᵦ` with `Vₐ = Jpₐ C⁻¹` (2×3), which never
-//! forms the 9×3 blocks of E.
+//! f-blocks that share a point with r. Observations are kept sorted by point (then camera), and
+//! S is assembled by a fixed set of groups of consecutive block rows, in parallel: each group
+//! owns its rows' storage and streams through the points its rows observe, in memory order.
+//! Every block entry is therefore summed by one task, in the order of the points, whatever the
+//! number of threads: S is bit-identical for any thread count. Per observation pair (a, b) of a
+//! point the contribution is `Jcₐᵀ (δₐᵦ I − Vₐ Jpᵦᵀ) Jcᵦ` with `Vₐ = Jpₐ C⁻¹` (2×3), which never
+//! forms the 9×3 blocks of E; only pairs whose block lands in the upper triangle are visited.
 
 use rayon::prelude::*;
 
