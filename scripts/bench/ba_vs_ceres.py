@@ -10,7 +10,7 @@ the same cost (the worse of the two final costs), ours / Ceres', and both final 
 
     python3 scripts/bench/ba_vs_ceres.py [--repeats 3] [--threads 2] [--max-iterations 50]
         [--loss none|huber:A|cauchy:A] [--problems ladybug,video300] [--solvers sparse,dense]
-        [--json OUT.json]
+        [--cameras 300] [--points 50000] [--perturb 1] [--json OUT.json]
 
 Timings on a shared machine are noisy: the best of several runs is reported.
 """
@@ -90,6 +90,8 @@ def main():
     ap.add_argument("--solvers", default="sparse,dense")
     ap.add_argument("--cameras", type=int, default=300)
     ap.add_argument("--points", type=int, default=50000)
+    ap.add_argument("--perturb", type=float, default=1.0,
+                    help="scale of the synthetic problem's initial pose/point errors")
     ap.add_argument("--json", help="also write all figures to this file")
     args = ap.parse_args()
 
@@ -104,7 +106,8 @@ def main():
                 problems.append(("ladybug-49", LADYBUG))
             elif name.startswith("video"):
                 path = os.path.join(tmp, f"video_{args.cameras}x{args.points}.txt")
-                run([ours, "--generate-video", str(args.cameras), str(args.points), path])
+                run([ours, "--generate-video", str(args.cameras), str(args.points), path,
+                     "--perturb", str(args.perturb)])
                 problems.append((f"video-{args.cameras}x{args.points}", path))
             else:
                 sys.exit(f"unknown problem {name}")

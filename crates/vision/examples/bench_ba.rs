@@ -6,7 +6,7 @@
 //!     [--solver auto|dense|sparse|iterative] [--loss none|huber:A|cauchy:A] \
 //!     [--max-iterations N] [--threads N] [--json]
 //! cargo run --release -p vfxgraph-vision --example bench_ba -- \
-//!     --generate-video CAMERAS POINTS OUT.txt [--seed S]
+//!     --generate-video CAMERAS POINTS OUT.txt [--seed S] [--perturb SCALE]
 //! ```
 
 use std::process::ExitCode;
@@ -18,7 +18,7 @@ fn usage() -> ExitCode {
     eprintln!(
         "usage: bench_ba FILE [--solver auto|dense|sparse|iterative] [--loss none|huber:A|cauchy:A] \
          [--max-iterations N] [--threads N] [--json]\n       \
-         bench_ba --generate-video CAMERAS POINTS OUT [--seed S]"
+         bench_ba --generate-video CAMERAS POINTS OUT [--seed S] [--perturb SCALE]"
     );
     ExitCode::from(2)
 }
@@ -30,6 +30,7 @@ fn main() -> ExitCode {
     let mut json = false;
     let mut generate: Option<(usize, usize, String)> = None;
     let mut seed = 1u64;
+    let mut perturb = 1.0f64;
     let mut i = 0;
     while i < args.len() {
         let a = args[i].as_str();
@@ -70,6 +71,13 @@ fn main() -> ExitCode {
                 }
                 None => return usage(),
             },
+            "--perturb" => match val(1).and_then(|v| v.parse().ok()) {
+                Some(x) => {
+                    perturb = x;
+                    i += 1;
+                }
+                None => return usage(),
+            },
             "--json" => json = true,
             "--generate-video" => {
                 match (
@@ -88,11 +96,13 @@ fn main() -> ExitCode {
         i += 1;
     }
     if let Some((cameras, points, out)) = generate {
+        let (r, t, p) = VideoConfig::default().perturbation;
         let cfg = VideoConfig {
             cameras,
             points,
             model: SyntheticModel::Bal,
             seed,
+            perturbation: (r * perturb, t * perturb, p * perturb),
             ..VideoConfig::default()
         };
         let s = video_like(&cfg);
