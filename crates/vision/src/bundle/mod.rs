@@ -18,6 +18,18 @@
 //! - [`report`]: what a solve returns;
 //! - [`bal`]: the BAL text format; [`synthetic`]: video-like test problems; [`bench`]: the
 //!   `vfxgraph bench ba` entry point.
+//!
+//! ```no_run
+//! use vfxgraph_vision::bundle::{read_bal, solve, Loss, SolverOptions};
+//!
+//! let mut problem = read_bal("problem-49-7776-pre.txt")?;
+//! let report = solve(
+//!     &mut problem,
+//!     &SolverOptions { loss: Loss::Huber { scale: 1.0 }, ..SolverOptions::default() },
+//! )?;
+//! println!("{} -> {} in {} steps", report.initial_cost, report.final_cost, report.iterations);
+//! # Ok::<(), vfxgraph_vision::bundle::BundleError>(())
+//! ```
 
 // Index loops over small fixed-size blocks read like the formulas they implement.
 #![allow(clippy::needless_range_loop)]
