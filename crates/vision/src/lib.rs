@@ -6,7 +6,8 @@
 //!   [`ransac`] (§3.6) generic over an [`ransac::Estimator`];
 //! - [`calibration`]: one camera (chapter 4): DLT, factoring, restricted LM, Tsai, resection;
 //! - [`two_view`]: two cameras (chapter 5): F, E, relative pose, triangulation;
-//! - [`formats`]: the book's text files and their JSON forms.
+//! - [`formats`]: the book's text files and their JSON forms;
+//! - [`bundle`]: sparse bundle adjustment (§7.7, Schur-complement Levenberg–Marquardt).
 //!
 //! Conventions: f64; pixels with the origin at the top-left pixel's centre, x right, y down;
 //! a camera maps X to K(RX + t) and looks down +z.
@@ -15,6 +16,7 @@
 // `!(x > 0.0)` is used on purpose: it is also true for NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod bundle;
 pub mod calibration;
 pub mod camera;
 pub mod error;

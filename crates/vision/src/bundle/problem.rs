@@ -1,0 +1,272 @@
+//! The bundle adjustment problem as data (Ceres' design; Triggs et al. 2000, section 2).
+//!
+//! Parameter blocks are camera poses (axis–angle rotation ω and translation t, so a point X maps to
+//! `R(ω)X + t`), intrinsics blocks (shared by several cameras or one per camera) and 3D points.
+//! Observations reference them by index. Every block has a `fixed` flag; the [`Gauge`] says how
+//! the 7-dof similarity ambiguity is removed.
+
+use nalgebra::{Vector2, Vector3};
+use serde::{Deserialize, Serialize};
+
+use super::error::BundleError;
+
+/// The camera model of an intrinsics block; it fixes the meaning of the three intrinsic
+/// parameters and of the pixel coordinates of the observations.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub enum CameraModel {
+    /// The project's model (book 4.2, DESIGN.md §3): x ~ K(RX + t), camera looking down +z,
+    /// pixels with origin at the top-left pixel centre and y down. Parameters `[f, cx, cy]`;
+    /// K = [[f, skew, cx], [0, aspect·f, cy], [0, 0, 1]] with `aspect` and `skew` held constant.
+    Pinhole {
+        /// fy / fx, held constant (1 for square pixels).
+        aspect: f64,
+        /// K[0][1], held constant (0 for a zero-skew camera).
+        skew: f64,
+    },
+    /// The BAL / Bundler model (Agarwal et al. 2010): P = RX + t, p = −P.xy / P.z,
+    /// predicted = f·(1 + k1‖p‖² + k2‖p‖⁴)·p, pixels centred on the principal point with y up,
+    /// camera looking down −z. Parameters `[f, k1, k2]`.
+    Bal,
+}
+
+/// An intrinsics parameter block: a camera model and its three parameters.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Intrinsics {
+    /// What the parameters mean.
+    pub model: CameraModel,
+    /// `[f, cx, cy]` for [`CameraModel::Pinhole`], `[f, k1, k2]` for [`CameraModel::Bal`].
+    pub params: [f64; 3],
+    /// Held constant during the solve.
+    pub fixed: bool,
+}
+
+impl Intrinsics {
+    /// A square-pixel, zero-skew pinhole block `[f, cx, cy]`.
+    pub fn pinhole(f: f64, cx: f64, cy: f64, fixed: bool) -> Self {
+        Intrinsics {
+            model: CameraModel::Pinhole {
+                aspect: 1.0,
+                skew: 0.0,
+            },
+            params: [f, cx, cy],
+            fixed,
+        }
+    }
+
+    /// A BAL block `[f, k1, k2]`.
+    pub fn bal(f: f64, k1: f64, k2: f64, fixed: bool) -> Self {
+        Intrinsics {
+            model: CameraModel::Bal,
+            params: [f, k1, k2],
+            fixed,
+        }
+    }
+}
+
+/// A camera pose block: X ↦ R(rotation)·X + translation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CameraPose {
+    /// Axis–angle ω (book 4.5.2).
+    pub rotation: Vector3<f64>,
+    /// t.
+    pub translation: Vector3<f64>,
+    /// Index of this camera's intrinsics block in [`Problem::intrinsics`].
+    pub intrinsics: usize,
+    /// Held constant during the solve.
+    pub fixed: bool,
+}
+
+impl CameraPose {
+    /// A pose from a rotation matrix and translation (X ↦ R·X + t), with intrinsics block
+    /// `intrinsics`, free.
+    pub fn from_rt(r: &nalgebra::Matrix3<f64>, t: &Vector3<f64>, intrinsics: usize) -> Self {
+        CameraPose {
+            rotation: super::rotation::matrix_to_angle_axis(r),
+            translation: *t,
+            intrinsics,
+            fixed: false,
+        }
+    }
+
+    /// The rotation matrix R(ω) (book 4.5.2).
+    pub fn rotation_matrix(&self) -> nalgebra::Matrix3<f64> {
+        super::rotation::angle_axis_to_matrix(&self.rotation)
+    }
+
+    /// The camera centre c = −Rᵀt.
+    pub fn centre(&self) -> Vector3<f64> {
+        camera_centre(self)
+    }
+}
+
+/// A 3D point block.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Point {
+    /// World coordinates.
+    pub position: Vector3<f64>,
+    /// Held constant during the solve.
+    pub fixed: bool,
+}
+
+/// One measured projection of a point in a camera (pixel coordinates in the camera model's frame).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Observation {
+    /// Index into [`Problem::cameras`].
+    pub camera: usize,
+    /// Index into [`Problem::points`].
+    pub point: usize,
+    /// The measured pixel.
+    pub pixel: Vector2<f64>,
+}
+
+/// How the similarity gauge (3 rotation, 3 translation, 1 scale) is fixed
+/// (Triggs et al. 2000, section 9; Hartley & Zisserman 18.1).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+pub enum Gauge {
+    /// Nothing beyond the blocks' own `fixed` flags; LM's damping handles the null space.
+    /// This is what Ceres' `bundle_adjuster` does on BAL files.
+    #[default]
+    Free,
+    /// Hold the first camera's pose constant and, for scale, the component of the second
+    /// camera's translation in which the baseline `R₁(c₀ − c₁)` is largest (the other two
+    /// components and its rotation stay free). Under a similarity that keeps camera 0, that
+    /// component scales with the scene, so holding it removes exactly the scale freedom.
+    FixFirstCameraAndScale,
+}
+
+/// A bundle adjustment problem: blocks and the observations that tie them.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Problem {
+    /// Camera pose blocks.
+    pub cameras: Vec<CameraPose>,
+    /// Intrinsics blocks (one per camera, or shared).
+    pub intrinsics: Vec<Intrinsics>,
+    /// Point blocks.
+    pub points: Vec<Point>,
+    /// Observations.
+    pub observations: Vec<Observation>,
+    /// Gauge fixing.
+    pub gauge: Gauge,
+}
+
+fn finite3(v: &Vector3<f64>) -> bool {
+    v.iter().all(|x| x.is_finite())
+}
+
+impl Problem {
+    /// Checks indices and finiteness; every solve calls it first. NaN or infinity anywhere gives
+    /// [`BundleError::NonFinite`], a dangling index [`BundleError::IndexOutOfRange`].
+    pub fn validate(&self) -> Result<(), BundleError> {
+        for (i, k) in self.intrinsics.iter().enumerate() {
+            let consts_ok = match k.model {
+                CameraModel::Pinhole { aspect, skew } => aspect.is_finite() && skew.is_finite(),
+                CameraModel::Bal => true,
+            };
+            if !consts_ok || k.params.iter().any(|p| !p.is_finite()) {
+                return Err(BundleError::NonFinite {
+                    what: format!("intrinsics {i}"),
+                });
+            }
+        }
+        for (i, c) in self.cameras.iter().enumerate() {
+            if !finite3(&c.rotation) || !finite3(&c.translation) {
+                return Err(BundleError::NonFinite {
+                    what: format!("camera {i} pose"),
+                });
+            }
+            if c.intrinsics >= self.intrinsics.len() {
+                return Err(BundleError::IndexOutOfRange {
+                    what: format!(
+                        "camera {i} uses intrinsics {} of {}",
+                        c.intrinsics,
+                        self.intrinsics.len()
+                    ),
+                });
+            }
+        }
+        for (i, p) in self.points.iter().enumerate() {
+            if !finite3(&p.position) {
+                return Err(BundleError::NonFinite {
+                    what: format!("point {i}"),
+                });
+            }
+        }
+        for (i, o) in self.observations.iter().enumerate() {
+            if o.camera >= self.cameras.len() || o.point >= self.points.len() {
+                return Err(BundleError::IndexOutOfRange {
+                    what: format!("observation {i} (camera {}, point {})", o.camera, o.point),
+                });
+            }
+            if !o.pixel.iter().all(|x| x.is_finite()) {
+                return Err(BundleError::NonFinite {
+                    what: format!("observation {i} pixel"),
+                });
+            }
+        }
+        if self.observations.is_empty() {
+            return Err(BundleError::InvalidProblem("no observations".into()));
+        }
+        Ok(())
+    }
+
+    /// Number of free scalar parameters after the `fixed` flags and the gauge.
+    pub fn num_free_parameters(&self) -> usize {
+        let masks = self.pose_masks();
+        let poses: usize = self
+            .cameras
+            .iter()
+            .zip(&masks)
+            .filter(|(c, _)| !c.fixed)
+            .map(|(_, m)| m.iter().filter(|f| !**f).count())
+            .sum();
+        let intr = self.intrinsics.iter().filter(|k| !k.fixed).count() * 3;
+        let pts = self.points.iter().filter(|p| !p.fixed).count() * 3;
+        poses + intr + pts
+    }
+
+    /// Per-camera masks of pose components held constant by the gauge (`true` = held),
+    /// in the order `[ω₀, ω₁, ω₂, t₀, t₁, t₂]`.
+    pub fn pose_masks(&self) -> Vec<[bool; 6]> {
+        let mut masks = vec![[false; 6]; self.cameras.len()];
+        if let (Gauge::FixFirstCameraAndScale, true) = (self.gauge, self.cameras.len() >= 2) {
+            masks[0] = [true; 6];
+            let c0 = camera_centre(&self.cameras[0]);
+            let c1 = camera_centre(&self.cameras[1]);
+            let r1 = super::rotation::angle_axis_to_matrix(&self.cameras[1].rotation);
+            let b = r1 * (c0 - c1);
+            let k = b.iamax();
+            masks[1][3 + k] = true;
+        } else if let Gauge::FixFirstCameraAndScale = self.gauge {
+            if let Some(m) = masks.first_mut() {
+                *m = [true; 6];
+            }
+        }
+        masks
+    }
+
+    /// Predicted pixel of observation `i` at the current parameters.
+    pub fn predict(&self, i: usize) -> Vector2<f64> {
+        let o = &self.observations[i];
+        let c = &self.cameras[o.camera];
+        let k = &self.intrinsics[c.intrinsics];
+        super::residual::project(
+            k,
+            &c.rotation,
+            &c.translation,
+            &self.points[o.point].position,
+        )
+    }
+
+    /// ½·Σ‖predicted − observed‖² without a robust loss (Ceres' cost with a trivial loss).
+    pub fn cost(&self) -> f64 {
+        0.5 * (0..self.observations.len())
+            .map(|i| (self.predict(i) - self.observations[i].pixel).norm_squared())
+            .sum::<f64>()
+    }
+}
+
+/// Camera centre c = −Rᵀt of a pose.
+pub fn camera_centre(c: &CameraPose) -> Vector3<f64> {
+    let r = super::rotation::angle_axis_to_matrix(&c.rotation);
+    -(r.transpose() * c.translation)
+}

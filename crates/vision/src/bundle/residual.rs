@@ -1,0 +1,215 @@
+//! The reprojection residual and its analytic Jacobians (Triggs et al. 2000, section 2;
+//! Hartley & Zisserman 6.1 for the pinhole, Agarwal et al. 2010 / Snavely's Bundler for BAL).
+//!
+//! For an observation of point X in a camera (ω, t) with intrinsics k the residual is
+//! `project(k, ω, t, X) − observed` (2 values); its Jacobian has 9 camera columns
+//! `[ω (3), t (3), k (3)]` and 3 point columns.
+
+use nalgebra::{Matrix2x3, Matrix3, SMatrix, Vector2, Vector3};
+
+use super::problem::{CameraModel, Intrinsics};
+use super::rotation::{angle_axis_to_matrix, rotation_and_left_jacobian, skew};
+
+/// 2×9 Jacobian with respect to `[ω, t, intrinsics]`.
+pub type CameraJacobian = SMatrix<f64, 2, 9>;
+
+/// Predicted pixel of X (see [`CameraModel`] for each model's formula).
+pub fn project(
+    k: &Intrinsics,
+    omega: &Vector3<f64>,
+    t: &Vector3<f64>,
+    x: &Vector3<f64>,
+) -> Vector2<f64> {
+    project_rt(k, &angle_axis_to_matrix(omega), t, x)
+}
+
+/// Predicted pixel of X with the rotation matrix already computed.
+pub fn project_rt(
+    k: &Intrinsics,
+    r: &Matrix3<f64>,
+    t: &Vector3<f64>,
+    x: &Vector3<f64>,
+) -> Vector2<f64> {
+    project_camera_frame(k, &(r * x + t))
+}
+
+fn project_camera_frame(k: &Intrinsics, p: &Vector3<f64>) -> Vector2<f64> {
+    match k.model {
+        CameraModel::Pinhole { aspect, skew } => {
+            let [f, cx, cy] = k.params;
+            let (xn, yn) = (p.x / p.z, p.y / p.z);
+            Vector2::new(f * xn + skew * yn + cx, aspect * f * yn + cy)
+        }
+        CameraModel::Bal => {
+            let [f, k1, k2] = k.params;
+            let (px, py) = (-p.x / p.z, -p.y / p.z);
+            let r2 = px * px + py * py;
+            let d = 1.0 + r2 * (k1 + k2 * r2);
+            Vector2::new(f * d * px, f * d * py)
+        }
+    }
+}
+
+/// Predicted pixel with its analytic Jacobians: `(prediction, ∂/∂[ω,t,k], ∂/∂X)`.
+pub fn project_with_jacobians(
+    k: &Intrinsics,
+    omega: &Vector3<f64>,
+    t: &Vector3<f64>,
+    x: &Vector3<f64>,
+) -> (Vector2<f64>, CameraJacobian, Matrix2x3<f64>) {
+    let (r, jl) = rotation_and_left_jacobian(omega);
+    project_with_jacobians_rj(k, &r, &jl, t, x)
+}
+
+/// [`project_with_jacobians`] with `(R, J_l)` of the camera's ω precomputed
+/// ([`rotation_and_left_jacobian`]), as the solver does once per camera.
+pub fn project_with_jacobians_rj(
+    k: &Intrinsics,
+    r: &Matrix3<f64>,
+    jl: &Matrix3<f64>,
+    t: &Vector3<f64>,
+    x: &Vector3<f64>,
+) -> (Vector2<f64>, CameraJacobian, Matrix2x3<f64>) {
+    let rx = r * x;
+    let d_rx_d_omega = -skew(&rx) * jl;
+    let p = rx + t;
+    let iz = 1.0 / p.z;
+    let (pred, d_pred_d_p, d_pred_d_k): (Vector2<f64>, Matrix2x3<f64>, Matrix2x3<f64>) =
+        match k.model {
+            CameraModel::Pinhole { aspect, skew } => {
+                let [f, cx, cy] = k.params;
+                let (xn, yn) = (p.x * iz, p.y * iz);
+                // ∂(xn, yn)/∂P
+                let dn = Matrix2x3::new(iz, 0.0, -xn * iz, 0.0, iz, -yn * iz);
+                let a = nalgebra::Matrix2::new(f, skew, 0.0, aspect * f);
+                let pred = Vector2::new(f * xn + skew * yn + cx, aspect * f * yn + cy);
+                let dk = Matrix2x3::new(xn, 1.0, 0.0, aspect * yn, 0.0, 1.0);
+                (pred, a * dn, dk)
+            }
+            CameraModel::Bal => {
+                let [f, k1, k2] = k.params;
+                let (px, py) = (-p.x * iz, -p.y * iz);
+                let dp = Matrix2x3::new(-iz, 0.0, -px * iz, 0.0, -iz, -py * iz);
+                let r2 = px * px + py * py;
+                let d = 1.0 + r2 * (k1 + k2 * r2);
+                let dd_dr2 = k1 + 2.0 * k2 * r2;
+                // ∂pred/∂p = f (d I + 2 dd/dr2 · p pᵀ)
+                let c = 2.0 * f * dd_dr2;
+                let a = nalgebra::Matrix2::new(
+                    f * d + c * px * px,
+                    c * px * py,
+                    c * px * py,
+                    f * d + c * py * py,
+                );
+                let pred = Vector2::new(f * d * px, f * d * py);
+                let dk = Matrix2x3::new(
+                    d * px,
+                    f * r2 * px,
+                    f * r2 * r2 * px,
+                    d * py,
+                    f * r2 * py,
+                    f * r2 * r2 * py,
+                );
+                (pred, a * dp, dk)
+            }
+        };
+    let d_omega: Matrix2x3<f64> = d_pred_d_p * d_rx_d_omega;
+    let d_x: Matrix2x3<f64> = d_pred_d_p * r;
+    let mut jc = CameraJacobian::zeros();
+    jc.fixed_view_mut::<2, 3>(0, 0).copy_from(&d_omega);
+    jc.fixed_view_mut::<2, 3>(0, 3).copy_from(&d_pred_d_p);
+    jc.fixed_view_mut::<2, 3>(0, 6).copy_from(&d_pred_d_k);
+    (pred, jc, d_x)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn check(k: Intrinsics, omega: Vector3<f64>, t: Vector3<f64>, x: Vector3<f64>) {
+        let (pred, jc, jx) = project_with_jacobians(&k, &omega, &t, &x);
+        assert!((pred - project(&k, &omega, &t, &x)).norm() < 1e-12);
+        let f = |v: &[f64; 12]| {
+            let kk = Intrinsics {
+                params: [v[6], v[7], v[8]],
+                ..k
+            };
+            project(
+                &kk,
+                &Vector3::new(v[0], v[1], v[2]),
+                &Vector3::new(v[3], v[4], v[5]),
+                &Vector3::new(v[9], v[10], v[11]),
+            )
+        };
+        let base = [
+            omega.x,
+            omega.y,
+            omega.z,
+            t.x,
+            t.y,
+            t.z,
+            k.params[0],
+            k.params[1],
+            k.params[2],
+            x.x,
+            x.y,
+            x.z,
+        ];
+        for i in 0..12 {
+            let h = 1e-6 * base[i].abs().max(1e-2);
+            let mut vp = base;
+            vp[i] += h;
+            let mut vm = base;
+            vm[i] -= h;
+            let fd = (f(&vp) - f(&vm)) / (2.0 * h);
+            let an = if i < 9 {
+                jc.column(i).into_owned()
+            } else {
+                jx.column(i - 9).into_owned()
+            };
+            let tol = 1e-6 * (1.0 + an.norm());
+            assert!((fd - an).norm() < tol, "param {i}: fd {fd} analytic {an}");
+        }
+    }
+
+    #[test]
+    fn pinhole_jacobians_match_finite_differences() {
+        let k = Intrinsics {
+            model: CameraModel::Pinhole {
+                aspect: 1.05,
+                skew: 0.7,
+            },
+            params: [800.0, 320.0, 240.0],
+            fixed: false,
+        };
+        check(
+            k,
+            Vector3::new(0.1, -0.3, 0.2),
+            Vector3::new(0.2, 0.1, 4.0),
+            Vector3::new(0.5, -0.4, 1.0),
+        );
+        check(
+            k,
+            Vector3::zeros(),
+            Vector3::new(0.0, 0.0, 3.0),
+            Vector3::new(-0.5, 0.4, 2.0),
+        );
+    }
+
+    #[test]
+    fn bal_jacobians_match_finite_differences() {
+        let k = Intrinsics::bal(500.0, -0.1, 0.02, false);
+        check(
+            k,
+            Vector3::new(0.1, -0.3, 0.2),
+            Vector3::new(0.2, 0.1, -4.0),
+            Vector3::new(0.5, -0.4, 1.0),
+        );
+        check(
+            k,
+            Vector3::new(2.0, 1.0, -0.5),
+            Vector3::new(-1.0, 0.3, -6.0),
+            Vector3::new(0.2, 0.1, 0.3),
+        );
+    }
+}
