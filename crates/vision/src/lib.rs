@@ -1,1 +1,2 @@
 //! vfxgraph-vision
+pub mod klt;
