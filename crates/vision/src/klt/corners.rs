@@ -97,26 +97,34 @@ pub fn min_eigen_map(img: &GrayImage, block_size: usize) -> Vec<f32> {
         let row = &prod[3 * y * w..3 * (y + 1) * w];
         for x in 0..w {
             let mut acc = [0.0f32; 3];
-            for d in lo..=hi {
-                let xx = reflect101(x as isize + d, w);
-                acc[0] += row[3 * xx];
-                acc[1] += row[3 * xx + 1];
-                acc[2] += row[3 * xx + 2];
+            let (x0, x1) = (x as isize + lo, x as isize + hi);
+            if x0 >= 0 && (x1 as usize) < w {
+                for p in row[3 * x0 as usize..3 * (x1 as usize + 1)].chunks_exact(3) {
+                    acc[0] += p[0];
+                    acc[1] += p[1];
+                    acc[2] += p[2];
+                }
+            } else {
+                for d in lo..=hi {
+                    let xx = reflect101(x as isize + d, w);
+                    acc[0] += row[3 * xx];
+                    acc[1] += row[3 * xx + 1];
+                    acc[2] += row[3 * xx + 2];
+                }
             }
             out[3 * x..3 * x + 3].copy_from_slice(&acc);
         }
     });
     let mut eig = vec![0.0f32; w * h];
     eig.par_chunks_mut(w).enumerate().for_each(|(y, out)| {
-        for (x, o) in out.iter_mut().enumerate() {
-            let mut acc = [0.0f32; 3];
-            for d in lo..=hi {
-                let yy = reflect101(y as isize + d, h);
-                let p = &hsum[3 * (yy * w + x)..][..3];
-                acc[0] += p[0];
-                acc[1] += p[1];
-                acc[2] += p[2];
+        let mut vsum = vec![0.0f32; 3 * w];
+        for d in lo..=hi {
+            let yy = reflect101(y as isize + d, h);
+            for (v, s) in vsum.iter_mut().zip(&hsum[3 * yy * w..3 * (yy + 1) * w]) {
+                *v += s;
             }
+        }
+        for (o, acc) in out.iter_mut().zip(vsum.chunks_exact(3)) {
             let a = acc[0] * 0.5;
             let c = acc[2] * 0.5;
             let bb = acc[1];

@@ -58,7 +58,7 @@ impl LkParams {
     /// Border the pyramids need so that windows of features inside the image never read
     /// outside the padded buffers.
     pub fn pad(&self) -> usize {
-        self.half_window() + 2
+        self.half_window() + 10
     }
 
     /// Checks the parameters.
@@ -97,17 +97,29 @@ pub struct LkResult {
     pub lost: Option<LostReason>,
 }
 
-/// Template of one window: brightness and gradient, bilinearly sampled (structure of arrays).
+/// Template of one window: brightness and gradient, bilinearly sampled (structure of
+/// arrays). Rows are `ws` (the window side rounded up to 8) long so that the inner loops run
+/// on whole 8-lane blocks; the extra columns have zero gradient and a zero mask.
 struct Template {
+    ws: usize,
     i: Vec<f32>,
     gx: Vec<f32>,
     gy: Vec<f32>,
+    mask: Vec<f32>,
+    avx2: bool,
 }
 
 /// Top-left integer corner (padded coordinates) and bilinear weights of a window centred on
 /// `(x, y)`; `None` when the window (plus one pixel for interpolation) leaves the buffer.
 #[inline]
-fn window_origin(l: &Level, x: f32, y: f32, half: usize, win: usize) -> Option<(usize, [f32; 4])> {
+fn window_origin(
+    l: &Level,
+    x: f32,
+    y: f32,
+    half: usize,
+    win: usize,
+    ws: usize,
+) -> Option<(usize, [f32; 4])> {
     let fx = x - half as f32 + l.pad as f32;
     let fy = y - half as f32 + l.pad as f32;
     if !(fx.is_finite() && fy.is_finite()) || fx < 0.0 || fy < 0.0 {
@@ -116,7 +128,7 @@ fn window_origin(l: &Level, x: f32, y: f32, half: usize, win: usize) -> Option<(
     let (ix, iy) = (fx.floor(), fy.floor());
     let (ax, ay) = (fx - ix, fy - iy);
     let (ix, iy) = (ix as usize, iy as usize);
-    if ix + win + 1 > l.stride || iy + win + 1 > l.height + 2 * l.pad {
+    if ix + ws + 1 > l.stride || iy + win + 1 > l.height + 2 * l.pad {
         return None;
     }
     Some((
@@ -130,71 +142,134 @@ fn window_origin(l: &Level, x: f32, y: f32, half: usize, win: usize) -> Option<(
     ))
 }
 
-fn sample_template(l: &Level, o: usize, w: [f32; 4], win: usize, t: &mut Template) {
-    let s = l.stride;
+/// Bilinear resampling of `win` rows of one plane into a template plane (rows of `ws`).
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn sample_plane(
+    src: &[f32],
+    s: usize,
+    o: usize,
+    w: [f32; 4],
+    win: usize,
+    ws: usize,
+    dst: &mut [f32],
+    mask: &[f32],
+) {
     for r in 0..win {
-        let a = &l.img[o + r * s..][..win + 1];
-        let b = &l.img[o + (r + 1) * s..][..win + 1];
-        let ga = &l.grad[2 * (o + r * s)..][..2 * win + 2];
-        let gb = &l.grad[2 * (o + (r + 1) * s)..][..2 * win + 2];
-        let ti = &mut t.i[r * win..][..win];
-        let tx = &mut t.gx[r * win..][..win];
-        let ty = &mut t.gy[r * win..][..win];
-        for c in 0..win {
-            ti[c] = w[0] * a[c] + w[1] * a[c + 1] + w[2] * b[c] + w[3] * b[c + 1];
-            tx[c] =
-                w[0] * ga[2 * c] + w[1] * ga[2 * c + 2] + w[2] * gb[2 * c] + w[3] * gb[2 * c + 2];
-            ty[c] = w[0] * ga[2 * c + 1]
-                + w[1] * ga[2 * c + 3]
-                + w[2] * gb[2 * c + 1]
-                + w[3] * gb[2 * c + 3];
+        let a = &src[o + r * s..][..ws + 1];
+        let b = &src[o + (r + 1) * s..][..ws + 1];
+        let d = &mut dst[r * ws..][..ws];
+        let m = &mask[r * ws..][..ws];
+        for blk in 0..ws / 8 {
+            let c0 = blk * 8;
+            let a9: &[f32] = &a[c0..c0 + 9];
+            let b9: &[f32] = &b[c0..c0 + 9];
+            let d8: &mut [f32] = &mut d[c0..c0 + 8];
+            let m8: &[f32] = &m[c0..c0 + 8];
+            for k in 0..8 {
+                d8[k] = (w[0] * a9[k] + w[1] * a9[k + 1] + w[2] * b9[k] + w[3] * b9[k + 1]) * m8[k];
+            }
         }
     }
 }
 
+#[inline(always)]
+fn sample_template_generic(l: &Level, o: usize, w: [f32; 4], win: usize, t: &mut Template) {
+    let (s, ws) = (l.stride, t.ws);
+    sample_plane(&l.img, s, o, w, win, ws, &mut t.i, &t.mask);
+    sample_plane(&l.gx, s, o, w, win, ws, &mut t.gx, &t.mask);
+    sample_plane(&l.gy, s, o, w, win, ws, &mut t.gy, &t.mask);
+}
+
 /// Σ (J − I)·Ix, Σ (J − I)·Iy and Σ (J − I)² over the window, J sampled at origin `o` with
 /// weights `w`. Eight independent accumulator lanes let the compiler vectorise.
-#[inline]
-fn mismatch(
-    l: &Level,
-    o: usize,
-    w: [f32; 4],
-    win: usize,
-    t: &Template,
-    row: &mut [f32],
-) -> (f32, f32, f32) {
-    let s = l.stride;
+#[inline(always)]
+fn mismatch_generic(l: &Level, o: usize, w: [f32; 4], win: usize, t: &Template) -> (f32, f32, f32) {
+    let (s, ws) = (l.stride, t.ws);
     let mut b1 = [0.0f32; 8];
     let mut b2 = [0.0f32; 8];
     let mut e = [0.0f32; 8];
     for r in 0..win {
-        let a = &l.img[o + r * s..][..win + 1];
-        let b = &l.img[o + (r + 1) * s..][..win + 1];
-        let ti = &t.i[r * win..][..win];
-        for c in 0..win {
-            row[c] = w[0] * a[c] + w[1] * a[c + 1] + w[2] * b[c] + w[3] * b[c + 1] - ti[c];
-        }
-        let tx = &t.gx[r * win..][..win];
-        let ty = &t.gy[r * win..][..win];
-        let full = win / 8 * 8;
-        for c0 in (0..full).step_by(8) {
-            let d: &[f32; 8] = row[c0..c0 + 8].try_into().unwrap_or(&[0.0; 8]);
-            let x: &[f32] = &tx[c0..c0 + 8];
-            let y: &[f32] = &ty[c0..c0 + 8];
+        let a = &l.img[o + r * s..][..ws + 1];
+        let b = &l.img[o + (r + 1) * s..][..ws + 1];
+        let ti = &t.i[r * ws..][..ws];
+        let tx = &t.gx[r * ws..][..ws];
+        let ty = &t.gy[r * ws..][..ws];
+        let tm = &t.mask[r * ws..][..ws];
+        for blk in 0..ws / 8 {
+            let c0 = blk * 8;
+            let a9: &[f32] = &a[c0..c0 + 9];
+            let b9: &[f32] = &b[c0..c0 + 9];
+            let (i8, x8, y8, m8) = (
+                &ti[c0..c0 + 8],
+                &tx[c0..c0 + 8],
+                &ty[c0..c0 + 8],
+                &tm[c0..c0 + 8],
+            );
             for k in 0..8 {
-                b1[k] += d[k] * x[k];
-                b2[k] += d[k] * y[k];
-                e[k] += d[k] * d[k];
+                let j = w[0] * a9[k] + w[1] * a9[k + 1] + w[2] * b9[k] + w[3] * b9[k + 1];
+                let d = (j - i8[k]) * m8[k];
+                b1[k] += d * x8[k];
+                b2[k] += d * y8[k];
+                e[k] += d * d;
             }
-        }
-        for c in full..win {
-            let d = row[c];
-            b1[c - full] += d * tx[c];
-            b2[c - full] += d * ty[c];
-            e[c - full] += d * d;
         }
     }
     (b1.iter().sum(), b2.iter().sum(), e.iter().sum())
+}
+
+/// The hot loops compiled twice: for the baseline target and with AVX2 (eight f32 lanes,
+/// chosen at run time). Without FMA both compute exactly the same sums in the same order,
+/// so results do not depend on the CPU.
+#[cfg(target_arch = "x86_64")]
+mod simd {
+    use super::{mismatch_generic, sample_template_generic, Level, Template};
+
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn mismatch_avx2(
+        l: &Level,
+        o: usize,
+        w: [f32; 4],
+        win: usize,
+        t: &Template,
+    ) -> (f32, f32, f32) {
+        mismatch_generic(l, o, w, win, t)
+    }
+
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn sample_template_avx2(
+        l: &Level,
+        o: usize,
+        w: [f32; 4],
+        win: usize,
+        t: &mut Template,
+    ) {
+        sample_template_generic(l, o, w, win, t)
+    }
+
+    pub(super) fn has_avx2() -> bool {
+        std::is_x86_feature_detected!("avx2")
+    }
+}
+
+#[inline]
+fn mismatch(l: &Level, o: usize, w: [f32; 4], win: usize, t: &Template) -> (f32, f32, f32) {
+    #[cfg(target_arch = "x86_64")]
+    if t.avx2 {
+        // SAFETY: `t.avx2` is set only when the CPU reports AVX2.
+        return unsafe { simd::mismatch_avx2(l, o, w, win, t) };
+    }
+    mismatch_generic(l, o, w, win, t)
+}
+
+#[inline]
+fn sample_template(l: &Level, o: usize, w: [f32; 4], win: usize, t: &mut Template) {
+    #[cfg(target_arch = "x86_64")]
+    if t.avx2 {
+        // SAFETY: `t.avx2` is set only when the CPU reports AVX2.
+        return unsafe { simd::sample_template_avx2(l, o, w, win, t) };
+    }
+    sample_template_generic(l, o, w, win, t)
 }
 
 /// Tracks one feature from `prev` to `next` (book 6.3; Bouguet 2000, section 2.4). `guess`
@@ -225,12 +300,20 @@ pub fn track_point(
     if !(p[0].is_finite() && p[1].is_finite()) {
         return lost(p, LostReason::LeftImage);
     }
+    let ws = win.div_ceil(8) * 8;
     let mut t = Template {
-        i: vec![0.0; win * win],
-        gx: vec![0.0; win * win],
-        gy: vec![0.0; win * win],
+        ws,
+        i: vec![0.0; ws * win],
+        gx: vec![0.0; ws * win],
+        gy: vec![0.0; ws * win],
+        mask: (0..ws * win)
+            .map(|k| if k % ws < win { 1.0 } else { 0.0 })
+            .collect(),
+        #[cfg(target_arch = "x86_64")]
+        avx2: simd::has_avx2(),
+        #[cfg(not(target_arch = "x86_64"))]
+        avx2: false,
     };
-    let mut row = vec![0.0f32; win];
     let top = n_levels - 1;
     let scale = 1.0 / (1u32 << top) as f32;
     let g = guess.unwrap_or(p);
@@ -240,7 +323,7 @@ pub fn track_point(
         let s = 1.0 / (1u32 << level) as f32;
         let (lp, ln) = (&prev.levels[level], &next.levels[level]);
         let prev_pt = [p[0] * s, p[1] * s];
-        let Some((o, w)) = window_origin(lp, prev_pt[0], prev_pt[1], half, win) else {
+        let Some((o, w)) = window_origin(lp, prev_pt[0], prev_pt[1], half, win, ws) else {
             if level == 0 {
                 return lost(p, LostReason::LeftImage);
             }
@@ -248,12 +331,17 @@ pub fn track_point(
             continue;
         };
         sample_template(lp, o, w, win, &mut t);
-        let (mut a11, mut a12, mut a22) = (0.0f32, 0.0f32, 0.0f32);
-        for k in 0..win * win {
-            a11 += t.gx[k] * t.gx[k];
-            a12 += t.gx[k] * t.gy[k];
-            a22 += t.gy[k] * t.gy[k];
+        let (mut g11, mut g12, mut g22) = ([0.0f32; 8], [0.0f32; 8], [0.0f32; 8]);
+        for (x8, y8) in t.gx.chunks_exact(8).zip(t.gy.chunks_exact(8)) {
+            for k in 0..8 {
+                g11[k] += x8[k] * x8[k];
+                g12[k] += x8[k] * y8[k];
+                g22[k] += y8[k] * y8[k];
+            }
         }
+        let a11: f32 = g11.iter().sum();
+        let a12: f32 = g12.iter().sum();
+        let a22: f32 = g22.iter().sum();
         let det = a11 * a22 - a12 * a12;
         let min_eig =
             (a11 + a22 - ((a11 - a22) * (a11 - a22) + 4.0 * a12 * a12).sqrt()) / (2.0 * area);
@@ -271,11 +359,11 @@ pub fn track_point(
         let mut prev_delta = [0.0f32; 2];
         let mut inside = true;
         for it in 0..params.max_iterations {
-            let Some((oj, wj)) = window_origin(ln, next_pt[0], next_pt[1], half, win) else {
+            let Some((oj, wj)) = window_origin(ln, next_pt[0], next_pt[1], half, win, ws) else {
                 inside = false;
                 break;
             };
-            let (b1, b2, _) = mismatch(ln, oj, wj, win, &t, &mut row);
+            let (b1, b2, _) = mismatch(ln, oj, wj, win, &t);
             let delta = [(a12 * b2 - a22 * b1) * inv, (a12 * b1 - a11 * b2) * inv];
             next_pt[0] += delta[0];
             next_pt[1] += delta[1];
@@ -300,10 +388,10 @@ pub fn track_point(
             if !(inside && in_image) {
                 return lost(x, LostReason::LeftImage);
             }
-            let Some((oj, wj)) = window_origin(ln, x[0], x[1], half, win) else {
+            let Some((oj, wj)) = window_origin(ln, x[0], x[1], half, win, ws) else {
                 return lost(x, LostReason::LeftImage);
             };
-            let (_, _, e) = mismatch(ln, oj, wj, win, &t, &mut row);
+            let (_, _, e) = mismatch(ln, oj, wj, win, &t);
             return LkResult {
                 pos: x,
                 residual: (e / area).sqrt(),

@@ -136,8 +136,10 @@ pub struct Level {
     pub stride: usize,
     /// Padded brightness, `stride * (height + 2 * pad)` values.
     pub img: Vec<f32>,
-    /// Padded gradient, interleaved (∂I/∂x, ∂I/∂y) per pixel, brightness per pixel.
-    pub grad: Vec<f32>,
+    /// Padded ∂I/∂x (Scharr), brightness per pixel.
+    pub gx: Vec<f32>,
+    /// Padded ∂I/∂y (Scharr), brightness per pixel.
+    pub gy: Vec<f32>,
 }
 
 impl Level {
@@ -158,25 +160,28 @@ impl Level {
                 }
             });
         // Scharr derivative (3, 10, 3) ⊗ (-1, 0, 1) / 32: per pixel, brightness per pixel.
-        let mut grad = vec![0.0f32; 2 * stride * ph];
-        grad.par_chunks_mut(2 * stride)
+        let mut gx = vec![0.0f32; stride * ph];
+        let mut gy = vec![0.0f32; stride * ph];
+        gx.par_chunks_mut(stride)
+            .zip(gy.par_chunks_mut(stride))
             .enumerate()
-            .for_each(|(y, out)| {
+            .for_each(|(y, (ox, oy))| {
                 if y == 0 || y + 1 >= ph {
                     return;
                 }
                 let r0 = &img[(y - 1) * stride..y * stride];
                 let r1 = &img[y * stride..(y + 1) * stride];
                 let r2 = &img[(y + 1) * stride..(y + 2) * stride];
-                for x in 1..stride - 1 {
-                    let gx = 3.0 * (r0[x + 1] - r0[x - 1])
-                        + 10.0 * (r1[x + 1] - r1[x - 1])
-                        + 3.0 * (r2[x + 1] - r2[x - 1]);
-                    let gy = 3.0 * (r2[x - 1] - r0[x - 1])
-                        + 10.0 * (r2[x] - r0[x])
-                        + 3.0 * (r2[x + 1] - r0[x + 1]);
-                    out[2 * x] = gx * (1.0 / 32.0);
-                    out[2 * x + 1] = gy * (1.0 / 32.0);
+                let n = stride - 2;
+                let (ox, oy) = (&mut ox[1..1 + n], &mut oy[1..1 + n]);
+                let (a0, a1, a2) = (&r0[..n], &r1[..n], &r2[..n]);
+                let (m0, m2) = (&r0[1..1 + n], &r2[1..1 + n]);
+                let (c0, c1, c2) = (&r0[2..2 + n], &r1[2..2 + n], &r2[2..2 + n]);
+                for x in 0..n {
+                    let dx = 3.0 * (c0[x] - a0[x]) + 10.0 * (c1[x] - a1[x]) + 3.0 * (c2[x] - a2[x]);
+                    let dy = 3.0 * (a2[x] - a0[x]) + 10.0 * (m2[x] - m0[x]) + 3.0 * (c2[x] - c0[x]);
+                    ox[x] = dx * (1.0 / 32.0);
+                    oy[x] = dy * (1.0 / 32.0);
                 }
             });
         Level {
@@ -185,7 +190,8 @@ impl Level {
             pad,
             stride,
             img,
-            grad,
+            gx,
+            gy,
         }
     }
 
@@ -310,8 +316,8 @@ mod tests {
         let p = Pyramid::new(&img, 2, 4).unwrap();
         let l = &p.levels[0];
         let i = (10 + l.pad) * l.stride + 12 + l.pad;
-        assert!((l.grad[2 * i] - 3.0).abs() < 1e-5);
-        assert!((l.grad[2 * i + 1] + 2.0).abs() < 1e-5);
+        assert!((l.gx[i] - 3.0).abs() < 1e-5);
+        assert!((l.gy[i] + 2.0).abs() < 1e-5);
         assert_eq!(l.to_gray(), img);
         assert!(p.levels.len() >= 2);
     }
