@@ -61,76 +61,65 @@ pub fn min_eigen_map(img: &GrayImage, block_size: usize) -> Vec<f32> {
     if w == 0 || h == 0 {
         return Vec::new();
     }
-    // Per pixel products (Ix², IxIy, Iy²), interleaved.
-    let mut prod = vec![0.0f32; 3 * w * h];
-    prod.par_chunks_mut(3 * w).enumerate().for_each(|(y, out)| {
+    let b = block_size.max(1) as isize;
+    let (lo, hi) = (-(b / 2), b - 1 - b / 2);
+    // Sobel derivatives of row `y` (divided by 8), reflect-101 borders.
+    let sobel_row = |y: usize, gx: &mut [f32], gy: &mut [f32]| {
         let yi = y as isize;
         let r0 = &img.data[reflect101(yi - 1, h) * w..][..w];
         let r1 = &img.data[y * w..][..w];
         let r2 = &img.data[reflect101(yi + 1, h) * w..][..w];
-        let s = |x: usize| -> (f32, f32) {
-            let (xl, xr) = (reflect101(x as isize - 1, w), reflect101(x as isize + 1, w));
-            let gx = (r0[xr] - r0[xl]) + 2.0 * (r1[xr] - r1[xl]) + (r2[xr] - r2[xl]);
-            let gy = (r2[xl] - r0[xl]) + 2.0 * (r2[x] - r0[x]) + (r2[xr] - r0[xr]);
-            (gx * 0.125, gy * 0.125)
-        };
         for x in 0..w {
-            let (gx, gy) = if x > 0 && x + 1 < w {
-                let gx = (r0[x + 1] - r0[x - 1])
-                    + 2.0 * (r1[x + 1] - r1[x - 1])
-                    + (r2[x + 1] - r2[x - 1]);
-                let gy = (r2[x - 1] - r0[x - 1]) + 2.0 * (r2[x] - r0[x]) + (r2[x + 1] - r0[x + 1]);
-                (gx * 0.125, gy * 0.125)
+            let (xl, xr) = if x > 0 && x + 1 < w {
+                (x - 1, x + 1)
             } else {
-                s(x)
+                (reflect101(x as isize - 1, w), reflect101(x as isize + 1, w))
             };
-            out[3 * x] = gx * gx;
-            out[3 * x + 1] = gx * gy;
-            out[3 * x + 2] = gy * gy;
+            let dx = (r0[xr] - r0[xl]) + 2.0 * (r1[xr] - r1[xl]) + (r2[xr] - r2[xl]);
+            let dy = (r2[xl] - r0[xl]) + 2.0 * (r2[x] - r0[x]) + (r2[xr] - r0[xr]);
+            gx[x] = dx * 0.125;
+            gy[x] = dy * 0.125;
         }
-    });
-    // Box sums over block_size² (anchor at the centre, as OpenCV), horizontal then vertical.
-    let b = block_size.max(1) as isize;
-    let (lo, hi) = (-(b / 2), b - 1 - b / 2);
-    let mut hsum = vec![0.0f32; 3 * w * h];
-    hsum.par_chunks_mut(3 * w).enumerate().for_each(|(y, out)| {
-        let row = &prod[3 * y * w..3 * (y + 1) * w];
-        for x in 0..w {
-            let mut acc = [0.0f32; 3];
-            let (x0, x1) = (x as isize + lo, x as isize + hi);
-            if x0 >= 0 && (x1 as usize) < w {
-                for p in row[3 * x0 as usize..3 * (x1 as usize + 1)].chunks_exact(3) {
-                    acc[0] += p[0];
-                    acc[1] += p[1];
-                    acc[2] += p[2];
-                }
-            } else {
-                for d in lo..=hi {
-                    let xx = reflect101(x as isize + d, w);
-                    acc[0] += row[3 * xx];
-                    acc[1] += row[3 * xx + 1];
-                    acc[2] += row[3 * xx + 2];
-                }
-            }
-            out[3 * x..3 * x + 3].copy_from_slice(&acc);
-        }
-    });
+    };
+    // Row by row (no image-sized temporaries): vertical sums of the products over the block
+    // rows, then horizontal box sums, then the smaller eigenvalue.
     let mut eig = vec![0.0f32; w * h];
-    eig.par_chunks_mut(w).enumerate().for_each(|(y, out)| {
-        let mut vsum = vec![0.0f32; 3 * w];
-        for d in lo..=hi {
-            let yy = reflect101(y as isize + d, h);
-            for (v, s) in vsum.iter_mut().zip(&hsum[3 * yy * w..3 * (yy + 1) * w]) {
-                *v += s;
+    eig.par_chunks_mut(w).enumerate().for_each_init(
+        || (vec![0.0f32; w], vec![0.0f32; w], vec![[0.0f32; 3]; w]),
+        |(gx, gy, vs), (y, out)| {
+            vs.iter_mut().for_each(|v| *v = [0.0; 3]);
+            for d in lo..=hi {
+                sobel_row(reflect101(y as isize + d, h), gx, gy);
+                for ((v, &a), &c) in vs.iter_mut().zip(gx.iter()).zip(gy.iter()) {
+                    v[0] += a * a;
+                    v[1] += a * c;
+                    v[2] += c * c;
+                }
             }
-        }
-        for (o, acc) in out.iter_mut().zip(vsum.chunks_exact(3)) {
-            let a = acc[0] * 0.5;
-            let c = acc[2] * 0.5;
-            let bb = acc[1];
-            *o = (a + c) - ((a - c) * (a - c) + bb * bb).sqrt();
-        }
-    });
+            for (x, o) in out.iter_mut().enumerate() {
+                let mut acc = [0.0f32; 3];
+                let (x0, x1) = (x as isize + lo, x as isize + hi);
+                if x0 >= 0 && (x1 as usize) < w {
+                    for p in &vs[x0 as usize..=x1 as usize] {
+                        acc[0] += p[0];
+                        acc[1] += p[1];
+                        acc[2] += p[2];
+                    }
+                } else {
+                    for d in lo..=hi {
+                        let p = vs[reflect101(x as isize + d, w)];
+                        acc[0] += p[0];
+                        acc[1] += p[1];
+                        acc[2] += p[2];
+                    }
+                }
+                let a = acc[0] * 0.5;
+                let c = acc[2] * 0.5;
+                let bb = acc[1];
+                *o = (a + c) - ((a - c) * (a - c) + bb * bb).sqrt();
+            }
+        },
+    );
     eig
 }
 
