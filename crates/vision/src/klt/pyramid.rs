@@ -143,30 +143,55 @@ pub struct Level {
 }
 
 impl Level {
-    fn new(src: &GrayImage, pad: usize) -> Level {
-        let (w, h) = (src.width, src.height);
-        let stride = w + 2 * pad;
-        let ph = h + 2 * pad;
-        let mut img = vec![0.0f32; stride * ph];
-        img.par_chunks_mut(stride)
-            .enumerate()
-            .for_each(|(py, row)| {
-                let sy = reflect101(py as isize - pad as isize, h);
-                let srow = &src.data[sy * w..(sy + 1) * w];
-                row[pad..pad + w].copy_from_slice(srow);
+    fn empty() -> Level {
+        Level {
+            width: 0,
+            height: 0,
+            pad: 0,
+            stride: 0,
+            img: Vec::new(),
+            gx: Vec::new(),
+            gy: Vec::new(),
+        }
+    }
+
+    /// Sets the size, reusing the buffers' memory (fresh pages cost more than the filtering).
+    fn resize(&mut self, w: usize, h: usize, pad: usize) {
+        self.width = w;
+        self.height = h;
+        self.pad = pad;
+        self.stride = w + 2 * pad;
+        let n = self.stride * (h + 2 * pad);
+        for v in [&mut self.img, &mut self.gx, &mut self.gy] {
+            v.resize(n, 0.0);
+        }
+    }
+
+    /// Fills the border by reflect-101 from the interior, then the Scharr gradient.
+    fn finish(&mut self) {
+        let (w, h, pad, stride) = (self.width, self.height, self.pad, self.stride);
+        self.img[pad * stride..(pad + h) * stride]
+            .par_chunks_mut(stride)
+            .for_each(|row| {
                 for px in 0..pad {
-                    row[px] = srow[reflect101(px as isize - pad as isize, w)];
-                    row[pad + w + px] = srow[reflect101((w + px) as isize, w)];
+                    row[px] = row[pad + reflect101(px as isize - pad as isize, w)];
+                    row[pad + w + px] = row[pad + reflect101((w + px) as isize, w)];
                 }
             });
+        for py in (0..pad).chain(pad + h..h + 2 * pad) {
+            let sy = pad + reflect101(py as isize - pad as isize, h);
+            self.img
+                .copy_within(sy * stride..(sy + 1) * stride, py * stride);
+        }
         // Scharr derivative (3, 10, 3) ⊗ (-1, 0, 1) / 32: per pixel, brightness per pixel.
-        let mut gx = vec![0.0f32; stride * ph];
-        let mut gy = vec![0.0f32; stride * ph];
-        gx.par_chunks_mut(stride)
-            .zip(gy.par_chunks_mut(stride))
+        let ph = h + 2 * pad;
+        let img = &self.img;
+        self.gx
+            .par_chunks_mut(stride)
+            .zip(self.gy.par_chunks_mut(stride))
             .enumerate()
             .for_each(|(y, (ox, oy))| {
-                if y == 0 || y + 1 >= ph {
+                if y == 0 || y + 1 >= ph || stride < 3 {
                     return;
                 }
                 let r0 = &img[(y - 1) * stride..y * stride];
@@ -184,15 +209,44 @@ impl Level {
                     oy[x] = dy * (1.0 / 32.0);
                 }
             });
-        Level {
-            width: w,
-            height: h,
-            pad,
-            stride,
-            img,
-            gx,
-            gy,
-        }
+    }
+
+    fn set_from_gray(&mut self, src: &GrayImage, pad: usize) {
+        let w = src.width;
+        self.resize(w, src.height, pad);
+        let stride = self.stride;
+        self.img[pad * stride..(pad + src.height) * stride]
+            .par_chunks_mut(stride)
+            .enumerate()
+            .for_each(|(y, row)| row[pad..pad + w].copy_from_slice(&src.data[y * w..][..w]));
+        self.finish();
+    }
+
+    /// OpenCV's `pyrDown` of `src` (see [`pyr_down`]), read from its reflect-101 border.
+    fn set_from_down(&mut self, src: &Level) {
+        let (dw, dh) = (src.width.div_ceil(2), src.height.div_ceil(2));
+        self.resize(dw, dh, src.pad);
+        let (pad, stride, ss, sp) = (self.pad, self.stride, src.stride, src.pad);
+        self.img[pad * stride..(pad + dh) * stride]
+            .par_chunks_mut(stride)
+            .enumerate()
+            .for_each_init(
+                || vec![0.0f32; ss],
+                |v, (y, row)| {
+                    let sy = 2 * y + sp;
+                    let r = |i: usize| &src.img[(sy + i - 2) * ss..][..ss];
+                    let (a, b, m, d, e) = (r(0), r(1), r(2), r(3), r(4));
+                    for x in 0..ss {
+                        v[x] = a[x] + 4.0 * b[x] + 6.0 * m[x] + 4.0 * d[x] + e[x];
+                    }
+                    for (x, o) in row[pad..pad + dw].iter_mut().enumerate() {
+                        let c = 2 * x + sp;
+                        *o = (v[c - 2] + 4.0 * v[c - 1] + 6.0 * v[c] + 4.0 * v[c + 1] + v[c + 2])
+                            * (1.0 / 256.0);
+                    }
+                },
+            );
+        self.finish();
     }
 
     /// The level without its border, as a [`GrayImage`].
@@ -258,24 +312,45 @@ pub struct Pyramid {
 
 impl Pyramid {
     /// Builds up to `max_level + 1` levels, stopping early when a level would be narrower
-    /// than `2 * pad` pixels; every level has a border of `pad` pixels.
+    /// than `2 * pad` pixels; every level has a border of `pad` pixels (at least 2).
     pub fn new(img: &GrayImage, max_level: usize, pad: usize) -> Result<Pyramid, KltError> {
-        if img.width == 0 || img.height == 0 {
+        let mut p = Pyramid { levels: Vec::new() };
+        p.rebuild(img, max_level, pad)?;
+        Ok(p)
+    }
+
+    /// Rebuilds the pyramid for a new image, reusing this pyramid's memory (a tracker keeps
+    /// two pyramids and alternates them).
+    pub fn rebuild(
+        &mut self,
+        img: &GrayImage,
+        max_level: usize,
+        pad: usize,
+    ) -> Result<(), KltError> {
+        if img.width == 0 || img.height == 0 || img.data.len() != img.width * img.height {
             return Err(KltError::BadImage(format!(
-                "empty image ({}×{})",
+                "empty or inconsistent image ({}×{})",
                 img.width, img.height
             )));
         }
-        let mut levels = vec![Level::new(img, pad)];
-        let mut cur = img.clone();
-        for _ in 0..max_level {
-            if cur.width.div_ceil(2) < 2 * pad.max(4) || cur.height.div_ceil(2) < 2 * pad.max(4) {
-                break;
-            }
-            cur = pyr_down(&cur);
-            levels.push(Level::new(&cur, pad));
+        let pad = pad.max(2);
+        let mut n = 1;
+        let (mut w, mut h) = (img.width, img.height);
+        while n <= max_level && w.div_ceil(2) >= 2 * pad.max(4) && h.div_ceil(2) >= 2 * pad.max(4) {
+            w = w.div_ceil(2);
+            h = h.div_ceil(2);
+            n += 1;
         }
-        Ok(Pyramid { levels })
+        self.levels.truncate(n);
+        while self.levels.len() < n {
+            self.levels.push(Level::empty());
+        }
+        self.levels[0].set_from_gray(img, pad);
+        for k in 1..n {
+            let (done, rest) = self.levels.split_at_mut(k);
+            rest[0].set_from_down(&done[k - 1]);
+        }
+        Ok(())
     }
 
     /// Width and height of level 0.
@@ -320,6 +395,13 @@ mod tests {
         assert!((l.gy[i] + 2.0).abs() < 1e-5);
         assert_eq!(l.to_gray(), img);
         assert!(p.levels.len() >= 2);
+        // Levels read from the padded buffer equal pyr_down of the unpadded image.
+        let d = pyr_down(&img);
+        let l1 = p.levels[1].to_gray();
+        assert_eq!((l1.width, l1.height), (d.width, d.height));
+        for (a, b) in l1.data.iter().zip(&d.data) {
+            assert!((a - b).abs() < 1e-3, "{a} {b}");
+        }
     }
 
     #[test]
@@ -327,6 +409,7 @@ mod tests {
         assert!(Pyramid::new(&GrayImage::new(0, 0, vec![]).unwrap(), 3, 4).is_err());
         let p = Pyramid::new(&GrayImage::from_fn(1, 1, |_, _| 7.0), 3, 4).unwrap();
         assert_eq!(p.levels.len(), 1);
+        assert_eq!(p.levels[0].to_gray().data, vec![7.0]);
         assert!(GrayImage::new(2, 2, vec![0.0; 3]).is_err());
         let g = GrayImage::from_fn(1, 1, |_, _| 5.0);
         assert_eq!(g.sample(3.0, -2.0), 5.0);

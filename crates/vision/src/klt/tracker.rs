@@ -55,6 +55,8 @@ impl Default for TrackerParams {
 pub struct Tracker {
     params: TrackerParams,
     prev: Option<Pyramid>,
+    /// The pyramid of two frames ago, whose memory the next frame reuses.
+    spare: Option<Pyramid>,
     tracks: Tracks,
     /// Per slot, the index into `tracks.tracks` of its live track.
     live: Vec<Option<usize>>,
@@ -76,6 +78,7 @@ impl Tracker {
         Ok(Tracker {
             params,
             prev: None,
+            spare: None,
             tracks: Tracks {
                 frames: Vec::new(),
                 slots,
@@ -143,7 +146,11 @@ impl Tracker {
     /// Adds the next frame (its number and image).
     pub fn push(&mut self, frame: i64, img: &GrayImage) -> Result<(), KltError> {
         let lk = &self.params.lk;
-        let pyr = Pyramid::new(img, lk.levels, lk.pad())?;
+        let mut pyr = match self.spare.take() {
+            Some(p) => p,
+            None => Pyramid { levels: Vec::new() },
+        };
+        pyr.rebuild(img, lk.levels, lk.pad())?;
         let fi = self.tracks.frames.len();
         if let Some(prev) = &self.prev {
             if prev.size() != pyr.size() {
@@ -209,7 +216,7 @@ impl Tracker {
             self.tracks.frames.push(frame);
             self.refill(img, fi)?;
         }
-        self.prev = Some(pyr);
+        self.spare = self.prev.replace(pyr);
         Ok(())
     }
 
