@@ -10,6 +10,7 @@ pub mod artifacts;
 pub mod calibration;
 pub mod image_io;
 pub mod image_ops;
+pub mod tracking;
 
 use vfxgraph_engine::{Context, Node, NodeError, NodeSpec, Registry};
 
@@ -42,5 +43,6 @@ pub fn registry() -> Registry {
     calibration::register(&mut r);
     image_io::register(&mut r);
     image_ops::register(&mut r);
+    tracking::register(&mut r);
     r
 }

@@ -7,7 +7,8 @@
 //! - [`calibration`]: one camera (chapter 4): DLT, factoring, restricted LM, Tsai, resection;
 //! - [`two_view`]: two cameras (chapter 5): F, E, relative pose, triangulation;
 //! - [`formats`]: the book's text files and their JSON forms;
-//! - [`bundle`]: sparse bundle adjustment (§7.7, Schur-complement Levenberg–Marquardt).
+//! - [`bundle`]: sparse bundle adjustment (§7.7, Schur-complement Levenberg–Marquardt);
+//! - [`klt`]: KLT feature tracking (chapter 6): Shi–Tomasi corners, pyramidal Lucas–Kanade.
 //!
 //! Conventions: f64; pixels with the origin at the top-left pixel's centre, x right, y down;
 //! a camera maps X to K(RX + t) and looks down +z.
@@ -21,6 +22,7 @@ pub mod calibration;
 pub mod camera;
 pub mod error;
 pub mod formats;
+pub mod klt;
 pub mod normalize;
 pub mod optimize;
 pub mod points;

@@ -1,0 +1,52 @@
+//! KLT feature tracking (book chapter 6): Shi–Tomasi corners ([`corners`], 6.4), image
+//! pyramids ([`pyramid`]), pyramidal Lucas–Kanade ([`lucas_kanade`], 6.2–6.3), the tracks
+//! model with the book's `f.txt` format ([`tracks`]) and the sequence tracker with disposal
+//! and replacement of windows ([`tracker`], 6.5).
+//!
+//! Brightness is on a 0–255 perceptual scale ([`GrayImage::from_image`]); pixel centres are
+//! at integer coordinates, (0, 0) the top-left pixel's centre, x right, y down.
+
+pub mod corners;
+pub mod lucas_kanade;
+pub mod pyramid;
+pub mod tracker;
+pub mod tracks;
+
+pub use corners::{good_features_to_track, min_eigen_map, Corner, CornerParams};
+pub use lucas_kanade::{track_point, track_points, LkParams, LkResult};
+pub use pyramid::{pyr_down, GrayImage, Level, Pyramid};
+pub use tracker::{track_sequence, Tracker, TrackerParams};
+pub use tracks::{Loss, LostReason, Track, Tracks};
+
+/// Errors of the KLT module (book chapter 6).
+#[derive(Debug, thiserror::Error)]
+pub enum KltError {
+    /// An image or mask that cannot be used (empty, wrong number of values).
+    #[error("bad image: {0}")]
+    BadImage(String),
+    /// Frames of one sequence differ in size.
+    #[error("frame size {found:?} differs from the sequence's {expected:?}")]
+    SizeMismatch {
+        /// Size of the earlier frames.
+        expected: (usize, usize),
+        /// Size of this frame.
+        found: (usize, usize),
+    },
+    /// A parameter out of range.
+    #[error("bad parameter: {0}")]
+    BadParam(String),
+    /// A tracks file that does not parse.
+    #[error("line {line}: {message}")]
+    Parse {
+        /// 1-based line number.
+        line: usize,
+        /// What is wrong.
+        message: String,
+    },
+    /// Tracks that break the model's invariants.
+    #[error("inconsistent tracks: {0}")]
+    BadTracks(String),
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,247 @@
+//! The whole-sequence KLT tracker (book 6.2–6.5; the book's chapter 6.7 program): Shi–Tomasi
+//! corners in the first frame, pyramidal Lucas–Kanade from each frame to the next, disposal
+//! of windows that leave the image, become singular, or whose residual exceeds a threshold
+//! (and, optionally, that fail a forward–backward check), and replacement of each lost
+//! feature by a new corner that keeps the minimum distance to the live ones.
+//!
+//! Pyramids are built once per frame; features are tracked in parallel (rayon). The result
+//! does not depend on the number of threads.
+
+use super::corners::{good_features_to_track, CornerParams};
+use super::lucas_kanade::{track_points, LkParams};
+use super::pyramid::{GrayImage, Pyramid};
+use super::tracks::{Loss, LostReason, Track, Tracks};
+use super::KltError;
+
+/// Parameters of the sequence tracker (book 6.4–6.5). Defaults: the book's 150 features,
+/// minimum distance 10, quality 1e-5, OpenCV's LK defaults, a residual threshold of 12 gray
+/// levels RMS, no forward–backward check, lost features replaced.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TrackerParams {
+    /// Corner detection; `max_corners` is the number of feature slots (the book's N).
+    pub corners: CornerParams,
+    /// Pyramidal Lucas–Kanade.
+    pub lk: LkParams,
+    /// A feature whose window residual (RMS, 0–255 gray levels) exceeds this is lost (book
+    /// 6.5); infinity disables the test.
+    pub max_residual: f32,
+    /// If set, each tracked feature is tracked back and lost when it does not come back
+    /// within this many pixels of where it started.
+    pub fb_threshold: Option<f32>,
+    /// Refill lost slots with new corners (book 6.5).
+    pub replace_lost: bool,
+    /// Margin in pixels: corners are not detected closer than this to the image edge, and a
+    /// feature closer than that is lost as having left the image. Near the edge most of
+    /// the window lies in the mirrored border, which moves the wrong way and drags features
+    /// along edges. With the default (10, the half window of the default LK window) every
+    /// window lies wholly inside the image, the book's definition of a window (6.1).
+    pub border: f32,
+}
+
+impl Default for TrackerParams {
+    fn default() -> Self {
+        TrackerParams {
+            corners: CornerParams::default(),
+            lk: LkParams::default(),
+            max_residual: 12.0,
+            fb_threshold: None,
+            replace_lost: true,
+            border: 10.0,
+        }
+    }
+}
+
+/// Incremental tracker: push frames in order, then [`Tracker::finish`] (book 6.2–6.5).
+pub struct Tracker {
+    params: TrackerParams,
+    prev: Option<Pyramid>,
+    /// The pyramid of two frames ago, whose memory the next frame reuses.
+    spare: Option<Pyramid>,
+    tracks: Tracks,
+    /// Per slot, the index into `tracks.tracks` of its live track.
+    live: Vec<Option<usize>>,
+}
+
+impl Tracker {
+    /// A tracker with these parameters (checked).
+    pub fn new(params: TrackerParams) -> Result<Tracker, KltError> {
+        params.lk.validate()?;
+        if params.max_residual.is_nan()
+            || params.fb_threshold.is_some_and(|t| t.is_nan() || t < 0.0)
+            || !(params.border >= 0.0 && params.border < 1e6)
+        {
+            return Err(KltError::BadParam(
+                "max_residual, fb_threshold and border must be numbers ≥ 0".into(),
+            ));
+        }
+        let slots = params.corners.max_corners;
+        Ok(Tracker {
+            params,
+            prev: None,
+            spare: None,
+            tracks: Tracks {
+                frames: Vec::new(),
+                slots,
+                tracks: Vec::new(),
+            },
+            live: vec![None; slots],
+        })
+    }
+
+    /// Positions of the live features, by slot.
+    fn live_points(&self) -> Vec<[f32; 2]> {
+        self.live
+            .iter()
+            .flatten()
+            .map(|&k| {
+                let p = self.tracks.tracks[k]
+                    .points
+                    .last()
+                    .copied()
+                    .unwrap_or_default();
+                [p[0] as f32, p[1] as f32]
+            })
+            .collect()
+    }
+
+    /// Fills empty slots with the best corners of `img` that keep the minimum distance to the
+    /// live features (book 6.4–6.5).
+    fn refill(&mut self, img: &GrayImage, fi: usize) -> Result<(), KltError> {
+        let free: Vec<usize> = (0..self.live.len())
+            .filter(|&s| self.live[s].is_none())
+            .collect();
+        if free.is_empty() {
+            return Ok(());
+        }
+        let existing = self.live_points();
+        let cp = CornerParams {
+            max_corners: free.len(),
+            ..self.params.corners.clone()
+        };
+        let b = self.params.border.ceil() as usize;
+        let mask: Option<Vec<bool>> = (b > 1).then(|| {
+            let (w, h) = (img.width, img.height);
+            (0..w * h)
+                .map(|i| {
+                    let (x, y) = (i % w, i / w);
+                    x >= b && y >= b && x + b < w && y + b < h
+                })
+                .collect()
+        });
+        let corners = good_features_to_track(img, &cp, mask.as_deref(), &existing)?;
+        for (slot, c) in free.into_iter().zip(corners) {
+            let id = self.tracks.tracks.len() as u64;
+            self.live[slot] = Some(self.tracks.tracks.len());
+            self.tracks.tracks.push(Track {
+                id,
+                slot,
+                first: fi,
+                points: vec![[c.x as f64, c.y as f64]],
+                lost: None,
+            });
+        }
+        Ok(())
+    }
+
+    /// Adds the next frame (its number and image).
+    pub fn push(&mut self, frame: i64, img: &GrayImage) -> Result<(), KltError> {
+        let lk = &self.params.lk;
+        let mut pyr = match self.spare.take() {
+            Some(p) => p,
+            None => Pyramid { levels: Vec::new() },
+        };
+        pyr.rebuild(img, lk.levels, lk.pad())?;
+        let fi = self.tracks.frames.len();
+        if let Some(prev) = &self.prev {
+            if prev.size() != pyr.size() {
+                return Err(KltError::SizeMismatch {
+                    expected: prev.size(),
+                    found: pyr.size(),
+                });
+            }
+            let slots: Vec<usize> = (0..self.live.len())
+                .filter(|&s| self.live[s].is_some())
+                .collect();
+            let pts = self.live_points();
+            let mut res = track_points(prev, &pyr, &pts, None, lk)?;
+            let m = self.params.border;
+            let (w, h) = (img.width as f32, img.height as f32);
+            for r in res.iter_mut() {
+                let [x, y] = r.pos;
+                if r.lost.is_none() && (x < m || y < m || x > w - 1.0 - m || y > h - 1.0 - m) {
+                    r.lost = Some(LostReason::LeftImage);
+                }
+                if r.lost.is_none() && r.residual > self.params.max_residual {
+                    r.lost = Some(LostReason::Residual);
+                }
+            }
+            if let Some(fb) = self.params.fb_threshold {
+                let fwd: Vec<[f32; 2]> = res.iter().map(|r| r.pos).collect();
+                let back = track_points(&pyr, prev, &fwd, Some(&pts), lk)?;
+                for ((r, b), p) in res.iter_mut().zip(&back).zip(&pts) {
+                    if r.lost.is_none() {
+                        let d = (b.pos[0] - p[0]).hypot(b.pos[1] - p[1]);
+                        if b.lost.is_some() || d.is_nan() || d > fb {
+                            r.lost = Some(LostReason::ForwardBackward);
+                        }
+                    }
+                }
+            }
+            for (slot, r) in slots.into_iter().zip(res) {
+                let Some(k) = self.live[slot] else { continue };
+                let t = &mut self.tracks.tracks[k];
+                let pos = [r.pos[0] as f64, r.pos[1] as f64];
+                match r.lost {
+                    None => t.points.push(pos),
+                    Some(reason) => {
+                        let at = if pos[0].is_finite() && pos[1].is_finite() {
+                            pos
+                        } else {
+                            t.points.last().copied().unwrap_or_default()
+                        };
+                        t.lost = Some(Loss {
+                            frame: fi,
+                            at,
+                            reason,
+                        });
+                        self.live[slot] = None;
+                    }
+                }
+            }
+            self.tracks.frames.push(frame);
+            if self.params.replace_lost {
+                self.refill(img, fi)?;
+            }
+        } else {
+            self.tracks.frames.push(frame);
+            self.refill(img, fi)?;
+        }
+        self.spare = self.prev.replace(pyr);
+        Ok(())
+    }
+
+    /// The tracks so far.
+    pub fn tracks(&self) -> &Tracks {
+        &self.tracks
+    }
+
+    /// Ends the sequence and returns the tracks.
+    pub fn finish(self) -> Tracks {
+        self.tracks
+    }
+}
+
+/// Tracks a whole sequence of (frame number, image) pairs (book 6.2–6.5); `progress` is
+/// called with the fraction done after each frame. An empty sequence gives empty tracks.
+pub fn track_sequence(
+    frames: &[(i64, &GrayImage)],
+    params: &TrackerParams,
+    mut progress: impl FnMut(f32),
+) -> Result<Tracks, KltError> {
+    let mut t = Tracker::new(params.clone())?;
+    for (k, (f, img)) in frames.iter().enumerate() {
+        t.push(*f, img)?;
+        progress((k + 1) as f32 / frames.len() as f32);
+    }
+    Ok(t.finish())
+}
