@@ -7,6 +7,7 @@
 //! [`registry`] returns every artifact and node type, for the CLI and for tests.
 
 pub mod artifacts;
+pub mod hdr;
 pub mod image_io;
 pub mod image_ops;
 
@@ -40,5 +41,6 @@ pub fn registry() -> Registry {
     artifacts::register(&mut r);
     image_io::register(&mut r);
     image_ops::register(&mut r);
+    hdr::register(&mut r);
     r
 }
