@@ -35,6 +35,7 @@
 
 pub mod color;
 mod error;
+pub mod hdr;
 pub mod image;
 pub mod io;
 pub mod tonemap;

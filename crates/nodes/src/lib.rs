@@ -8,6 +8,7 @@
 
 pub mod artifacts;
 pub mod calibration;
+pub mod hdr;
 pub mod image_io;
 pub mod image_ops;
 pub mod tracking;
@@ -44,5 +45,6 @@ pub fn registry() -> Registry {
     image_io::register(&mut r);
     image_ops::register(&mut r);
     tracking::register(&mut r);
+    hdr::register(&mut r);
     r
 }

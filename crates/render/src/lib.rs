@@ -1,1 +1,2 @@
 //! vfxgraph-render
+pub mod dome;

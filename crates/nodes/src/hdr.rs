@@ -1,0 +1,741 @@
+//! HDR radiance maps and light domes (book chapter 10): `read_exposure_stack`, `hdr_calibrate`,
+//! `hdr_merge`, `hdr_to_ldr`, `plot_response`, `write_response`, `dome`. The algorithms live in
+//! `vfxgraph_imaging::hdr` (Debevec & Malik 1997) and `vfxgraph_render::dome`.
+
+use nalgebra::{Matrix3, Vector3};
+use vfxgraph_engine::artifact::codec::{put_bytes, put_f64, put_u64, Reader};
+use vfxgraph_engine::{
+    ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, ParamValue, PathRole,
+    PortSpec, Registry,
+};
+use vfxgraph_imaging::hdr::{
+    calibrate_debevec, ldr_from_hdr, merge_debevec, probe_to_equirect, read_exposure_list,
+    CalibrateOptions, Exposure, ExposureStack, ProbeCircle, ResponseCurve, Sampling, LEVELS,
+};
+use vfxgraph_imaging::Image;
+use vfxgraph_render::dome::Dome;
+
+use crate::artifacts::ImageArt;
+use crate::FnNode;
+
+/// An exposure stack (`exposure_stack`): 8-bit codes, exposure times, optional mask.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StackArt(pub ExposureStack);
+
+impl ArtifactType for StackArt {
+    const NAME: &'static str = "exposure_stack";
+    const DOC: &'static str = "Bracketed 8-bit photographs of one scene with their exposure times \
+        (seconds) and an optional mask of ignored pixels (book 10.2).";
+    fn encode(&self, out: &mut Vec<u8>) {
+        let s = &self.0;
+        put_u64(out, s.width() as u64);
+        put_u64(out, s.height() as u64);
+        put_u64(out, s.channels() as u64);
+        put_u64(out, s.len() as u64);
+        for e in s.exposures() {
+            put_f64(out, e.time);
+            put_bytes(out, &e.codes);
+        }
+        match s.mask() {
+            Some(m) => put_bytes(out, &m.iter().map(|&b| b as u8).collect::<Vec<u8>>()),
+            None => put_bytes(out, &[]),
+        }
+    }
+    fn decode(bytes: &[u8]) -> Result<Self, String> {
+        let mut r = Reader::new(bytes);
+        let (w, h, c, n) = (r.u64()?, r.u64()?, r.u64()?, r.u64()?);
+        let mut exposures = Vec::new();
+        for _ in 0..n {
+            let time = r.f64()?;
+            exposures.push(Exposure {
+                time,
+                codes: r.bytes()?.to_vec(),
+            });
+        }
+        let mask = r.bytes()?.to_vec();
+        r.finish()?;
+        let s = ExposureStack::new(w as usize, h as usize, c as usize, exposures)
+            .map_err(|e| e.to_string())?;
+        let s = if mask.is_empty() {
+            s
+        } else {
+            s.with_mask(mask.iter().map(|&b| b != 0).collect())
+                .map_err(|e| e.to_string())?
+        };
+        Ok(StackArt(s))
+    }
+}
+
+/// A camera response curve (`response_curve`): g = ln f⁻¹, 256 values per channel.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ResponseArt(pub ResponseCurve);
+
+impl ArtifactType for ResponseArt {
+    const NAME: &'static str = "response_curve";
+    const DOC: &'static str = "A camera response g(z) = ln f⁻¹(z): 256 log exposures per channel, \
+        g(128) = 0 (Debevec & Malik 1997; book 10.2).";
+    fn encode(&self, out: &mut Vec<u8>) {
+        put_u64(out, self.0.channels() as u64);
+        for g in self.0.curves() {
+            for v in g {
+                put_f64(out, *v);
+            }
+        }
+    }
+    fn decode(bytes: &[u8]) -> Result<Self, String> {
+        let mut r = Reader::new(bytes);
+        let c = r.u64()?;
+        if !(1..=4).contains(&c) {
+            return Err(format!("{c} channels"));
+        }
+        let mut g = Vec::new();
+        for _ in 0..c {
+            let mut a = [0.0; LEVELS];
+            for v in a.iter_mut() {
+                *v = r.f64()?;
+            }
+            g.push(a);
+        }
+        r.finish()?;
+        ResponseCurve::new(g)
+            .map(ResponseArt)
+            .map_err(|e| e.to_string())
+    }
+}
+
+/// An oriented light dome (`dome`): an equirectangular image plus `orig`/`south`.
+#[derive(Clone, Debug)]
+pub struct DomeArt(pub Dome);
+
+impl ArtifactType for DomeArt {
+    const NAME: &'static str = "dome";
+    const DOC: &'static str = "An equirectangular light dome oriented by orig/south, importance \
+        sampled by luminance × sin θ (book 10.7–10.9).";
+    fn encode(&self, out: &mut Vec<u8>) {
+        ImageArt(self.0.image().clone()).encode(out);
+        for v in self.0.orig().iter().chain(self.0.south().iter()) {
+            put_f64(out, *v);
+        }
+    }
+    fn decode(bytes: &[u8]) -> Result<Self, String> {
+        let n = bytes.len().checked_sub(48).ok_or("truncated dome")?;
+        let img = ImageArt::decode(&bytes[..n])?.0;
+        let mut r = Reader::new(&bytes[n..]);
+        let mut v = [0.0; 6];
+        for x in v.iter_mut() {
+            *x = r.f64()?;
+        }
+        let orig = Vector3::new(v[0], v[1], v[2]);
+        let south = Vector3::new(v[3], v[4], v[5]);
+        Dome::new(&img, orig, south)
+            .map(DomeArt)
+            .map_err(|e| e.to_string())
+    }
+}
+
+const POSITIVE: ParamType = ParamType::Float {
+    min: 1e-12,
+    max: 1e12,
+};
+
+/// Registers the artifact and node types of this module.
+pub fn register(r: &mut Registry) {
+    r.register_artifact::<StackArt>();
+    r.register_artifact::<ResponseArt>();
+    r.register_artifact::<DomeArt>();
+    r.register_node(FnNode::new(
+        NodeSpec::new(
+            "read_exposure_stack",
+            "Reads bracketed 8-bit PNG/JPEG photographs named by a list file in Debevec's \
+             format (`#` comments, the count, then `file seconds` lines, seconds like 1/250; \
+             names relative to the list; a missing .ppm falls back to the .png/.jpg with the \
+             same stem) as raw codes (book 10.2). Validates sizes and distinct times. \
+             Cache limitation: the key covers the list file, not the images it names — after \
+             editing an image in place, touch the list or run with --force.",
+        )
+        .mode(Mode::Once)
+        .param(ParamSpec::required(
+            "list",
+            ParamType::Path(PathRole::Input),
+            "the exposure list file",
+        ))
+        .param(ParamSpec::optional(
+            "mask_color",
+            ParamType::FloatList { len: None },
+            ParamValue::List(vec![]),
+            "codes (one per channel, 0-255) marking pixels to ignore in calibration, e.g. \
+             [0, 0, 255] for the Memorial stack's blue borders; [] for none",
+        ))
+        .output(PortSpec::one("stack", StackArt::NAME, "the exposure stack")),
+        run_read_stack,
+    ));
+    r.register_node(FnNode::new(
+        NodeSpec::new(
+            "hdr_calibrate",
+            "Recovers the camera response g = ln f⁻¹ per channel by Debevec & Malik's weighted \
+             least squares with smoothness λ, hat weights and g(128) = 0 (book 10.2–10.4).",
+        )
+        .mode(Mode::Once)
+        .seeded()
+        .param(ParamSpec::optional(
+            "samples",
+            ParamType::Int {
+                min: 1,
+                max: 1_000_000,
+            },
+            ParamValue::Int(1000),
+            "pixel locations sampled (same for every channel)",
+        ))
+        .param(ParamSpec::optional(
+            "lambda",
+            ParamType::Float { min: 0.0, max: 1e6 },
+            ParamValue::Float(10.0),
+            "smoothness weight λ (as in the paper's gsolve and OpenCV)",
+        ))
+        .param(ParamSpec::optional(
+            "sampling",
+            ParamType::Enum(&["stratified", "random", "grid"]),
+            ParamValue::Str("stratified".into()),
+            "pixel selection: jittered grid, uniform random, or regular grid",
+        ))
+        .input(PortSpec::one("stack", StackArt::NAME, "the exposure stack"))
+        .output(PortSpec::one(
+            "response",
+            ResponseArt::NAME,
+            "the response curve",
+        )),
+        run_calibrate,
+    ));
+    r.register_node(FnNode::new(
+        NodeSpec::new(
+            "hdr_merge",
+            "Assembles the linear radiance map ln E = Σ w(Z)(g(Z) − ln Δt)/Σ w(Z) (book 10.4); \
+             pixels clipped in every exposure take the stack's bound; g(128) = 0 per channel \
+             keeps the camera's mid-grey white balance.",
+        )
+        .input(PortSpec::one("stack", StackArt::NAME, "the exposure stack"))
+        .input(PortSpec::one(
+            "response",
+            ResponseArt::NAME,
+            "the response curve",
+        ))
+        .output(PortSpec::one(
+            "image",
+            ImageArt::NAME,
+            "the radiance map, linear",
+        )),
+        run_merge,
+    ));
+    r.register_node(FnNode::new(
+        NodeSpec::new(
+            "hdr_to_ldr",
+            "Simulates a photograph of an HDR image (book 10.6): code = g⁻¹(ln(E·time)) through \
+             the connected response curve, or through a gamma curve when none is connected. \
+             The output, written to PNG/JPEG, stores those codes exactly.",
+        )
+        .param(ParamSpec::optional(
+            "time",
+            POSITIVE,
+            ParamValue::Float(1.0),
+            "exposure time in seconds",
+        ))
+        .param(ParamSpec::optional(
+            "gamma",
+            ParamType::Float {
+                min: 0.01,
+                max: 100.0,
+            },
+            ParamValue::Float(2.2),
+            "gamma of the curve used when no response is connected (f⁻¹(z) ∝ (z/255)^γ)",
+        ))
+        .input(PortSpec::one("image", ImageArt::NAME, "linear HDR image"))
+        .input(PortSpec::one("response", ResponseArt::NAME, "response curve").optional())
+        .output(PortSpec::one(
+            "image",
+            ImageArt::NAME,
+            "the simulated photograph",
+        )),
+        run_to_ldr,
+    ));
+    r.register_node(FnNode::new(
+        NodeSpec::new(
+            "plot_response",
+            "Plots a response curve as Debevec & Malik's figure: pixel value z (up) against log \
+             exposure g(z) (across), one line per channel (red, green, blue), on white with a \
+             grid at every unit of ln exposure and every 32 codes.",
+        )
+        .param(ParamSpec::optional(
+            "width",
+            ParamType::Int { min: 64, max: 8192 },
+            ParamValue::Int(640),
+            "pixels",
+        ))
+        .param(ParamSpec::optional(
+            "height",
+            ParamType::Int { min: 64, max: 8192 },
+            ParamValue::Int(480),
+            "pixels",
+        ))
+        .input(PortSpec::one("response", ResponseArt::NAME, "the curve"))
+        .output(PortSpec::one(
+            "image",
+            ImageArt::NAME,
+            "the plot (write it as PNG)",
+        )),
+        run_plot,
+    ));
+    r.register_node(FnNode::new(
+        NodeSpec::new(
+            "write_response",
+            "Writes a response curve as CSV: 256 rows (z = 0…255), one column per channel \
+             (R,G,B), holding the linear exposure f⁻¹(z) = exp(g(z)) — OpenCV's debevec.csv \
+             layout in RGB order, no header. The write is atomic.",
+        )
+        .param(ParamSpec::required(
+            "path",
+            ParamType::Path(PathRole::Output),
+            "the CSV file",
+        ))
+        .input(PortSpec::one("response", ResponseArt::NAME, "the curve")),
+        run_write_response,
+    ));
+    r.register_node(FnNode::new(
+        NodeSpec::new(
+            "probe_to_equirect",
+            "Unwraps a mirror-ball light probe (camera looking along −z, +y up, orthographic) \
+             into a width × width/2 equirectangular image in the dome's y-up layout (top row \
+             +y, centre column −z), bilinear (book 10.7). The rim (−z) is singular.",
+        )
+        .param(ParamSpec::optional(
+            "circle",
+            ParamType::FloatList { len: None },
+            ParamValue::List(vec![]),
+            "[cx, cy, radius] of the ball in pixels; [] = the disc inscribed in the image",
+        ))
+        .param(ParamSpec::optional(
+            "width",
+            ParamType::Int { min: 2, max: 65536 },
+            ParamValue::Int(1024),
+            "output width (height = width / 2)",
+        ))
+        .input(PortSpec::one(
+            "image",
+            ImageArt::NAME,
+            "the probe photograph, linear",
+        ))
+        .output(PortSpec::one(
+            "image",
+            ImageArt::NAME,
+            "equirectangular image",
+        )),
+        run_probe,
+    ));
+    r.register_node(FnNode::new(
+        NodeSpec::new(
+            "dome",
+            "Makes a light dome of an equirectangular image (book 10.7–10.8): oriented by \
+             `orig` (centre column) and `south` (top row), or by a calibrated camera's rotation \
+             `rotation` (9 numbers, row by row: south = 2nd row, orig = −3rd row). The default \
+             is vfxgraph's y-up world: south = +y, orig = −z.",
+        )
+        .param(ParamSpec::optional(
+            "orig",
+            ParamType::FloatList { len: Some(3) },
+            ParamValue::List(vec![
+                ParamValue::Float(0.0),
+                ParamValue::Float(0.0),
+                ParamValue::Float(-1.0),
+            ]),
+            "direction shown at the centre column (φ = 0)",
+        ))
+        .param(ParamSpec::optional(
+            "south",
+            ParamType::FloatList { len: Some(3) },
+            ParamValue::List(vec![
+                ParamValue::Float(0.0),
+                ParamValue::Float(1.0),
+                ParamValue::Float(0.0),
+            ]),
+            "direction shown on the top row (θ = 0)",
+        ))
+        .param(ParamSpec::optional(
+            "rotation",
+            ParamType::FloatList { len: None },
+            ParamValue::List(vec![]),
+            "a camera rotation R (9 numbers, rows); overrides orig/south when given",
+        ))
+        .input(PortSpec::one(
+            "image",
+            ImageArt::NAME,
+            "equirectangular radiance map",
+        ))
+        .output(PortSpec::one("dome", DomeArt::NAME, "the oriented dome")),
+        run_dome,
+    ));
+}
+
+fn run_read_stack(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+    let (mut stack, _) = read_exposure_list(&ctx.path("list"))?;
+    let mask = ctx.params().f64s("mask_color");
+    if !mask.is_empty() {
+        if mask
+            .iter()
+            .any(|v| !(0.0..=255.0).contains(v) || v.fract() != 0.0)
+        {
+            return Err(NodeError::msg(
+                "mask_color values must be integers in 0-255",
+            ));
+        }
+        let code: Vec<u8> = mask.iter().map(|&v| v as u8).collect();
+        stack.mask_code(&code)?;
+    }
+    ctx.output("stack", StackArt(stack));
+    Ok(())
+}
+
+fn run_calibrate(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+    let p = ctx.params();
+    let opts = CalibrateOptions {
+        samples: p.i64("samples") as usize,
+        lambda: p.f64("lambda"),
+        sampling: p
+            .str("sampling")
+            .parse::<Sampling>()
+            .map_err(NodeError::msg)?,
+        seed: ctx.seed(),
+    };
+    let curve = calibrate_debevec(&ctx.input::<StackArt>("stack")?.0, &opts)?;
+    ctx.output("response", ResponseArt(curve));
+    Ok(())
+}
+
+fn run_merge(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+    let img = merge_debevec(
+        &ctx.input::<StackArt>("stack")?.0,
+        &ctx.input::<ResponseArt>("response")?.0,
+    )?;
+    ctx.output("image", ImageArt(img));
+    Ok(())
+}
+
+fn run_to_ldr(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+    let img = &ctx.input::<ImageArt>("image")?.0;
+    let time = ctx.params().f64("time");
+    let out = match ctx.input_opt::<ResponseArt>("response")? {
+        Some(r) => ldr_from_hdr(img, &r.0, time)?,
+        None => {
+            let curve = ResponseCurve::gamma(ctx.params().f64("gamma"), 1)?;
+            ldr_from_hdr(img, &curve, time)?
+        }
+    };
+    ctx.output("image", ImageArt(out));
+    Ok(())
+}
+
+fn run_write_response(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+    let curve = &ctx.input::<ResponseArt>("response")?.0;
+    let path = ctx.path("path");
+    if let Some(parent) = path.parent() {
+        std::fs::create_dir_all(parent)
+            .map_err(|e| NodeError::msg(format!("cannot create {}: {e}", parent.display())))?;
+    }
+    vfxgraph_imaging::io::write_atomic(&path, response_csv(curve).as_bytes())?;
+    Ok(())
+}
+
+/// The CSV text of `write_response`.
+pub fn response_csv(curve: &ResponseCurve) -> String {
+    let mut s = String::new();
+    for z in 0..=255u8 {
+        let row: Vec<String> = (0..curve.channels())
+            .map(|c| format!("{:.9e}", curve.exposure(c, z)))
+            .collect();
+        s.push_str(&row.join(","));
+        s.push('\n');
+    }
+    s
+}
+
+fn run_plot(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+    let (w, h) = (
+        ctx.params().i64("width") as usize,
+        ctx.params().i64("height") as usize,
+    );
+    let img = plot_response(&ctx.input::<ResponseArt>("response")?.0, w, h);
+    ctx.output("image", ImageArt(img));
+    Ok(())
+}
+
+/// Draws the response curve figure of Debevec & Malik 1997 (Fig. 2): z up, g(z) across.
+pub fn plot_response(curve: &ResponseCurve, w: usize, h: usize) -> Image {
+    let mut img = Image::from_fn(w, h, 3, |_, _, _| 1.0);
+    let (lo, hi) = curve
+        .curves()
+        .iter()
+        .flatten()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        });
+    let (lo, hi) = (lo.floor(), hi.ceil().max(lo.floor() + 1.0));
+    let m = 24.0;
+    let (pw, ph) = (w as f64 - 2.0 * m, h as f64 - 2.0 * m);
+    let to_px = |g: f64, z: f64| (m + (g - lo) / (hi - lo) * pw, m + (1.0 - z / 255.0) * ph);
+    let dot = |img: &mut Image, x: f64, y: f64, col: [f32; 3], r: i64| {
+        for dy in -r..=r {
+            for dx in -r..=r {
+                let (xi, yi) = (x.round() as i64 + dx, y.round() as i64 + dy);
+                if xi >= 0 && yi >= 0 && (xi as usize) < w && (yi as usize) < h {
+                    img.pixel_mut(xi as usize, yi as usize)
+                        .copy_from_slice(&col);
+                }
+            }
+        }
+    };
+    // Grid: every unit of ln exposure, every 32 codes; the frame darker.
+    let grey = [0.75f32; 3];
+    let mut g = lo;
+    while g <= hi + 1e-9 {
+        let (x, _) = to_px(g, 0.0);
+        for yi in 0..(ph as usize) {
+            dot(&mut img, x, m + yi as f64, grey, 0);
+        }
+        g += 1.0;
+    }
+    for z in (0..=256).step_by(32) {
+        let (_, y) = to_px(lo, z.min(255) as f64);
+        for xi in 0..(pw as usize) {
+            dot(&mut img, m + xi as f64, y, grey, 0);
+        }
+    }
+    let colours: [[f32; 3]; 4] = [
+        [0.8, 0.0, 0.0],
+        [0.0, 0.5, 0.0],
+        [0.0, 0.0, 0.8],
+        [0.2, 0.2, 0.2],
+    ];
+    let single = curve.channels() == 1;
+    for (c, gc) in curve.curves().iter().enumerate() {
+        let col = if single { [0.0; 3] } else { colours[c] };
+        for z in 0..LEVELS - 1 {
+            let (x0, y0) = to_px(gc[z], z as f64);
+            let (x1, y1) = to_px(gc[z + 1], (z + 1) as f64);
+            let steps = ((x1 - x0).abs().max((y1 - y0).abs()).ceil() as usize).max(1);
+            for s in 0..=steps {
+                let t = s as f64 / steps as f64;
+                dot(&mut img, x0 + t * (x1 - x0), y0 + t * (y1 - y0), col, 1);
+            }
+        }
+    }
+    img
+}
+
+fn run_probe(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+    let img = &ctx.input::<ImageArt>("image")?.0;
+    let c = ctx.params().f64s("circle");
+    let circle = match c.as_slice() {
+        [] => ProbeCircle::inscribed(img.width, img.height),
+        [cx, cy, radius] => ProbeCircle {
+            cx: *cx,
+            cy: *cy,
+            radius: *radius,
+        },
+        other => {
+            return Err(NodeError::msg(format!(
+                "circle needs [cx, cy, radius], got {} numbers",
+                other.len()
+            )))
+        }
+    };
+    let out = probe_to_equirect(img, &circle, ctx.params().i64("width") as usize)?;
+    ctx.output("image", ImageArt(out));
+    Ok(())
+}
+
+fn run_dome(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+    let p = ctx.params();
+    let img = &ctx.input::<ImageArt>("image")?.0;
+    let rot = p.f64s("rotation");
+    let dome = if rot.is_empty() {
+        let (o, s) = (p.f64s("orig"), p.f64s("south"));
+        Dome::new(
+            img,
+            Vector3::new(o[0], o[1], o[2]),
+            Vector3::new(s[0], s[1], s[2]),
+        )?
+    } else {
+        if rot.len() != 9 {
+            return Err(NodeError::msg(format!(
+                "rotation needs 9 numbers (3x3, row by row), got {}",
+                rot.len()
+            )));
+        }
+        Dome::from_camera_rotation(img, &Matrix3::from_row_slice(&rot))?
+    };
+    ctx.output("dome", DomeArt(dome));
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::Path;
+    use vfxgraph_engine::{InputValue, Params, Value};
+
+    fn spec(name: &str) -> NodeSpec {
+        crate::registry().node(name).unwrap().spec().clone()
+    }
+
+    fn params(spec: &NodeSpec, set: &[(&str, ParamValue)]) -> Params {
+        let mut values: std::collections::BTreeMap<String, ParamValue> = spec
+            .params
+            .iter()
+            .filter_map(|p| p.default.clone().map(|d| (p.name.to_string(), d)))
+            .collect();
+        for (k, v) in set {
+            values.insert(
+                k.to_string(),
+                spec.param_spec(k).unwrap().ty.check(v.clone()).unwrap(),
+            );
+        }
+        Params::new(values)
+    }
+
+    /// A synthetic 3-exposure stack of a horizontal radiance ramp through a gamma-2 camera.
+    fn synthetic_stack(dir: &Path) {
+        let (w, h) = (64usize, 16usize);
+        let mut list = String::from("# test\n3\n");
+        for (k, t) in [0.25f64, 1.0, 4.0].iter().enumerate() {
+            // Codes z stored exactly: the PNG writer sRGB-encodes srgb8_to_linear(z) back to z.
+            let img = Image::from_fn(w, h, 3, |x, y, c| {
+                let e = 0.02 * 1.08f64.powi(x as i32) * (1.0 + 0.01 * y as f64);
+                let s = [1.0, 0.8, 0.6][c];
+                let z = (255.0 * (e * t * s).min(1.0).sqrt()).round() as u8;
+                vfxgraph_imaging::color::srgb8_to_linear(z)
+            });
+            vfxgraph_imaging::write_image(&dir.join(format!("e{k}.png")), &img).unwrap();
+            list.push_str(&format!("e{k}.ppm {t}\n"));
+        }
+        std::fs::write(dir.join("list.txt"), list).unwrap();
+    }
+
+    #[test]
+    fn stack_calibrate_merge_and_write() {
+        let dir = tempfile::tempdir().unwrap();
+        synthetic_stack(dir.path());
+        let s = spec("read_exposure_stack");
+        let p = params(&s, &[("list", ParamValue::Str("list.txt".into()))]);
+        let mut ctx = Context::for_test(&s, &p, dir.path(), None, vec![]);
+        run_read_stack(&mut ctx).unwrap();
+        let stack = ctx.take_output::<StackArt>("stack").unwrap();
+        assert_eq!((stack.0.width(), stack.0.len()), (64, 3));
+        // Artifact round trip.
+        let mut bytes = Vec::new();
+        stack.encode(&mut bytes);
+        assert_eq!(StackArt::decode(&bytes).unwrap(), stack);
+        assert!(StackArt::decode(&bytes[..bytes.len() - 1]).is_err());
+
+        let s = spec("hdr_calibrate");
+        let p = params(&s, &[("samples", ParamValue::Int(300))]);
+        let input = vec![("stack", InputValue::One(Value::new(stack.clone())))];
+        let mut ctx = Context::for_test(&s, &p, dir.path(), None, input);
+        run_calibrate(&mut ctx).unwrap();
+        let resp = ctx.take_output::<ResponseArt>("response").unwrap();
+        let mut bytes = Vec::new();
+        resp.encode(&mut bytes);
+        assert_eq!(ResponseArt::decode(&bytes).unwrap(), resp);
+
+        let s = spec("hdr_merge");
+        let p = params(&s, &[]);
+        let input = vec![
+            ("stack", InputValue::One(Value::new(stack.clone()))),
+            ("response", InputValue::One(Value::new(resp.clone()))),
+        ];
+        let mut ctx = Context::for_test(&s, &p, dir.path(), None, input);
+        run_merge(&mut ctx).unwrap();
+        let img = ctx.take_output::<ImageArt>("image").unwrap().0;
+        // Radiance ratios along the ramp: ×1.08 per column (well-exposed middle columns).
+        let r = img.get(30, 8, 1) / img.get(20, 8, 1);
+        assert!((r as f64 / 1.08f64.powi(10) - 1.0).abs() < 0.05, "{r}");
+
+        let s = spec("write_response");
+        let p = params(&s, &[("path", ParamValue::Str("out/curve.csv".into()))]);
+        let input = vec![("response", InputValue::One(Value::new(resp.clone())))];
+        let mut ctx = Context::for_test(&s, &p, dir.path(), None, input);
+        run_write_response(&mut ctx).unwrap();
+        let csv = std::fs::read_to_string(dir.path().join("out/curve.csv")).unwrap();
+        assert_eq!(csv.lines().count(), 256);
+        let row128: Vec<f64> = csv
+            .lines()
+            .nth(128)
+            .unwrap()
+            .split(',')
+            .map(|v| v.parse().unwrap())
+            .collect();
+        assert_eq!(row128, vec![1.0, 1.0, 1.0], "exp(g(128)) = 1");
+
+        let s = spec("plot_response");
+        let p = params(&s, &[]);
+        let input = vec![("response", InputValue::One(Value::new(resp)))];
+        let mut ctx = Context::for_test(&s, &p, dir.path(), None, input);
+        run_plot(&mut ctx).unwrap();
+        let plot = ctx.take_output::<ImageArt>("image").unwrap().0;
+        assert_eq!((plot.width, plot.height), (640, 480));
+        assert!(
+            plot.data.chunks(3).any(|p| p[0] > 0.7 && p[1] < 0.1),
+            "a red curve"
+        );
+    }
+
+    #[test]
+    fn bad_list_and_bad_mask_are_errors() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("list.txt"), "2\na.png 1\n").unwrap();
+        let s = spec("read_exposure_stack");
+        let p = params(&s, &[("list", ParamValue::Str("list.txt".into()))]);
+        let mut ctx = Context::for_test(&s, &p, dir.path(), None, vec![]);
+        let e = run_read_stack(&mut ctx).unwrap_err();
+        assert!(e.message.contains("list.txt:2"), "{e}");
+        synthetic_stack(dir.path());
+        let bad = ParamValue::List(vec![
+            ParamValue::Float(0.5),
+            ParamValue::Float(0.0),
+            ParamValue::Float(255.0),
+        ]);
+        let p = params(
+            &s,
+            &[
+                ("list", ParamValue::Str("list.txt".into())),
+                ("mask_color", bad),
+            ],
+        );
+        let mut ctx = Context::for_test(&s, &p, dir.path(), None, vec![]);
+        assert!(run_read_stack(&mut ctx).is_err());
+    }
+
+    #[test]
+    fn dome_node_orients_and_round_trips() {
+        let img = Image::from_fn(16, 8, 3, |x, y, c| (x + y + c) as f32);
+        let s = spec("dome");
+        let rot: Vec<ParamValue> = [1.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 1.0, 0.0]
+            .iter()
+            .map(|&v| ParamValue::Float(v))
+            .collect();
+        let p = params(&s, &[("rotation", ParamValue::List(rot))]);
+        let input = vec![("image", InputValue::One(Value::new(ImageArt(img.clone()))))];
+        let mut ctx = Context::for_test(&s, &p, Path::new("."), None, input);
+        run_dome(&mut ctx).unwrap();
+        let dome = ctx.take_output::<DomeArt>("dome").unwrap();
+        assert_eq!(dome.0.south(), Vector3::new(0.0, 0.0, -1.0));
+        assert_eq!(dome.0.orig(), Vector3::new(0.0, -1.0, 0.0));
+        let mut bytes = Vec::new();
+        dome.encode(&mut bytes);
+        let back = DomeArt::decode(&bytes).unwrap();
+        assert_eq!(back.0.image(), &img);
+        assert_eq!(back.0.south(), dome.0.south());
+        let bad = ParamValue::List(vec![ParamValue::Float(1.0); 4]);
+        let p = params(&s, &[("rotation", bad)]);
+        let input = vec![("image", InputValue::One(Value::new(ImageArt(img))))];
+        let mut ctx = Context::for_test(&s, &p, Path::new("."), None, input);
+        assert!(run_dome(&mut ctx).is_err());
+    }
+}
