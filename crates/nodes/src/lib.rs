@@ -9,6 +9,7 @@
 pub mod artifacts;
 pub mod image_io;
 pub mod image_ops;
+pub mod render;
 
 use vfxgraph_engine::{Context, Node, NodeError, NodeSpec, Registry};
 
@@ -40,5 +41,6 @@ pub fn registry() -> Registry {
     artifacts::register(&mut r);
     image_io::register(&mut r);
     image_ops::register(&mut r);
+    render::register(&mut r);
     r
 }
