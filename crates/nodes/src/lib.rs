@@ -11,6 +11,7 @@ pub mod calibration;
 pub mod hdr;
 pub mod image_io;
 pub mod image_ops;
+pub mod render;
 pub mod tracking;
 
 use vfxgraph_engine::{Context, Node, NodeError, NodeSpec, Registry};
@@ -46,5 +47,6 @@ pub fn registry() -> Registry {
     image_ops::register(&mut r);
     tracking::register(&mut r);
     hdr::register(&mut r);
+    render::register(&mut r);
     r
 }

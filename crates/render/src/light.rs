@@ -1,0 +1,106 @@
+//! Polygonal area lights sampled by area (book §9.11; pbrt-v4 `DiffuseAreaLight`), with the
+//! pdf converted to solid angle for multiple importance sampling.
+
+use crate::math::{Rgb, Vec3};
+use crate::sampling::{uniform_triangle, Distribution1D};
+use crate::shape::Triangle;
+
+/// A light sample seen from a shading point (STYLE.md: pbrt's `LightSample`).
+#[derive(Clone, Copy, Debug)]
+pub struct LightSample {
+    /// Emitted radiance towards the shading point.
+    pub radiance: Rgb,
+    /// Unit direction from the shading point to the light point.
+    pub wi: Vec3,
+    /// Distance to the light point.
+    pub distance: f64,
+    /// Pdf in solid angle at the shading point (including the choice of the triangle).
+    pub pdf_solid_angle: f64,
+}
+
+/// All emitting triangles of a scene; a triangle is chosen with probability ∝ its power
+/// (area × luminance), then a point uniformly on it. Emission is two-sided, as in the book.
+#[derive(Clone, Debug, Default)]
+pub struct LightSet {
+    tris: Vec<Triangle>,
+    radiance: Vec<Rgb>,
+    dist: Option<Distribution1D>,
+}
+
+impl LightSet {
+    /// From (triangle, radiance) pairs.
+    pub fn new(items: Vec<(Triangle, Rgb)>) -> LightSet {
+        let weights: Vec<f64> = items
+            .iter()
+            .map(|(t, l)| t.area * l.luminance().max(l.max_component() * 1e-3))
+            .collect();
+        let dist = Distribution1D::new(&weights);
+        let (tris, radiance) = items.into_iter().unzip();
+        LightSet {
+            tris,
+            radiance,
+            dist,
+        }
+    }
+    /// True when there is nothing to sample.
+    pub fn is_empty(&self) -> bool {
+        self.dist.is_none()
+    }
+    /// Number of emitting triangles.
+    pub fn len(&self) -> usize {
+        self.tris.len()
+    }
+    /// Radiance of light triangle `i`.
+    #[inline]
+    pub fn radiance(&self, i: usize) -> Rgb {
+        self.radiance[i]
+    }
+    /// Total emitted power Σ π·A·L (two faces: ×2), luminance.
+    pub fn power(&self) -> f64 {
+        self.tris
+            .iter()
+            .zip(&self.radiance)
+            .map(|(t, l)| 2.0 * std::f64::consts::PI * t.area * l.luminance())
+            .sum()
+    }
+    /// Samples a point on the lights as seen from `p`: `uc` picks the triangle, `u` the point.
+    #[inline]
+    pub fn sample(&self, p: Vec3, uc: f64, u: [f64; 2]) -> Option<LightSample> {
+        let dist = self.dist.as_ref()?;
+        let (i, pmf) = dist.sample(uc);
+        let tri = &self.tris[i];
+        let b = uniform_triangle(u);
+        let q = tri.point(b[1], b[2]);
+        let d = q - p;
+        let dist2 = d.length_squared();
+        let distance = dist2.sqrt();
+        if distance == 0.0 || !distance.is_finite() {
+            return None;
+        }
+        let wi = d / distance;
+        let cos_l = tri.n.dot(wi).abs();
+        if cos_l <= 0.0 {
+            return None;
+        }
+        Some(LightSample {
+            radiance: self.radiance[i],
+            wi,
+            distance,
+            pdf_solid_angle: pmf * dist2 / (tri.area * cos_l),
+        })
+    }
+    /// The solid-angle pdf with which [`LightSet::sample`] from `p` would pick the point `q` of
+    /// light triangle `i`, reached along unit direction `wi`.
+    #[inline]
+    pub fn pdf(&self, i: usize, p: Vec3, q: Vec3, wi: Vec3) -> f64 {
+        let Some(dist) = self.dist.as_ref() else {
+            return 0.0;
+        };
+        let tri = &self.tris[i];
+        let cos_l = tri.n.dot(wi).abs();
+        if cos_l <= 0.0 {
+            return 0.0;
+        }
+        dist.pmf(i) * (q - p).length_squared() / (tri.area * cos_l)
+    }
+}

@@ -1,0 +1,217 @@
+//! The image loop: tiles on rayon, one PCG stream per pixel (so the image does not depend on
+//! the thread count or the tile order), box-filtered jittered samples, per-pixel variance,
+//! progress and cancellation (book §9.13, the rendering program).
+
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
+use std::time::Instant;
+
+use rand_core::{RngCore, SeedableRng};
+use rand_pcg::Pcg32;
+use rayon::prelude::*;
+use vfxgraph_imaging::Image;
+
+use crate::camera::Camera;
+use crate::environment::Environment;
+use crate::integrator::{PathTracer, Sampler, Strategy};
+use crate::math::Rgb;
+use crate::world::World;
+
+/// Why a render stopped.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum RenderError {
+    /// The cancel flag was raised.
+    #[error("render cancelled")]
+    Cancelled,
+    /// Settings out of range.
+    #[error("bad render settings: {0}")]
+    BadSettings(String),
+    /// The camera is invalid.
+    #[error(transparent)]
+    Camera(#[from] crate::camera::CameraError),
+}
+
+/// Render settings.
+#[derive(Clone, Copy, Debug)]
+pub struct RenderSettings {
+    /// Samples (paths) per pixel.
+    pub spp: u32,
+    /// Maximum scattering vertices per path (the book's bounces).
+    pub max_depth: u32,
+    /// Russian roulette starts at this depth.
+    pub rr_depth: u32,
+    /// Seed of the per-pixel random streams.
+    pub seed: u64,
+    /// Tile edge in pixels.
+    pub tile: usize,
+    /// Estimator combination.
+    pub strategy: Strategy,
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        RenderSettings {
+            spp: 64,
+            max_depth: 8,
+            rr_depth: 3,
+            seed: 0,
+            tile: 16,
+            strategy: Strategy::Mis,
+        }
+    }
+}
+
+/// Counters of a render.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct RenderStats {
+    /// Paths traced (pixels × spp).
+    pub paths: u64,
+    /// Samples dropped because their radiance was NaN or infinite.
+    pub nonfinite: u64,
+    /// Wall time in seconds.
+    pub seconds: f64,
+}
+
+/// A rendered image with its per-pixel variance.
+#[derive(Clone, Debug)]
+pub struct RenderOutput {
+    /// Mean radiance per pixel, linear RGB, rows top-down.
+    pub image: Image,
+    /// Variance of each pixel's mean (sample variance / spp), per channel.
+    pub variance: Image,
+    /// Counters.
+    pub stats: RenderStats,
+}
+
+/// The per-pixel random stream: PCG32 (O'Neill 2014) seeded from (seed, pixel); each pixel owns
+/// its stream, so any schedule gives the same numbers.
+pub struct PixelSampler(Pcg32);
+
+impl PixelSampler {
+    /// The stream of pixel `index` for `seed`.
+    pub fn new(seed: u64, index: u64) -> PixelSampler {
+        let state = splitmix64(seed ^ splitmix64(index.wrapping_add(0x9E37_79B9_7F4A_7C15)));
+        PixelSampler(Pcg32::new(state, index))
+    }
+}
+
+impl Sampler for PixelSampler {
+    #[inline]
+    fn next(&mut self) -> f64 {
+        self.0.next_u32() as f64 * (1.0 / 4_294_967_296.0)
+    }
+}
+
+/// A seeded sampler for tests and tools.
+pub fn seeded_sampler(seed: u64) -> PixelSampler {
+    PixelSampler(Pcg32::seed_from_u64(seed))
+}
+
+fn splitmix64(mut x: u64) -> u64 {
+    x = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    x = (x ^ (x >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    x = (x ^ (x >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    x ^ (x >> 31)
+}
+
+/// Renders `world` seen by `camera` (book §9.13). `progress` receives the fraction of tiles
+/// done; raising `cancel` stops the render with [`RenderError::Cancelled`].
+pub fn render(
+    world: &World,
+    environment: &dyn Environment,
+    camera: &Camera,
+    settings: &RenderSettings,
+    progress: &(dyn Fn(f32) + Sync),
+    cancel: Option<&AtomicBool>,
+) -> Result<RenderOutput, RenderError> {
+    camera.validate()?;
+    if settings.spp == 0 || settings.tile == 0 {
+        return Err(RenderError::BadSettings(
+            "spp and tile must be positive".into(),
+        ));
+    }
+    let start = Instant::now();
+    let (w, h) = (camera.width, camera.height);
+    let gen = camera.rays();
+    let tracer = PathTracer {
+        world,
+        environment,
+        max_depth: settings.max_depth,
+        rr_depth: settings.rr_depth,
+        strategy: settings.strategy,
+    };
+    let ts = settings.tile;
+    let tiles: Vec<(usize, usize)> = (0..h.div_ceil(ts))
+        .flat_map(|ty| (0..w.div_ceil(ts)).map(move |tx| (tx * ts, ty * ts)))
+        .collect();
+    let done = AtomicUsize::new(0);
+    let nonfinite = AtomicU64::new(0);
+    let spp = settings.spp;
+    let results: Vec<Option<Vec<[f32; 6]>>> = tiles
+        .par_iter()
+        .map(|&(x0, y0)| {
+            if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+                return None;
+            }
+            let (x1, y1) = ((x0 + ts).min(w), (y0 + ts).min(h));
+            let mut out = Vec::with_capacity((x1 - x0) * (y1 - y0));
+            let mut bad = 0u64;
+            for y in y0..y1 {
+                for x in x0..x1 {
+                    let mut s = PixelSampler::new(settings.seed, (y * w + x) as u64);
+                    let (mut sum, mut sq) = (Rgb::BLACK, Rgb::BLACK);
+                    for _ in 0..spp {
+                        let (jx, jy) = (s.next(), s.next());
+                        let ray = gen.ray(x as f64 + jx - 0.5, y as f64 + jy - 0.5);
+                        let l = tracer.radiance(ray, &mut s);
+                        if l.is_finite() {
+                            sum += l;
+                            sq += l * l;
+                        } else {
+                            bad += 1;
+                        }
+                    }
+                    let n = spp as f64;
+                    let mean = sum / n;
+                    let var = if spp > 1 {
+                        let v = (sq / n - mean * mean) * (1.0 / (n - 1.0));
+                        Rgb::new(v.r.max(0.0), v.g.max(0.0), v.b.max(0.0))
+                    } else {
+                        Rgb::BLACK
+                    };
+                    out.push([
+                        mean.r as f32,
+                        mean.g as f32,
+                        mean.b as f32,
+                        var.r as f32,
+                        var.g as f32,
+                        var.b as f32,
+                    ]);
+                }
+            }
+            nonfinite.fetch_add(bad, Ordering::Relaxed);
+            let d = done.fetch_add(1, Ordering::Relaxed) + 1;
+            progress(d as f32 / tiles.len() as f32);
+            Some(out)
+        })
+        .collect();
+    let mut image = Image::new(w, h, 3);
+    let mut variance = Image::new(w, h, 3);
+    for (&(x0, y0), tile) in tiles.iter().zip(results) {
+        let tile = tile.ok_or(RenderError::Cancelled)?;
+        let x1 = (x0 + ts).min(w);
+        for (i, px) in tile.iter().enumerate() {
+            let (x, y) = (x0 + i % (x1 - x0), y0 + i / (x1 - x0));
+            image.pixel_mut(x, y).copy_from_slice(&px[..3]);
+            variance.pixel_mut(x, y).copy_from_slice(&px[3..]);
+        }
+    }
+    Ok(RenderOutput {
+        image,
+        variance,
+        stats: RenderStats {
+            paths: (w * h) as u64 * spp as u64,
+            nonfinite: nonfinite.into_inner(),
+            seconds: start.elapsed().as_secs_f64(),
+        },
+    })
+}
