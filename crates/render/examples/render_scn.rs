@@ -3,8 +3,12 @@
 //! ```text
 //! cargo run --release -p vfxgraph-render --example render_scn -- SCENE.scn \
 //!     [--spp N] [--max-depth D] [--seed S] [--threads T] [--width W --height H] \
-//!     [--out PREFIX] [--exposure STOPS] [--time-budget SECONDS]
+//!     [--out PREFIX] [--exposure STOPS] [--time-budget SECONDS] [--diffuse-only]
+//!     [--dump-scene FILE.json]
 //! ```
+//! `--diffuse-only` drops the Blinn–Phong lobes (keeps ρd) so peers without that BRDF can render
+//! the same scene; `--dump-scene` writes the scene (after the size override) as JSON for
+//! `scripts/bench/cornell_mitsuba.py`.
 //! Writes PREFIX.pfm (linear HDR) and PREFIX.png (Reinhard-free sRGB clip after exposure), and
 //! prints one JSON line: paths, wall and CPU seconds, paths per CPU-second, NaN count.
 //! With `--time-budget`, renders with doubling spp until the budget would be exceeded (for
@@ -13,7 +17,9 @@
 use std::path::PathBuf;
 
 use vfxgraph_imaging::{tonemap, write_image, Operator};
-use vfxgraph_render::{parse_scn, render, ConstantEnvironment, RenderSettings, World};
+use vfxgraph_render::{
+    parse_scn, render, Brdf, ConstantEnvironment, Lambert, RenderSettings, World,
+};
 
 fn cpu_seconds() -> f64 {
     // utime + stime of this process from /proc (Linux), in clock ticks of 1/100 s.
@@ -37,6 +43,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let (mut threads, mut out, mut exposure, mut size, mut budget) =
         (0usize, None::<PathBuf>, 0.0f32, None, None::<f64>);
+    let (mut diffuse_only, mut dump) = (false, None::<PathBuf>);
     let mut it = args.iter();
     while let Some(a) = it.next() {
         let mut val = || it.next().ok_or(format!("{a} needs a value"));
@@ -48,6 +55,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "--out" => out = Some(PathBuf::from(val()?)),
             "--exposure" => exposure = val()?.parse()?,
             "--time-budget" => budget = Some(val()?.parse()?),
+            "--diffuse-only" => diffuse_only = true,
+            "--dump-scene" => dump = Some(PathBuf::from(val()?)),
             "--width" => {
                 let w: usize = val()?.parse()?;
                 size = Some((w, size.map_or(0, |s: (usize, usize)| s.1)));
@@ -62,11 +71,21 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     let path = scene_path.ok_or("usage: render_scn SCENE.scn [options]")?;
     let text = std::fs::read_to_string(&path)?;
-    let scene = parse_scn(&text).map_err(|e| format!("{}:{e}", path.display()))?;
-    let mut camera = scene.camera.clone();
+    let mut scene = parse_scn(&text).map_err(|e| format!("{}:{e}", path.display()))?;
     if let Some((w, h)) = size {
-        camera = camera.resized(w, h);
+        scene.camera = scene.camera.resized(w, h);
     }
+    if diffuse_only {
+        for o in &mut scene.objects {
+            if let Brdf::BlinnPhong(b) = o.material {
+                o.material = Brdf::Lambert(Lambert { albedo: b.diffuse });
+            }
+        }
+    }
+    if let Some(d) = &dump {
+        std::fs::write(d, serde_json::to_vec_pretty(&scene)?)?;
+    }
+    let camera = scene.camera.clone();
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()?;
