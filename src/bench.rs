@@ -21,11 +21,40 @@ pub enum BenchCommand {
         #[arg(long)]
         json: bool,
     },
+    /// Bundle-adjust a BAL ("Bundle Adjustment in the Large") file with every camera and point
+    /// free, as Ceres' bundle_adjuster does; `scripts/bench/ba_vs_ceres.py` runs both.
+    Ba {
+        /// The BAL problem file.
+        file: std::path::PathBuf,
+        /// Linear solver of the reduced camera system: auto, dense, sparse or iterative.
+        #[arg(long, default_value = "auto")]
+        solver: String,
+        /// Robust loss: none, huber[:scale_px] or cauchy[:scale_px].
+        #[arg(long, default_value = "none")]
+        loss: String,
+        /// Cap on Levenberg–Marquardt steps.
+        #[arg(long, default_value_t = 50)]
+        max_iterations: usize,
+        /// Worker threads (default: one per core).
+        #[arg(long)]
+        threads: Option<usize>,
+        /// Print {"initial_cost", "final_cost", "iterations", "seconds", "observations", …}.
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 pub fn run(cmd: BenchCommand, registry: &Registry) -> Result<u8, String> {
     match cmd {
         BenchCommand::Plan { instances, json } => bench_plan(instances, json, registry),
+        BenchCommand::Ba {
+            file,
+            solver,
+            loss,
+            max_iterations,
+            threads,
+            json,
+        } => bench_ba(&file, &solver, &loss, max_iterations, threads, json),
     }
 }
 
@@ -89,6 +118,55 @@ fn bench_plan(instances: usize, json: bool, registry: &Registry) -> Result<u8, S
             "plan, fully cached   {plan_s:.3} s  (load + validate + key + cache check; goal < 1 s)"
         );
         println!("run, fully cached    {cached_run_s:.3} s");
+    }
+    Ok(0)
+}
+
+fn bench_ba(
+    file: &Path,
+    solver: &str,
+    loss: &str,
+    max_iterations: usize,
+    threads: Option<usize>,
+    json: bool,
+) -> Result<u8, String> {
+    use vfxgraph_vision::bundle::{solve_bal_file, BalBenchOptions, LinearSolverKind, Loss};
+    let opts = BalBenchOptions {
+        solver: LinearSolverKind::parse(solver).ok_or_else(|| {
+            format!("--solver `{solver}`: expected auto, dense, sparse or iterative")
+        })?,
+        loss: Loss::parse(loss).ok_or_else(|| {
+            format!("--loss `{loss}`: expected none, huber[:scale_px] or cauchy[:scale_px]")
+        })?,
+        max_iterations,
+        num_threads: threads,
+    };
+    let r = solve_bal_file(file, &opts).map_err(|e| format!("{}: {e}", file.display()))?;
+    if json {
+        println!("{}", serde_json::to_string(&r).map_err(|e| e.to_string())?);
+    } else {
+        println!(
+            "problem          {} ({} cameras, {} points, {} observations)",
+            file.display(),
+            r.cameras,
+            r.points,
+            r.observations
+        );
+        println!("initial cost     {:.7}", r.initial_cost);
+        println!(
+            "final cost       {:.7}  ({:.4} px RMS per observation)",
+            r.final_cost, r.final_rms
+        );
+        println!(
+            "iterations       {} ({} successful)",
+            r.iterations, r.successful_steps
+        );
+        println!("linear solver    {:?}", r.linear_solver);
+        println!("termination      {:?}", r.termination);
+        println!(
+            "seconds          {:.3} solve, {:.3} parse",
+            r.seconds, r.parse_seconds
+        );
     }
     Ok(0)
 }

@@ -441,3 +441,104 @@ fn calibrate_hdr_camera_graph_recovers_a_known_camera() {
     assert!(rep["rms"].as_f64().unwrap() < 1e-6, "{rep}");
     assert_eq!(rep["errors"].as_array().unwrap().len(), 6);
 }
+
+/// Copies an example graph into a scratch folder with its `../../shared/data` paths made
+/// absolute; `None` (and a notice) when the shared data is absent.
+fn example_with_shared_data(name: &str) -> Option<(tempfile::TempDir, PathBuf)> {
+    let shared = repo().join("../shared/data");
+    if !shared.is_dir() {
+        eprintln!("skipping: {} is absent", shared.display());
+        return None;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let g = tmp.path().join("graphs");
+    fs::create_dir_all(&g).unwrap();
+    let shared = fs::canonicalize(shared).unwrap();
+    let yaml = fs::read_to_string(repo().join("graphs").join(name))
+        .unwrap()
+        .replace("../../shared/data", &shared.display().to_string());
+    fs::write(g.join(name), yaml).unwrap();
+    Some((tmp, g))
+}
+
+#[test]
+fn track_graph_runs_on_rubberwhale() {
+    let Some((_tmp, g)) = example_with_shared_data("track.yaml") else {
+        return;
+    };
+    let r = run_json(&g, &["track.yaml"]);
+    assert!(statuses(&r, "failed").is_empty());
+    let tracks = fs::read_to_string(g.join("out/track/f.txt")).unwrap();
+    assert!(tracks.lines().count() > 100, "book-format tracks written");
+    let drawn = vfxgraph_imaging::read_image(&g.join("out/track/draw.11.png")).unwrap();
+    assert!(drawn.width > 0);
+}
+
+#[test]
+fn hdr_memorial_graph_runs() {
+    let Some((_tmp, g)) = example_with_shared_data("hdr_memorial.yaml") else {
+        return;
+    };
+    let r = run_json(&g, &["hdr_memorial.yaml", "--set", "curve.samples=1000"]);
+    assert!(statuses(&r, "failed").is_empty());
+    let hdr = vfxgraph_imaging::read_image(&g.join("out/memorial.exr")).unwrap();
+    let (lo, hi) = hdr.finite_range().unwrap();
+    assert!(
+        lo >= 0.0 && hi / lo.max(1e-6) > 1000.0,
+        "a high dynamic range: {lo}..{hi}"
+    );
+    let csv = fs::read_to_string(g.join("out/memorial_response.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 256);
+}
+
+#[test]
+fn cornell_graph_renders_small() {
+    let Some((_tmp, g)) = example_with_shared_data("cornell.yaml") else {
+        return;
+    };
+    let r = run_json(
+        &g,
+        &[
+            "cornell.yaml",
+            "--set",
+            "render.spp=4",
+            "--set",
+            "render.width=80",
+            "--set",
+            "render.height=60",
+        ],
+    );
+    assert!(statuses(&r, "failed").is_empty());
+    let img = vfxgraph_imaging::read_image(&g.join("out/cornell.exr")).unwrap();
+    assert_eq!((img.width, img.height), (80, 60));
+    assert!(img.data.iter().all(|v| v.is_finite() && *v >= 0.0));
+    let mean = img.data.iter().sum::<f32>() / img.data.len() as f32;
+    assert!(mean > 0.01, "the box is lit: mean {mean}");
+}
+
+#[test]
+fn bench_ba_reads_ladybug_with_the_reference_initial_cost() {
+    let file = repo().join("../shared/data/bal_ladybug_49/problem-49-7776-pre.txt");
+    if !file.is_file() {
+        eprintln!("skipping: {} is absent", file.display());
+        return;
+    }
+    let out = bin()
+        .args(["bench", "ba", "--json", "--max-iterations", "1"])
+        .arg(&file)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: Json = serde_json::from_slice(&out.stdout).unwrap();
+    let c = v["initial_cost"].as_f64().unwrap();
+    assert!(((c - 850912.4606808) / 850912.4606808).abs() < 1e-6, "{c}");
+    assert!(v["final_cost"].as_f64().unwrap() < c);
+    assert_eq!(v["observations"], 31843);
+    for k in ["iterations", "seconds"] {
+        assert!(v.get(k).is_some());
+    }
+}
