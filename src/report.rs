@@ -132,9 +132,19 @@ pub fn print_nodes(registry: &Registry) {
         .unwrap_or(8);
     for n in registry.nodes() {
         let s = n.spec();
-        let first = s.doc.split(". ").next().unwrap_or(s.doc);
-        println!("{:<w$}  {}", s.name, first.trim_end_matches('.'));
+        println!("{:<w$}  {}", s.name, first_sentence(s.doc));
     }
+}
+
+/// The first sentence: up to a ". " followed by a capital letter (so "ch. 6" does not end it).
+fn first_sentence(doc: &str) -> &str {
+    let b = doc.as_bytes();
+    for i in 0..b.len().saturating_sub(2) {
+        if b[i] == b'.' && b[i + 1] == b' ' && b[i + 2].is_ascii_uppercase() {
+            return &doc[..i];
+        }
+    }
+    doc.trim_end_matches('.')
 }
 
 /// `vfxgraph describe TYPE`.
