@@ -79,6 +79,18 @@ json_artifact!(
     "A list of 3D points in world coordinates."
 );
 json_artifact!(
+    /// The cameras of a sequence, one [R|t] per frame (`camera_path`).
+    CameraPathArt(vfxgraph_vision::formats::CameraPath),
+    "camera_path",
+    "The extrinsics [R|t] of every solved frame of a shot (intrinsics travel separately)."
+);
+json_artifact!(
+    /// A point cloud with track ids and errors (`point_cloud`).
+    PointCloudArt(vfxgraph_vision::points::PointCloud),
+    "point_cloud",
+    "Reconstructed 3D points, each with the id of its feature track and its RMS error (px)."
+);
+json_artifact!(
     /// Indices into another list (`indices`).
     IndicesArt(Vec<usize>),
     "indices",
@@ -99,6 +111,8 @@ pub fn register(r: &mut Registry) {
     r.register_artifact::<Points2dArt>();
     r.register_artifact::<Points3dArt>();
     r.register_artifact::<IndicesArt>();
+    r.register_artifact::<CameraPathArt>();
+    r.register_artifact::<PointCloudArt>();
     r.register_artifact::<ReportArt>();
 }
 

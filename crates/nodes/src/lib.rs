@@ -7,6 +7,7 @@
 //! [`registry`] returns every artifact and node type, for the CLI and for tests.
 
 pub mod artifacts;
+pub mod bundle;
 pub mod calibration;
 pub mod hdr;
 pub mod image_io;
@@ -46,6 +47,8 @@ pub fn registry() -> Registry {
     image_io::register(&mut r);
     image_ops::register(&mut r);
     tracking::register(&mut r);
+    // After `tracking`, which registers the `tracks` artifact.
+    bundle::register(&mut r);
     hdr::register(&mut r);
     render::register(&mut r);
     r

@@ -59,3 +59,15 @@ mod tests {
         assert_eq!(q.0[1], Point3::new(4.0, 5.0, 6.0));
     }
 }
+
+/// A reconstructed point cloud (book §7.14): positions with the id of the feature track each
+/// point was triangulated from, and its RMS reprojection error in pixels (NaN when unknown).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct PointCloud {
+    /// World positions.
+    pub points: Vec<[f64; 3]>,
+    /// The track id of each point (see `klt::Track::id`).
+    pub track_ids: Vec<u64>,
+    /// RMS reprojection error of each point over its observations, pixels.
+    pub errors: Vec<f64>,
+}

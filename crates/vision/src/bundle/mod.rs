@@ -46,6 +46,7 @@ pub mod report;
 pub mod residual;
 pub mod rotation;
 pub mod schur;
+pub mod sequence;
 pub mod synthetic;
 
 pub use bal::{read_bal, read_bal_str, write_bal};
@@ -56,6 +57,7 @@ pub use lm::{solve, SolverOptions};
 pub use loss::Loss;
 pub use problem::{CameraModel, CameraPose, Gauge, Intrinsics, Observation, Point, Problem};
 pub use report::{SolverReport, TerminationReason};
+pub use sequence::{adjust_sequence, AdjustedSequence};
 
 #[cfg(test)]
 mod tests;
