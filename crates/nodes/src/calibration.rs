@@ -285,8 +285,8 @@ fn run_two_view(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::collections::BTreeMap;
-    use vfxgraph_engine::{InputValue, Params, Value};
+    use crate::testing::{params, spec};
+    use vfxgraph_engine::{InputValue, Value};
     use vfxgraph_vision::{synthetic, Camera, Points2d, Points3d};
 
     struct Scene {
@@ -305,25 +305,6 @@ mod tests {
             points3d: Points3d(pts),
             points2d: Points2d(obs),
         }
-    }
-
-    fn params(spec: &NodeSpec, set: &[(&str, ParamValue)]) -> Params {
-        let mut v: BTreeMap<String, ParamValue> = spec
-            .params
-            .iter()
-            .filter_map(|p| p.default.clone().map(|d| (p.name.to_string(), d)))
-            .collect();
-        for (k, x) in set {
-            v.insert(
-                k.to_string(),
-                spec.param_spec(k).unwrap().ty.check(x.clone()).unwrap(),
-            );
-        }
-        Params::new(v)
-    }
-
-    fn spec(name: &str) -> NodeSpec {
-        crate::registry().node(name).unwrap().spec().clone()
     }
 
     #[test]

@@ -578,27 +578,9 @@ fn run_dome(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::testing::{params, spec};
     use std::path::Path;
-    use vfxgraph_engine::{InputValue, Params, Value};
-
-    fn spec(name: &str) -> NodeSpec {
-        crate::registry().node(name).unwrap().spec().clone()
-    }
-
-    fn params(spec: &NodeSpec, set: &[(&str, ParamValue)]) -> Params {
-        let mut values: std::collections::BTreeMap<String, ParamValue> = spec
-            .params
-            .iter()
-            .filter_map(|p| p.default.clone().map(|d| (p.name.to_string(), d)))
-            .collect();
-        for (k, v) in set {
-            values.insert(
-                k.to_string(),
-                spec.param_spec(k).unwrap().ty.check(v.clone()).unwrap(),
-            );
-        }
-        Params::new(values)
-    }
+    use vfxgraph_engine::{InputValue, Value};
 
     /// A synthetic 3-exposure stack of a horizontal radiance ramp through a gamma-2 camera.
     fn synthetic_stack(dir: &Path) {

@@ -13,6 +13,8 @@ pub mod hdr;
 pub mod image_io;
 pub mod image_ops;
 pub mod render;
+#[cfg(test)]
+mod testing;
 pub mod tracking;
 
 use vfxgraph_engine::{Context, Node, NodeError, NodeSpec, Registry};

@@ -196,11 +196,8 @@ fn run_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::testing::spec;
     use vfxgraph_engine::{InputValue, Params, Value};
-
-    fn spec(name: &str) -> NodeSpec {
-        crate::registry().node(name).unwrap().spec().clone()
-    }
 
     const SCN: &str = "scene{ camera = view{ from = {0,-4,1}, at = {0,0,0.5}, fov = 60, imgw = 32, imgh = 24 }
       polylight{ color = {3,3,3}, shape = trilist{ {{-1,-1,3},{1,-1,3},{1,1,3}} } }

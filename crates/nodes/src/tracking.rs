@@ -328,24 +328,8 @@ fn run_draw_tracks(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use vfxgraph_engine::{InputValue, Params, Value};
-
-    fn spec(name: &str) -> NodeSpec {
-        crate::registry().node(name).unwrap().spec().clone()
-    }
-
-    fn params(spec: &NodeSpec, set: &[(&str, ParamValue)]) -> Params {
-        let mut m = std::collections::BTreeMap::new();
-        for p in &spec.params {
-            if let Some(d) = &p.default {
-                m.insert(p.name.to_string(), d.clone());
-            }
-        }
-        for (k, v) in set {
-            m.insert(k.to_string(), v.clone());
-        }
-        Params::new(m)
-    }
+    use crate::testing::{params, spec};
+    use vfxgraph_engine::{InputValue, Value};
 
     /// A textured frame whose content moves by (1.5, 0.75) px per frame.
     fn frame(k: usize) -> Image {
