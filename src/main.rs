@@ -280,16 +280,11 @@ fn dispatch(cli: Cli, registry: &Registry) -> Result<u8, String> {
         Command::Check { graph } => match load_graph(&graph, registry) {
             Ok(g) => {
                 if !quiet {
-                    let instances: usize = g
-                        .nodes
-                        .iter()
-                        .map(|n| if n.per_frame { g.frames.len() } else { 1 })
-                        .sum();
                     println!(
                         "{}: ok ({} nodes, {} instances, frames {})",
                         graph.graph.display(),
                         g.nodes.len(),
-                        instances,
+                        g.instance_count(),
                         if g.frames.is_empty() {
                             "none".to_string()
                         } else {

@@ -26,11 +26,7 @@ impl Bars {
         Bars {
             multi: MultiProgress::with_draw_target(target),
             names: g.nodes.iter().map(|n| n.id.clone()).collect(),
-            instances: g
-                .nodes
-                .iter()
-                .map(|n| if n.per_frame { g.frames.len() } else { 1 })
-                .collect(),
+            instances: g.nodes.iter().map(|n| g.instances_of(n)).collect(),
             finished: g.nodes.iter().map(|_| AtomicUsize::new(0)).collect(),
             bars: Mutex::new(vec![None; g.nodes.len()]),
         }

@@ -85,6 +85,20 @@ impl Graph {
     pub fn index_of(&self, id: &str) -> Option<usize> {
         self.nodes.iter().position(|n| n.id == id)
     }
+
+    /// Number of instances of a node: one per frame for a per-frame node, else one.
+    pub fn instances_of(&self, node: &GraphNode) -> usize {
+        if node.per_frame {
+            self.frames.len()
+        } else {
+            1
+        }
+    }
+
+    /// Number of instances of the whole graph.
+    pub fn instance_count(&self) -> usize {
+        self.nodes.iter().map(|n| self.instances_of(n)).sum()
+    }
 }
 
 /// Command-line changes applied on top of the file.
