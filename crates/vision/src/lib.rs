@@ -23,6 +23,7 @@ pub mod camera;
 pub mod error;
 pub mod formats;
 pub mod klt;
+pub mod matchmove;
 pub mod normalize;
 pub mod optimize;
 pub mod points;
