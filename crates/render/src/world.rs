@@ -44,7 +44,7 @@ pub struct World {
 }
 
 impl World {
-    /// Compiles a scene: objects, shadow catchers and light triangles become primitives of one
+    /// Compiles a scene: objects (shadow catchers included) and light triangles become primitives of one
     /// BVH. Degenerate triangles (zero area), non-positive or non-finite spheres are skipped
     /// and counted in [`World::skipped`].
     pub fn new(scene: &Scene) -> World {
@@ -52,7 +52,7 @@ impl World {
         let mut surfaces = Vec::new();
         let mut materials = Vec::new();
         let mut skipped = 0;
-        for obj in scene.objects.iter().chain(&scene.shadow_catchers) {
+        for obj in &scene.objects {
             let m = materials.len() as u32;
             materials.push(obj.material);
             match &obj.shape {
