@@ -397,7 +397,8 @@ impl Environment for Dome {
     }
     fn sample(&self, u: [f64; 2]) -> Option<EnvironmentSample> {
         let s = Dome::sample(self, u);
-        if s.pdf_solid_angle.is_nan() || s.pdf_solid_angle <= 0.0 || s.pdf_solid_angle.is_infinite() {
+        if s.pdf_solid_angle.is_nan() || s.pdf_solid_angle <= 0.0 || s.pdf_solid_angle.is_infinite()
+        {
             return None;
         }
         let d = s.direction;
