@@ -28,6 +28,7 @@ pub mod sampling;
 pub mod scene;
 pub mod scn;
 pub mod shape;
+pub mod spherical_triangle;
 pub mod world;
 pub mod yaml_scene;
 

@@ -4,6 +4,7 @@
 use std::f64::consts::PI;
 
 use vfxgraph_render::dome::Dome;
+use vfxgraph_render::light::LightSampling;
 use vfxgraph_render::ray::Ray;
 use vfxgraph_render::render::seeded_sampler;
 use vfxgraph_render::shape::Sphere;
@@ -172,42 +173,51 @@ fn irradiance_from_a_polygonal_light_matches_the_closed_form() {
         background: Rgb::BLACK,
         dome: None,
     };
-    let world = World::new(&scene);
     let env = ConstantEnvironment {
         radiance: Rgb::BLACK,
     };
     let from = Vec3::new(0.0, -1.0, 2.0);
     let ray = Ray::new(from, (p - from).normalized());
-    for (strategy, n) in [
-        (Strategy::LightOnly, 20_000),
-        (Strategy::Mis, 40_000),
-        (Strategy::BrdfOnly, 400_000),
-    ] {
-        let tracer = PathTracer {
-            world: &world,
-            environment: &env,
-            max_depth: 1,
-            rr_depth: 100,
-            strategy,
-        };
-        let mut s = seeded_sampler(5);
-        let (mut sum, mut sq) = (0.0, 0.0);
-        for _ in 0..n {
-            let v = tracer.radiance(ray, &mut s).g;
-            sum += v;
-            sq += v * v;
+    let mut light_only_sd = Vec::new();
+    for mode in [LightSampling::Area, LightSampling::SolidAngle] {
+        let world = World::with_light_sampling(&scene, mode);
+        for (strategy, n) in [
+            (Strategy::LightOnly, 20_000),
+            (Strategy::Mis, 40_000),
+            (Strategy::BrdfOnly, 400_000),
+        ] {
+            let tracer = PathTracer {
+                world: &world,
+                environment: &env,
+                max_depth: 1,
+                rr_depth: 100,
+                strategy,
+            };
+            let (m, se) = estimate(&tracer, ray, n, 5);
+            assert!(
+                (m - truth).abs() < 3.0 * se.max(1e-9),
+                "{mode:?} {strategy:?}: {m} ± {se} vs {truth}"
+            );
+            assert!(
+                se < 0.02 * truth,
+                "{mode:?} {strategy:?}: estimate too noisy to mean anything ({se})"
+            );
+            if strategy == Strategy::LightOnly {
+                light_only_sd.push(se * (n as f64).sqrt());
+            }
         }
-        let m = sum / n as f64;
-        let se = ((sq / n as f64 - m * m) / (n as f64 - 1.0)).sqrt();
-        assert!(
-            (m - truth).abs() < 3.0 * se.max(1e-9),
-            "{strategy:?}: {m} ± {se} vs {truth}"
-        );
-        assert!(
-            se < 0.02 * truth,
-            "{strategy:?}: estimate too noisy to mean anything ({se})"
-        );
     }
+    // This light is large and near: sampling its solid angle removes the 1/r² and cos θ_light
+    // variation of area sampling, leaving only the receiver's cosine.
+    eprintln!(
+        "direct light, per-sample sd / mean: area {:.4}, solid angle {:.4}",
+        light_only_sd[0] / truth,
+        light_only_sd[1] / truth
+    );
+    assert!(
+        light_only_sd[1] < 0.85 * light_only_sd[0],
+        "{light_only_sd:?}"
+    );
 }
 
 #[test]
@@ -252,9 +262,14 @@ fn mis_has_the_mean_of_each_single_strategy() {
         background: Rgb::splat(0.3),
         dome: None,
     };
-    let world = World::new(&scene);
+    for mode in [LightSampling::Area, LightSampling::SolidAngle] {
+        mis_agrees(&World::with_light_sampling(&scene, mode), scene.background);
+    }
+}
+
+fn mis_agrees(world: &World, background: Rgb) {
     let env = ConstantEnvironment {
-        radiance: scene.background,
+        radiance: background,
     };
     let from = Vec3::new(0.0, -2.0, 1.5);
     let target = Vec3::new(-0.2, 0.3, 0.0);
@@ -266,7 +281,7 @@ fn mis_has_the_mean_of_each_single_strategy() {
         (Strategy::BrdfOnly, 400_000),
     ] {
         let tracer = PathTracer {
-            world: &world,
+            world,
             environment: &env,
             max_depth: 4,
             rr_depth: 2,
