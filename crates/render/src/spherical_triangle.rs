@@ -58,7 +58,7 @@ pub fn sample(p: Vec3, tri: [Vec3; 3], u: [f64; 2]) -> Option<(Vec3, f64)> {
     // Spherical excess = area; pick the sub-triangle area A' uniformly in [0, A].
     let a_pi = alpha + beta + gamma;
     let area = a_pi - PI;
-    if !(area > 1e-12) || !area.is_finite() {
+    if area.is_nan() || area <= 1e-12 || area.is_infinite() {
         return None;
     }
     let ap_pi = PI + u[0] * (a_pi - PI);
