@@ -162,3 +162,18 @@ fn errors_point_at_line_and_column() {
     let e = parse_yaml_scene("objects: []\n", dir.path()).unwrap_err();
     assert!(e.message.contains("missing `camera`"), "{e}");
 }
+
+#[test]
+fn the_example_scene_of_the_repository_reads() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../graphs/scenes");
+    let text = std::fs::read_to_string(dir.join("spheres_dome.yaml")).unwrap();
+    let y = parse_yaml_scene(&text, &dir).unwrap();
+    assert_eq!(y.scene.objects.len(), 5);
+    assert_eq!(y.scene.catchers().count(), 1);
+    // The OBJ cube: 6 quads = 12 triangles.
+    let Shape::Triangles { triangles } = &y.scene.objects[3].shape else {
+        panic!()
+    };
+    assert_eq!(triangles.len(), 12);
+    assert!(y.files.iter().all(|f| f.is_file()), "{:?}", y.files);
+}
