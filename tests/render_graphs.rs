@@ -57,14 +57,11 @@ fn spheres_dome_graph_renders_then_is_cached() {
     let img = vfxgraph_imaging::read_image(&g.join("out/spheres_dome.exr")).unwrap();
     assert_eq!((img.width, img.height, img.channels), (64, 36, 3));
     assert!(img.data.iter().all(|v| v.is_finite() && *v >= 0.0));
-    // Lit by the dome alone: the top rows see the dome, the floor is lit.
+    // Lit by the dome alone: the top row sees the (dim) studio wall of the dome, the floor in
+    // the bottom row is lit by the dome's bright lamps.
     let row_mean = |y: usize| (0..64).map(|x| img.get(x, y, 1)).sum::<f32>() / 64.0;
-    assert!(
-        row_mean(0) > 0.01 && row_mean(35) > 0.01,
-        "{} {}",
-        row_mean(0),
-        row_mean(35)
-    );
+    let (top, bottom) = (row_mean(0), row_mean(35));
+    assert!(top > 0.0 && bottom > 0.1, "{top} {bottom}");
     // Second run: everything cached.
     let nodes = run(&g, &small);
     assert!(nodes.iter().all(|n| n["status"] == "cached"), "{nodes:?}");
