@@ -488,6 +488,24 @@ mod tests {
     }
 
     #[test]
+    fn scn_hdrdome_lights_the_scene() {
+        // The book's hdrscene/hdrdome with a constant image: an albedo-1 sphere (kd = 1,
+        // d_col white) renders the dome's radiance everywhere.
+        let dir = tempfile::tempdir().unwrap();
+        let scn = "hdrscene{ hdrdome{ orig = {1, 0, 0}, south = {0, 0, 1}, hdrimg = \"sky.pfm\" }
+          camera = view{ from = {0,-4,0}, at = {0,0,0}, fov = 40, imgw = 12, imgh = 8 }
+          object = primobj{ material = plastic{ kd = 1 }, shape = sphere{ center = {0,0,0}, radius = 1 } } }";
+        std::fs::write(dir.path().join("d.scn"), scn).unwrap();
+        let sky = Image::from_fn(16, 8, 3, |_, _, _| 0.5);
+        vfxgraph_imaging::io::write_image(&dir.path().join("sky.pfm"), &sky).unwrap();
+        let scene = read(dir.path(), "d.scn").unwrap();
+        assert!(scene.dome.is_some());
+        let img = render_node(scene, None, vec![], &[("max_depth", ParamValue::Int(64))]).unwrap();
+        let (mean, dev) = spread(&img, 0.5);
+        assert!((mean - 0.5).abs() < 0.01 && dev < 0.15, "{mean} {dev}");
+    }
+
+    #[test]
     fn a_dome_image_that_is_missing_needs_a_dome_input() {
         let dir = tempfile::tempdir().unwrap();
         std::fs::write(dir.path().join("f.yaml"), FURNACE).unwrap();
