@@ -12,6 +12,8 @@ pub mod calibration;
 pub mod hdr;
 pub mod image_io;
 pub mod image_ops;
+pub mod matchmove;
+pub mod plot;
 pub mod render;
 #[cfg(test)]
 mod testing;
@@ -51,6 +53,7 @@ pub fn registry() -> Registry {
     tracking::register(&mut r);
     // After `tracking`, which registers the `tracks` artifact.
     bundle::register(&mut r);
+    matchmove::register(&mut r);
     hdr::register(&mut r);
     render::register(&mut r);
     r
