@@ -21,6 +21,8 @@
 //! *is* the camera's transfer function); radiance is linear and relative (the response has one
 //! free scale, fixed by `g(128) = 0` in every channel, see [`merge`] for what that does to colour).
 
+pub mod align;
+pub mod exif;
 pub mod merge;
 pub mod probe;
 pub mod response;
@@ -30,6 +32,11 @@ use std::path::PathBuf;
 
 use crate::error::ImageError;
 
+pub use align::{align_exposures, apply_shifts, mtb_shifts, AlignChain, AlignOptions};
+pub use exif::{
+    exposure_settings, read_exposure_settings, relative_exposures, with_exposure_exif,
+    ExposureSettings,
+};
 pub use merge::{consistency_error, ldr_from_hdr, merge_debevec};
 pub use probe::{probe_to_equirect, ProbeCircle};
 pub use response::{
@@ -60,6 +67,15 @@ pub enum HdrError {
         /// The operating system's error.
         #[source]
         source: std::io::Error,
+    },
+
+    /// A photograph's EXIF metadata is missing or lacks what is needed.
+    #[error("{}: {message}", path.display())]
+    Exif {
+        /// The photograph.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
     },
 
     /// The list file is malformed (line numbers start at 1).
