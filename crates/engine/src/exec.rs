@@ -346,14 +346,21 @@ impl<'a> Common<'a> {
             .collect()
     }
 
-    /// The files named by the path and path-list params of `role`, resolved.
-    fn role_files(&self, i: usize, role: PathRole) -> Vec<PathBuf> {
+    /// The files named by the path and path-list params of `role`, resolved, with the param
+    /// naming each. An empty path (the default of an optional path param) names no file.
+    fn role_files(&self, i: usize, role: PathRole) -> Vec<(&'static str, PathBuf)> {
         let inst = &self.insts[i];
         let gn = &self.graph.nodes[inst.node];
         let spec = gn.spec();
-        let mut files: Vec<PathBuf> = spec
+        let mut files: Vec<(&'static str, PathBuf)> = spec
             .path_params(role)
-            .map(|p| resolve_path(&self.graph.dir, gn.params.str(p), inst.frame))
+            .filter(|p| !gn.params.str(p).is_empty())
+            .map(|p| {
+                (
+                    p,
+                    resolve_path(&self.graph.dir, gn.params.str(p), inst.frame),
+                )
+            })
             .collect();
         for p in spec.path_list_params(role) {
             if gn.params.get(p).is_some() {
@@ -361,19 +368,22 @@ impl<'a> Common<'a> {
                     gn.params
                         .strs(p)
                         .into_iter()
-                        .map(|t| resolve_path(&self.graph.dir, t, None)),
+                        .map(|t| (p, resolve_path(&self.graph.dir, t, None))),
                 );
             }
         }
         files
     }
 
-    fn input_files(&self, i: usize) -> Vec<PathBuf> {
+    fn input_files(&self, i: usize) -> Vec<(&'static str, PathBuf)> {
         self.role_files(i, PathRole::Input)
     }
 
     fn output_files(&self, i: usize) -> Vec<PathBuf> {
         self.role_files(i, PathRole::Output)
+            .into_iter()
+            .map(|(_, p)| p)
+            .collect()
     }
 
     /// Builds the key of instance `i` given a way to read upstream output digests.
@@ -421,11 +431,13 @@ impl<'a> Common<'a> {
             h.update(&digest.0);
             record.inputs.insert(d.port.to_string(), digest.to_hex());
         }
-        for path in self.input_files(i) {
-            let digest = self
-                .hasher
-                .hash(&path)
-                .map_err(|e| format!("cannot read input file {}: {e}", path.display()))?;
+        for (param, path) in self.input_files(i) {
+            let digest = self.hasher.hash(&path).map_err(|e| {
+                format!(
+                    "param `{param}`: cannot read input file {}: {e}",
+                    path.display()
+                )
+            })?;
             h.update(b"file\0");
             h.update(&digest.0);
             record

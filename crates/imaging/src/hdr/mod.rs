@@ -6,8 +6,10 @@
 //! 1. [`stack`]: an [`ExposureStack`] — the raw 8-bit codes `Z` of several photographs of a static
 //!    scene and their exposure times `Δt` — read from a list file in the format of Debevec's
 //!    `memorial.hdr_image_list.txt` ([`read_exposure_list`]) or from explicit paths and times
-//!    ([`read_exposure_files`]), validated (same size, distinct positive exposures), with an
-//!    optional mask of pixels to ignore.
+//!    ([`read_exposure_files`]) or from the photographs' EXIF ([`read_exposure_files_exif`],
+//!    module [`exif`]), validated (same size, distinct positive exposures), with an optional mask
+//!    of pixels to ignore; hand-held brackets aligned by Ward's median threshold bitmaps
+//!    ([`align`]).
 //! 2. [`response`]: the camera's response `g = ln f⁻¹`, one [`ResponseCurve`] of 256 entries per
 //!    channel, recovered by [`calibrate_debevec`] (weighted linear least squares with a smoothness
 //!    term and `g(128) = 0`).
@@ -44,8 +46,9 @@ pub use response::{
     Sampling,
 };
 pub use stack::{
-    decode_codes, parse_exposure_list, parse_seconds, read_codes, read_exposure_files,
-    read_exposure_list, CodeImage, Exposure, ExposureStack, ListEntry,
+    decode_codes, exposure_list_files, parse_exposure_list, parse_seconds, read_codes,
+    read_exposure_files, read_exposure_files_exif, read_exposure_list, CodeImage, Exposure,
+    ExposureStack, ListEntry,
 };
 
 /// Number of 8-bit code values: the length of a response curve (Debevec & Malik 1997, §2.1).
