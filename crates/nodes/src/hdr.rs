@@ -235,8 +235,10 @@ pub fn register(r: &mut Registry) {
         NodeSpec::new(
             "hdr_calibrate",
             "Recovers the camera response g = ln f⁻¹ per channel by Debevec & Malik's weighted \
-             least squares with smoothness λ, hat weights and g(128) = 0 (book 10.2–10.4).",
+             least squares with smoothness λ, hat weights and g(128) = 0 (book 10.2–10.4), \
+             constrained to be non-decreasing unless `monotonic: false`.",
         )
+        .version(2)
         .mode(Mode::Once)
         .seeded()
         .param(ParamSpec::optional(
@@ -259,6 +261,13 @@ pub fn register(r: &mut Registry) {
             ParamType::Enum(&["stratified", "random", "grid"]),
             ParamValue::Str("stratified".into()),
             "pixel selection: jittered grid, uniform random, or regular grid",
+        ))
+        .param(ParamSpec::optional(
+            "monotonic",
+            ParamType::Bool,
+            ParamValue::Bool(true),
+            "constrain g to be non-decreasing (least squares over monotonic curves, \
+             active-set); false = the paper's unconstrained solution",
         ))
         .input(PortSpec::one("stack", StackArt::NAME, "the exposure stack"))
         .output(PortSpec::one(
@@ -585,6 +594,7 @@ fn run_calibrate(ctx: &mut Context<'_>) -> Result<(), NodeError> {
             .parse::<Sampling>()
             .map_err(NodeError::msg)?,
         seed: ctx.seed(),
+        monotonic: p.bool("monotonic"),
     };
     let curve = calibrate_debevec(&ctx.input::<StackArt>("stack")?.0, &opts)?;
     ctx.output("response", ResponseArt(curve));

@@ -42,8 +42,8 @@ pub use exif::{
 pub use merge::{consistency_error, ldr_from_hdr, merge_debevec};
 pub use probe::{probe_to_equirect, ProbeCircle};
 pub use response::{
-    calibrate_debevec, hat_weight, sample_pixels, solve_debevec, CalibrateOptions, ResponseCurve,
-    Sampling,
+    calibrate_debevec, debevec_objective, hat_weight, sample_pixels, solve_debevec,
+    solve_debevec_monotonic, CalibrateOptions, ResponseCurve, Sampling,
 };
 pub use stack::{
     decode_codes, exposure_list_files, parse_exposure_list, parse_seconds, read_codes,
