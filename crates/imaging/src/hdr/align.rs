@@ -116,15 +116,7 @@ impl Grey {
     /// The smallest level with at least a fraction `p` of the pixels at or below it
     /// (`p` = 0.5: the median).
     fn percentile(&self, p: f64) -> u8 {
-        let need = ((p * self.v.len() as f64).ceil() as usize).max(1);
-        let mut acc = 0;
-        for (g, &n) in self.histogram().iter().enumerate() {
-            acc += n;
-            if acc >= need {
-                return g as u8;
-            }
-        }
-        255
+        percentile(&self.histogram(), self.v.len(), p)
     }
 
     #[cfg(test)]
@@ -143,6 +135,19 @@ impl Grey {
     }
 }
 
+/// The smallest level with at least a fraction `p` of the `n` pixels of `hist` at or below it.
+fn percentile(hist: &[usize; 256], n: usize, p: f64) -> u8 {
+    let need = ((p * n as f64).ceil() as usize).max(1);
+    let mut acc = 0;
+    for (g, &k) in hist.iter().enumerate() {
+        acc += k;
+        if acc >= need {
+            return g as u8;
+        }
+    }
+    255
+}
+
 /// Percentiles tried for a pair, nearest to the median first.
 const PERCENTILES: [f64; 27] = [
     0.5, 0.45, 0.55, 0.4, 0.6, 0.35, 0.65, 0.3, 0.7, 0.25, 0.75, 0.2, 0.8, 0.15, 0.85, 0.1, 0.9,
@@ -159,8 +164,8 @@ const PERCENTILES: [f64; 27] = [
 fn pair_percentile(a: &Grey, b: &Grey, exclusion: u8) -> f64 {
     let (ha, hb) = (a.histogram(), b.histogram());
     let score = |p: f64| {
-        a.balance(&ha, a.percentile(p), exclusion)
-            .min(b.balance(&hb, b.percentile(p), exclusion))
+        a.balance(&ha, percentile(&ha, a.v.len(), p), exclusion)
+            .min(b.balance(&hb, percentile(&hb, b.v.len(), p), exclusion))
     };
     let median = score(0.5);
     let (mut best, mut best_p) = (median, 0.5);
@@ -194,16 +199,16 @@ impl Bitmaps {
         let mut tb = vec![0u64; words * g.h];
         let mut eb = vec![0u64; words * g.h];
         for y in 0..g.h {
-            for x in 0..g.w {
-                let v = g.v[y * g.w + x] as i32;
-                let bit = 1u64 << (x % 64);
-                let k = y * words + x / 64;
-                if v > med {
-                    tb[k] |= bit;
+            let row = &g.v[y * g.w..(y + 1) * g.w];
+            for (k, chunk) in row.chunks(64).enumerate() {
+                let (mut t, mut e) = (0u64, 0u64);
+                for (i, &v) in chunk.iter().enumerate() {
+                    let v = v as i32;
+                    t |= u64::from(v > med) << i;
+                    e |= u64::from((v - med).abs() > exclusion as i32) << i;
                 }
-                if (v - med).abs() > exclusion as i32 {
-                    eb[k] |= bit;
-                }
+                tb[y * words + k] = t;
+                eb[y * words + k] = e;
             }
         }
         Bitmaps {
@@ -375,16 +380,24 @@ pub fn apply_shifts(
     let mut exposures = Vec::with_capacity(stack.len());
     for (e, &(dx, dy)) in stack.exposures().iter().zip(shifts) {
         let mut codes = vec![0u8; e.codes.len()];
+        // Columns x with 0 ≤ x − dx < w, rows likewise; everything else comes from outside.
+        let (x0, x1) = (
+            (dx.max(0) as usize).min(w),
+            ((w as i64 + dx).clamp(0, w as i64)) as usize,
+        );
         for y in 0..h {
-            for x in 0..w {
-                let (xs, ys) = (x as i64 - dx, y as i64 - dy);
-                if xs < 0 || ys < 0 || xs >= w as i64 || ys >= h as i64 {
-                    mask[y * w + x] = true;
-                    continue;
+            let ys = y as i64 - dy;
+            let inside_row = ys >= 0 && ys < h as i64;
+            for (x, m) in mask[y * w..(y + 1) * w].iter_mut().enumerate() {
+                if !inside_row || x < x0 || x >= x1 {
+                    *m = true;
                 }
-                let s = (ys as usize * w + xs as usize) * c;
-                let d = (y * w + x) * c;
-                codes[d..d + c].copy_from_slice(&e.codes[s..s + c]);
+            }
+            if inside_row && x0 < x1 {
+                let src = (ys as usize * w + (x0 as i64 - dx) as usize) * c;
+                let dst = (y * w + x0) * c;
+                let len = (x1 - x0) * c;
+                codes[dst..dst + len].copy_from_slice(&e.codes[src..src + len]);
             }
         }
         exposures.push(Exposure {
