@@ -19,7 +19,7 @@ use vfxgraph_imaging::hdr::{
 use vfxgraph_imaging::Image;
 use vfxgraph_render::dome::Dome;
 
-use crate::artifacts::{ImageArt, ReportArt};
+use crate::artifacts::{CameraArt, ImageArt, ReportArt};
 use crate::FnNode;
 
 /// An exposure stack (`exposure_stack`): 8-bit codes, exposure times, optional mask.
@@ -406,9 +406,11 @@ pub fn register(r: &mut Registry) {
             "dome",
             "Makes a light dome of an equirectangular image (book 10.7–10.8): oriented by \
              `orig` (centre column) and `south` (top row), or by a calibrated camera's rotation \
-             `rotation` (9 numbers, row by row: south = 2nd row, orig = −3rd row). The default \
-             is vfxgraph's y-up world: south = +y, orig = −z.",
+             R — from a connected `camera` or the `rotation` param (9 numbers, row by row): \
+             south = 2nd row, orig = −3rd row. The default is vfxgraph's y-up world: south = \
+             +y, orig = −z.",
         )
+        .version(2)
         .param(ParamSpec::optional(
             "orig",
             ParamType::FloatList { len: Some(3) },
@@ -440,6 +442,14 @@ pub fn register(r: &mut Registry) {
             ImageArt::NAME,
             "equirectangular radiance map",
         ))
+        .input(
+            PortSpec::one(
+                "camera",
+                CameraArt::NAME,
+                "the camera that photographed the probe (its R orients the dome)",
+            )
+            .optional(),
+        )
         .output(PortSpec::one("dome", DomeArt::NAME, "the oriented dome")),
         run_dome,
     ));
@@ -747,7 +757,15 @@ fn run_dome(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let p = ctx.params();
     let img = &ctx.input::<ImageArt>("image")?.0;
     let rot = p.f64s("rotation");
-    let dome = if rot.is_empty() {
+    let camera = ctx.input_opt::<CameraArt>("camera")?;
+    let dome = if let Some(cam) = camera {
+        if !rot.is_empty() {
+            return Err(NodeError::msg(
+                "give the rotation by the `camera` input or the `rotation` param, not both",
+            ));
+        }
+        Dome::from_camera_rotation(img, &cam.0.pose.r)?
+    } else if rot.is_empty() {
         let (o, s) = (p.f64s("orig"), p.f64s("south"));
         Dome::new(
             img,
@@ -1074,6 +1092,22 @@ mod tests {
         let back = DomeArt::decode(&bytes).unwrap();
         assert_eq!(back.0.image(), &img);
         assert_eq!(back.0.south(), dome.0.south());
+        // The same rotation from a connected camera.
+        let cam = vfxgraph_vision::Camera::new(
+            vfxgraph_vision::Intrinsics::new(500.0, 500.0, 320.0, 240.0),
+            Matrix3::new(1.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 1.0, 0.0),
+            Vector3::zeros(),
+        );
+        let p0 = params(&s, &[]);
+        let input = vec![
+            ("image", InputValue::One(Value::new(ImageArt(img.clone())))),
+            ("camera", InputValue::One(Value::new(CameraArt(cam)))),
+        ];
+        let mut ctx = Context::for_test(&s, &p0, Path::new("."), None, input);
+        run_dome(&mut ctx).unwrap();
+        let from_cam = ctx.take_output::<DomeArt>("dome").unwrap();
+        assert_eq!(from_cam.0.south(), dome.0.south());
+        assert_eq!(from_cam.0.orig(), dome.0.orig());
         let bad = ParamValue::List(vec![ParamValue::Float(1.0); 4]);
         let p = params(&s, &[("rotation", bad)]);
         let input = vec![("image", InputValue::One(Value::new(ImageArt(img))))];
