@@ -78,9 +78,11 @@ def main():
 
     mtb = cv2.createAlignMTB(6, 4, True)
     t_cv, _ = best_of(a.runs, lambda: mtb.process(bgr, [None] * n))
-    # The shifts OpenCV's process applies: calculateShift(middle, image), as process() does.
-    grey = [cv2.cvtColor(im, cv2.COLOR_BGR2GRAY) for im in bgr]
-    cv_shifts = [tuple(int(v) for v in mtb.calculateShift(grey[r], g)) for g in grey]
+    # The shifts OpenCV's process() applies: (0, 0) for the middle exposure, else
+    # calculateShift(middle, image) on grey images made with COLOR_RGB2GRAY, as process() does.
+    grey = [cv2.cvtColor(im, cv2.COLOR_RGB2GRAY) for im in bgr]
+    cv_shifts = [(0, 0) if k == r else tuple(int(v) for v in mtb.calculateShift(grey[r], g))
+                 for k, g in enumerate(grey)]
 
     def exact(shifts):
         return sum(tuple(s) == t for s, t in zip(shifts, truth))
