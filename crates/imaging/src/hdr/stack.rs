@@ -355,7 +355,7 @@ fn resolve_listed(dir: &Path, name: &str) -> PathBuf {
 
 /// Reads the stack named by an exposure list file (see [`parse_exposure_list`]); file names are
 /// relative to the list's folder (with the `.ppm` → `.png`/`.jpg` fallback described at
-/// [`resolve_listed`]). Images are decoded in parallel. Returns the stack and the paths read.
+/// `resolve_listed`). Images are decoded in parallel. Returns the stack and the paths read.
 pub fn read_exposure_list(list: &Path) -> Result<(ExposureStack, Vec<PathBuf>), HdrError> {
     let (paths, times) = exposure_list_files(list)?;
     let stack = read_exposure_files(&paths, &times)?;
