@@ -552,3 +552,45 @@ fn bench_ba_reads_ladybug_with_the_reference_initial_cost() {
         assert!(v.get(k).is_some());
     }
 }
+
+/// The book's matchmove graph: every frame gets a camera in both formats, the plot is written,
+/// and changing a relaxation param reruns only the relaxation and what reads it.
+#[test]
+fn book_matchmove_graph_runs_and_reruns_only_the_relaxation() {
+    let Some((_tmp, g)) = example_with_shared_data("book_matchmove.yaml") else {
+        return;
+    };
+    let fast = ["--set", "relax.rounds=2", "--set", "relax.cycles=2"];
+    let mut args = vec!["book_matchmove.yaml"];
+    args.extend(fast);
+    let r = run_json(&g, &args);
+    assert!(statuses(&r, "failed").is_empty());
+    let out = g.join("out/book_matchmove");
+    let book = fs::read_to_string(out.join("cameras.txt")).unwrap();
+    assert_eq!(book.lines().filter(|l| l.starts_with("Frame")).count(), 286);
+    let json: Json =
+        serde_json::from_str(&fs::read_to_string(out.join("cameras.json")).unwrap()).unwrap();
+    assert_eq!(json["frames"].as_array().unwrap().len(), 286);
+    assert!(json["intrinsics"]["K"][0][0].as_f64().unwrap() > 1228.0);
+    let svg = fs::read_to_string(out.join("solve_error.svg")).unwrap();
+    assert!(svg.starts_with("<svg"));
+    let report: Json =
+        serde_json::from_str(&fs::read_to_string(out.join("solve_report.json")).unwrap()).unwrap();
+    assert_eq!(report["score"]["frames_with_camera"], 286);
+
+    let args = [
+        "book_matchmove.yaml",
+        "--set",
+        "relax.rounds=1",
+        "--set",
+        "relax.cycles=2",
+    ];
+    let r = run_json(&g, &args);
+    let mut ran: Vec<&str> = statuses(&r, "ran").into_iter().map(|(id, _)| id).collect();
+    ran.sort();
+    assert_eq!(
+        ran,
+        ["relax", "relax_plot", "relax_report", "relaxed_book"],
+        "only the relaxation and its readers rerun"
+    );
+}

@@ -138,7 +138,10 @@ fn fragments_share_one_frame_and_keep_features_tracked_throughout() {
     }
 }
 
-const BOOK: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/book-demo/");
+const BOOK: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../../../shared/data/book-demo/"
+);
 
 /// The book's own tracks: every one of the 286 frames gets a finite camera, the path is smooth,
 /// and on the 240 frames the book's solution covered, our cameras score better than the book's
@@ -150,8 +153,8 @@ fn book_tracks_every_frame_solved_and_better_than_the_book() {
         return;
     };
     let tracks = crate::klt::Tracks::parse(&text).unwrap();
-    let k = crate::formats::read_intrinsics(std::path::Path::new(&format!("{BOOK}g7cam.txt")))
-        .unwrap();
+    let k =
+        crate::formats::read_intrinsics(std::path::Path::new(&format!("{BOOK}g7cam.txt"))).unwrap();
     let solve = matchmove(&tracks, &k, &MatchmoveOptions::default(), &|_, _, _| {}).unwrap();
     assert_eq!(solve.path.frames.len(), 286);
     let score = solve.report.score.clone().unwrap();
