@@ -594,4 +594,32 @@ mod tests {
             "{err}"
         );
     }
+
+    /// Footage with too few tracks for a fragment gives a clear error naming the frames, never
+    /// NaN cameras.
+    #[test]
+    fn too_few_tracks_is_a_clear_error() {
+        let s = synthetic_shot(&ShotOptions {
+            frames: 70,
+            slots: 7,
+            ..ShotOptions::default()
+        });
+        let sp = spec("matchmove");
+        let p = params(&sp, &[("min_frames", ParamValue::Int(30))]);
+        let inputs = [
+            (
+                "tracks",
+                InputValue::One(Value::new(TracksArt(s.tracks.clone()))),
+            ),
+            (
+                "intrinsics",
+                InputValue::One(Value::new(IntrinsicsArt(s.k.clone()))),
+            ),
+        ];
+        let dir = std::env::temp_dir();
+        let mut ctx = Context::for_test(&sp, &p, &dir, None, inputs.into_iter().collect());
+        let err = run_matchmove(&mut ctx).unwrap_err().to_string();
+        assert!(err.contains("frames"), "{err}");
+        assert!(ctx.take_output::<CameraPathArt>("cameras").is_none());
+    }
 }
