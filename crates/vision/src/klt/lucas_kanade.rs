@@ -466,6 +466,59 @@ fn template(l: &Level, o: usize, w: [f32; 4], t: &mut Window) -> (f32, f32, f32)
     template_generic(l, o, w, t)
 }
 
+/// For a window reaching past the image edge (`p` at level `l`): sets the template gradient
+/// to the bilinear interpolation of the Scharr image extended by zeros, as OpenCV does, so
+/// that the mirrored border — which moves the wrong way — adds nothing to `G` and `b`, and
+/// returns the new `G`. `None` (nothing to do) when every sample lies inside the image.
+fn zero_gradient_outside(
+    l: &Level,
+    p: [f32; 2],
+    half: usize,
+    t: &mut Window,
+) -> Option<(f32, f32, f32)> {
+    let (fx, fy) = (p[0] - half as f32, p[1] - half as f32);
+    let (x0, y0) = (fx.floor(), fy.floor());
+    let (ax, ay) = (fx - x0, fy - y0);
+    let (x0, y0) = (x0 as isize, y0 as isize);
+    let (w, h, win) = (l.width as isize, l.height as isize, t.win as isize);
+    if x0 >= 0 && y0 >= 0 && x0 + win < w && y0 + win < h {
+        return None;
+    }
+    let wts = [
+        (0, 0, (1.0 - ax) * (1.0 - ay)),
+        (1, 0, ax * (1.0 - ay)),
+        (0, 1, (1.0 - ax) * ay),
+        (1, 1, ax * ay),
+    ];
+    let inside = |x: isize, y: isize| x >= 0 && y >= 0 && x < w && y < h;
+    for r in 0..win {
+        for c in 0..win {
+            let (x, y) = (x0 + c, y0 + r);
+            if inside(x, y) && inside(x + 1, y + 1) {
+                continue;
+            }
+            let mut g = [0.0f32; 2];
+            for &(dx, dy, wt) in &wts {
+                if inside(x + dx, y + dy) {
+                    let s = l.scharr_at((x + dx) as usize, (y + dy) as usize);
+                    g[0] += wt * s[0];
+                    g[1] += wt * s[1];
+                }
+            }
+            let k = r as usize * t.ws + c as usize;
+            t.gx[k] = g[0];
+            t.gy[k] = g[1];
+        }
+    }
+    let (mut a11, mut a12, mut a22) = (0.0f32, 0.0f32, 0.0f32);
+    for (&gx, &gy) in t.gx.iter().zip(&t.gy) {
+        a11 += gx * gx;
+        a12 += gx * gy;
+        a22 += gy * gy;
+    }
+    Some((a11, a12, a22))
+}
+
 /// Tracks one feature from `prev` to `next` (book 6.3; Bouguet 2000, section 2.4). `guess`
 /// is an initial estimate of the position in `next` (default: the same position). Both
 /// pyramids must come from images of the same size, built with at least `params.pad()`
@@ -522,7 +575,10 @@ fn track_point_in(
             next_pt = [next_pt[0] * 2.0, next_pt[1] * 2.0];
             continue;
         };
-        let (a11, a12, a22) = template(lp, o, w, t);
+        let (mut a11, mut a12, mut a22) = template(lp, o, w, t);
+        if let Some(g) = zero_gradient_outside(lp, prev_pt, half, t) {
+            (a11, a12, a22) = g;
+        }
         let det = a11 * a22 - a12 * a12;
         let min_eig =
             (a11 + a22 - ((a11 - a22) * (a11 - a22) + 4.0 * a12 * a12).sqrt()) / (2.0 * area);
