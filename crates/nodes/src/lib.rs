@@ -16,6 +16,7 @@ pub mod render;
 #[cfg(test)]
 mod testing;
 pub mod tracking;
+pub mod video;
 
 use vfxgraph_engine::{Context, Node, NodeError, NodeSpec, Registry};
 
@@ -53,5 +54,6 @@ pub fn registry() -> Registry {
     bundle::register(&mut r);
     hdr::register(&mut r);
     render::register(&mut r);
+    video::register(&mut r);
     r
 }
