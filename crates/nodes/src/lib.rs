@@ -18,6 +18,7 @@ pub mod render;
 #[cfg(test)]
 mod testing;
 pub mod tracking;
+pub mod video;
 
 use vfxgraph_engine::{Context, Node, NodeError, NodeSpec, Registry};
 
@@ -56,5 +57,6 @@ pub fn registry() -> Registry {
     matchmove::register(&mut r);
     hdr::register(&mut r);
     render::register(&mut r);
+    video::register(&mut r);
     r
 }

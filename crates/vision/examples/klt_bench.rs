@@ -2,7 +2,7 @@
 //!
 //! ```text
 //! cargo run --release -p vfxgraph-vision --example klt_bench -- \
-//!     A.png B.png CORNERS.txt FEATURES WINDOW LEVELS ITERATIONS REPEAT
+//!     A.png B.png CORNERS.txt FEATURES WINDOW LEVELS ITERATIONS REPEAT [EPSILON]
 //! ```
 //! CORNERS.txt holds `x y` per line: the points tracked from A to B (so both trackers are
 //! scored on the same corners). Prints one JSON object: the best-of-REPEAT times (ms) of
@@ -26,9 +26,10 @@ fn main() {
 
 fn run() -> Result<(), Box<dyn std::error::Error>> {
     let a: Vec<String> = std::env::args().skip(1).collect();
-    if a.len() != 8 {
+    if a.len() != 8 && a.len() != 9 {
         return Err(
-            "usage: A.png B.png CORNERS.txt FEATURES WINDOW LEVELS ITERATIONS REPEAT".into(),
+            "usage: A.png B.png CORNERS.txt FEATURES WINDOW LEVELS ITERATIONS REPEAT [EPSILON]"
+                .into(),
         );
     }
     let ga = GrayImage::from_image(&read_image(a[0].as_ref())?);
@@ -48,6 +49,10 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         window: a[4].parse()?,
         levels: a[5].parse()?,
         max_iterations: a[6].parse()?,
+        epsilon: match a.get(8) {
+            Some(e) => e.parse()?,
+            None => LkParams::default().epsilon,
+        },
         ..LkParams::default()
     };
     let repeat: usize = a[7].parse()?;
