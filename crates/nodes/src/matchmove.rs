@@ -88,7 +88,7 @@ fn global_params(spec: NodeSpec) -> NodeSpec {
 
 fn global_options(p: &Params) -> Result<GlobalOptions, NodeError> {
     let thresholds = p.f64s("outlier_thresholds");
-    if thresholds.iter().any(|t| !(*t > 0.0)) {
+    if thresholds.iter().any(|t| t.is_nan() || *t <= 0.0) {
         return Err(NodeError::msg("`outlier_thresholds` must all be positive"));
     }
     Ok(GlobalOptions {
@@ -157,14 +157,14 @@ fn run_matchmove(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     o.pair.resection_tolerance = p.f64("resection_tolerance");
     o.pair.max_k_difference = p.f64("max_k_difference");
     o.refine.tolerances = p.f64s("refine_tolerances");
-    if o.refine.tolerances.iter().any(|t| !(*t > 0.0)) {
+    if o.refine.tolerances.iter().any(|t| t.is_nan() || *t <= 0.0) {
         return Err(NodeError::msg("`refine_tolerances` must all be positive"));
     }
     o.scale.min_scale = p.f64("scale_min");
     o.scale.max_scale = p.f64("scale_max");
     o.scale.step = p.f64("scale_step");
     o.scale.tolerance = p.f64("scale_tolerance");
-    if !(o.scale.min_scale < o.scale.max_scale) {
+    if o.scale.min_scale >= o.scale.max_scale {
         return Err(NodeError::msg("`scale_min` must be below `scale_max`"));
     }
     o.global = if p.bool("global_adjust") {
