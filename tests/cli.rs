@@ -623,6 +623,15 @@ fn book_matchmove_graph_runs_and_reruns_only_the_relaxation() {
     let report: Json =
         serde_json::from_str(&fs::read_to_string(out.join("solve_report.json")).unwrap()).unwrap();
     assert_eq!(report["score"]["frames_with_camera"], 286);
+    // Chapter 8: the three marked ground points, measured with the relaxed cameras.
+    let ground: Json =
+        serde_json::from_str(&fs::read_to_string(out.join("ground_points.json")).unwrap()).unwrap();
+    assert_eq!(ground["points"].as_array().unwrap().len(), 3);
+    assert!(ground["rms"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .all(|r| r.as_f64().unwrap() < 10.0));
 
     let args = [
         "book_matchmove.yaml",
@@ -636,7 +645,14 @@ fn book_matchmove_graph_runs_and_reruns_only_the_relaxation() {
     ran.sort();
     assert_eq!(
         ran,
-        ["relax", "relax_plot", "relax_report", "relaxed_book"],
+        [
+            "ground",
+            "ground_report",
+            "relax",
+            "relax_plot",
+            "relax_report",
+            "relaxed_book"
+        ],
         "only the relaxation and its readers rerun"
     );
 }

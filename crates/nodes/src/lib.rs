@@ -13,6 +13,7 @@ pub mod hdr;
 pub mod image_io;
 pub mod image_ops;
 pub mod matchmove;
+pub mod modeling;
 pub mod plot;
 pub mod render;
 #[cfg(test)]
@@ -55,6 +56,7 @@ pub fn registry() -> Registry {
     // After `tracking`, which registers the `tracks` artifact.
     bundle::register(&mut r);
     matchmove::register(&mut r);
+    modeling::register(&mut r);
     hdr::register(&mut r);
     render::register(&mut r);
     video::register(&mut r);

@@ -24,6 +24,7 @@ pub mod error;
 pub mod formats;
 pub mod klt;
 pub mod matchmove;
+pub mod modeling;
 pub mod normalize;
 pub mod optimize;
 pub mod points;

@@ -1,0 +1,103 @@
+//! Modeling nodes (book chapter 8): `read_marks`, `point_cloud_calibrate`.
+
+use vfxgraph_engine::artifact::{decode_json, encode_json};
+use vfxgraph_engine::{
+    ArtifactType, Mode, NodeSpec, ParamSpec, ParamType, PathRole, PortSpec, Registry,
+};
+use vfxgraph_vision::formats::marked_points::{read_marked_points, MarkedPoints};
+use vfxgraph_vision::modeling::point_cloud_calibrate;
+
+use crate::artifacts::{CameraPathArt, IntrinsicsArt, Points3dArt, ReportArt};
+use crate::FnNode;
+
+/// Points marked by hand on several frames (`marks`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct MarkedPointsArt(pub MarkedPoints);
+
+impl ArtifactType for MarkedPointsArt {
+    const NAME: &'static str = "marks";
+    const DOC: &'static str =
+        "The same n scene points marked, in the same order, on several frames (book chapter 8).";
+    fn encode(&self, out: &mut Vec<u8>) {
+        encode_json(&self.0, out);
+    }
+    fn decode(bytes: &[u8]) -> Result<Self, String> {
+        decode_json(bytes).map(MarkedPointsArt)
+    }
+}
+
+/// Registers the artifact and nodes of this module.
+pub fn register(r: &mut Registry) {
+    r.register_artifact::<MarkedPointsArt>();
+    r.register_node(FnNode::new(
+        NodeSpec::new(
+            "read_marks",
+            "Reads marked points: the book's `points2d.txt` (`Frame f` / `Npoints n` / n lines \
+             `u v`) or its JSON form.",
+        )
+        .mode(Mode::Once)
+        .param(ParamSpec::required(
+            "path",
+            ParamType::Path(PathRole::Input),
+            "marked-points file",
+        ))
+        .output(PortSpec::one("marks", MarkedPointsArt::NAME, "the marks")),
+        |ctx| {
+            let path = ctx.path("path");
+            let marks = if vfxgraph_vision::formats::is_json(&path) {
+                vfxgraph_vision::formats::read_json(&path)?
+            } else {
+                read_marked_points(&path)?
+            };
+            ctx.output("marks", MarkedPointsArt(marks));
+            Ok(())
+        },
+    ));
+    r.register_node(FnNode::new(
+        NodeSpec::new(
+            "point_cloud_calibrate",
+            "Point-cloud calibration (book chapter 8): each marked point triangulated from the \
+             pair of marked frames with the least total reprojection error, refined by \
+             Levenberg–Marquardt over all its marks with the cameras fixed.",
+        )
+        .mode(Mode::Once)
+        .input(PortSpec::one(
+            "marks",
+            MarkedPointsArt::NAME,
+            "the marked points",
+        ))
+        .input(PortSpec::one(
+            "cameras",
+            CameraPathArt::NAME,
+            "the solved cameras (K from the path unless `intrinsics` is connected)",
+        ))
+        .input(PortSpec::optional(PortSpec::one(
+            "intrinsics",
+            IntrinsicsArt::NAME,
+            "K, when the path carries none",
+        )))
+        .output(PortSpec::one(
+            "points3d",
+            Points3dArt::NAME,
+            "one world point per marked point",
+        ))
+        .output(PortSpec::one(
+            "report",
+            ReportArt::NAME,
+            "frames used, the pair each point came from, per-point RMS and per-mark errors",
+        )),
+        |ctx| {
+            let marks = &ctx.input::<MarkedPointsArt>("marks")?.0;
+            let path = &ctx.input::<CameraPathArt>("cameras")?.0;
+            let k = ctx
+                .input_opt::<IntrinsicsArt>("intrinsics")?
+                .map(|k| k.0.clone());
+            let (points, report) = point_cloud_calibrate(marks, path, k.as_ref())?;
+            let mut rep = serde_json::to_value(&report)?;
+            rep["points"] = serde_json::to_value(&points)?;
+            ctx.output("points3d", Points3dArt(points));
+            ctx.output("report", ReportArt(rep));
+            Ok(())
+        },
+    ));
+}
