@@ -65,4 +65,12 @@ fn spheres_dome_graph_renders_then_is_cached() {
     // Second run: everything cached.
     let nodes = run(&g, &small);
     assert!(nodes.iter().all(|n| n["status"] == "cached"), "{nodes:?}");
+    // Editing the OBJ mesh the scene names (not the scene file) reruns the scene reader.
+    let obj = g.join("scenes/cube.obj");
+    let mut text = std::fs::read_to_string(&obj).unwrap();
+    text.push_str("# edited\n");
+    std::fs::write(&obj, text).unwrap();
+    let nodes = run(&g, &small);
+    let scene = nodes.iter().find(|n| n["id"] == "scene").unwrap();
+    assert_eq!(scene["status"], "ran", "{nodes:?}");
 }

@@ -234,9 +234,13 @@ fn run_read_scene(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let scene = match ext.as_str() {
         "scn" => parse_scn(&text).map_err(|e| NodeError::msg(format!("{}:{e}", path.display())))?,
         "yaml" | "yml" => {
-            parse_yaml_scene(&text, dir)
-                .map_err(|e| NodeError::msg(format!("{}:{e}", path.display())))?
-                .scene
+            let parsed = parse_yaml_scene(&text, dir)
+                .map_err(|e| NodeError::msg(format!("{}:{e}", path.display())))?;
+            // The OBJ meshes it read are part of the cache key (an edit in place reruns).
+            for f in parsed.files.iter().filter(|f| f.is_file()) {
+                ctx.declare_input_file(f)?;
+            }
+            parsed.scene
         }
         _ => {
             return Err(NodeError::msg(format!(
@@ -245,6 +249,12 @@ fn run_read_scene(ctx: &mut Context<'_>) -> Result<(), NodeError> {
             )))
         }
     };
+    if let Some(spec) = &scene.dome {
+        let image = dir.join(&spec.image);
+        if image.is_file() && ext == "scn" {
+            ctx.declare_input_file(&image)?;
+        }
+    }
     let dome = load_dome(&scene, dir)?;
     ctx.output("scene", SceneArt { scene, dome });
     Ok(())
