@@ -2,6 +2,7 @@
 //! nothing algorithmic lives here.
 
 mod bench;
+mod interrupt;
 mod progress;
 mod report;
 
@@ -182,6 +183,7 @@ fn parse_size(s: &str) -> Result<u64, String> {
 /// Exit codes: 0 success, 1 a node failed, 2 the graph or the command line is wrong.
 const EXIT_FAILED: u8 = 1;
 const EXIT_INVALID: u8 = 2;
+const EXIT_INTERRUPTED: u8 = 130;
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
@@ -256,15 +258,20 @@ fn dispatch(cli: Cli, registry: &Registry) -> Result<u8, String> {
                 Ok(g) => g,
                 Err(code) => return Ok(code),
             };
+            let interrupted = interrupt::install();
             let opts = RunOptions {
                 jobs,
                 cache_dir: cache_dir(&graph.graph, &cache),
                 force,
-                cancel: None,
+                cancel: Some(interrupted.clone()),
             };
             let bars = progress::Bars::new(&g, quiet || json);
             let rep = exec::run(&g, registry, &opts, &bars).map_err(|e| e.to_string())?;
             bars.finish();
+            if interrupted.load(std::sync::atomic::Ordering::SeqCst) {
+                eprintln!("interrupted: finished nodes are cached, the rest will run next time");
+                return Ok(EXIT_INTERRUPTED);
+            }
             if json {
                 println!(
                     "{}",

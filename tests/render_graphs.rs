@@ -74,3 +74,57 @@ fn spheres_dome_graph_renders_then_is_cached() {
     let scene = nodes.iter().find(|n| n["id"] == "scene").unwrap();
     assert_eq!(scene["status"], "ran", "{nodes:?}");
 }
+
+/// Ctrl-C (SIGINT) during a long render: the run stops within seconds with exit code 130, the
+/// render is not cached (the next run renders it again), and no output exists under its name.
+#[test]
+fn sigint_cancels_a_long_render_cleanly() {
+    let tmp = tempfile::tempdir().unwrap();
+    let g = tmp.path().join("graphs");
+    copy_dir(&Path::new(env!("CARGO_MANIFEST_DIR")).join("graphs"), &g);
+    let args = [
+        "run",
+        "--json",
+        "spheres_dome.yaml",
+        "--set",
+        "render.spp=100000",
+    ];
+    let child = Command::new(env!("CARGO_BIN_EXE_vfxgraph"))
+        .current_dir(&g)
+        .args(args)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Let the scene load and the render start.
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    let sent = std::time::Instant::now();
+    // SAFETY: signalling our own child process.
+    unsafe {
+        libc::kill(child.id() as libc::pid_t, libc::SIGINT);
+    }
+    let out = child.wait_with_output().unwrap();
+    let waited = sent.elapsed();
+    assert_eq!(
+        out.status.code(),
+        Some(130),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(waited.as_secs() < 20, "stopped after {waited:?}");
+    assert!(!g.join("out/spheres_dome.exr").exists());
+    // The next run (small) renders: nothing of the cancelled render was cached.
+    let nodes = run(
+        &g,
+        &[
+            "--set",
+            "render.spp=1",
+            "--set",
+            "render.width=32",
+            "--set",
+            "render.height=18",
+        ],
+    );
+    let render = nodes.iter().find(|n| n["id"] == "render").unwrap();
+    assert_eq!(render["status"], "ran", "{nodes:?}");
+}

@@ -157,6 +157,10 @@ pub fn render(
             let mut bad = 0u64;
             for y in y0..y1 {
                 for x in x0..x1 {
+                    // Per pixel too: at high spp one tile can take seconds.
+                    if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+                        return None;
+                    }
                     let mut s = PixelSampler::new(settings.seed, (y * w + x) as u64);
                     let (mut sum, mut sq) = (Rgb::BLACK, Rgb::BLACK);
                     for _ in 0..spp {
