@@ -9,6 +9,7 @@
 pub mod artifacts;
 pub mod bundle;
 pub mod calibration;
+pub mod export;
 pub mod hdr;
 pub mod image_io;
 pub mod image_ops;
@@ -51,6 +52,7 @@ pub fn registry() -> Registry {
     tracking::register(&mut r);
     // After `tracking`, which registers the `tracks` artifact.
     bundle::register(&mut r);
+    export::register(&mut r);
     hdr::register(&mut r);
     render::register(&mut r);
     r
