@@ -101,6 +101,18 @@ pub fn register(r: &mut Registry) {
             "the solve's world axis that points up (blender, usd, nuke); -y for a level first camera",
         ))
         .param(ParamSpec::optional(
+            "width",
+            ParamType::Int { min: 0, max: 1 << 20 },
+            ParamValue::Int(0),
+            "image width when K does not carry it and no plate is connected (0: from K or plate)",
+        ))
+        .param(ParamSpec::optional(
+            "height",
+            ParamType::Int { min: 0, max: 1 << 20 },
+            ParamValue::Int(0),
+            "image height, as `width`",
+        ))
+        .param(ParamSpec::optional(
             "image_names",
             ParamType::Str,
             ParamValue::Str(String::new()),
@@ -183,13 +195,20 @@ fn run_export(ctx: &mut Context<'_>) -> Result<(), NodeError> {
             .map(|(f, i)| (f, &i.0))
             .collect(),
     };
-    if let Some((_, first)) = plate.first() {
-        let (w, h) = (first.width as u32, first.height as u32);
+    let (pw, ph) = (p.i64("width") as u32, p.i64("height") as u32);
+    let given = if let Some((_, first)) = plate.first() {
+        Some((first.width as u32, first.height as u32, "the plate"))
+    } else if pw > 0 && ph > 0 {
+        Some((pw, ph, "the width/height params"))
+    } else {
+        None
+    };
+    if let Some((w, h, what)) = given {
         match (intrinsics.width, intrinsics.height) {
             (None, None) => intrinsics = intrinsics.with_size(w, h),
             (Some(kw), Some(kh)) if (kw, kh) != (w, h) => {
                 return Err(NodeError::msg(format!(
-                    "K is for {kw}×{kh} images but the plate is {w}×{h}"
+                    "K is for {kw}×{kh} images but {what} says {w}×{h}"
                 )))
             }
             _ => {}

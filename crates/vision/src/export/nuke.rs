@@ -94,11 +94,11 @@ pub fn filmback_note(shot: &Shot, o: &SceneOptions) -> Result<String> {
          principal point (px)  {cx}, {cy}   (origin at the top-left corner, y down)\n\
          win_translate         {wu}, {wv}   (principal point offset in half-apertures; 0, 0 when centred)\n\
          \n\
-         World: Y up, 1 unit = {scale} solve units; frame = {start} + solve frame; {fps} fps.\n",
+         World: Y up; 1 solve unit = {scale} scene units; frame = {start} + solve frame; {fps} fps.\n",
         pa = k.f2 / k.f1,
         wu = 2.0 * (cx - wf / 2.0) / wf,
-        wv = -2.0 * (cy - hf / 2.0) / hf,
-        scale = 1.0 / o.scale,
+        wv = -2.0 * (cy - hf / 2.0) / hf + 0.0,
+        scale = o.scale,
         start = o.start_frame,
         fps = o.fps,
     ))
