@@ -448,6 +448,83 @@ mod tests {
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
+    /// A plate sequence gives the image size (K has none) and the points' colours; the book's
+    /// cameras format imports with the K given on the input.
+    #[test]
+    fn plate_colours_points_and_book_format_imports() {
+        let dir =
+            std::env::temp_dir().join(format!("vfxgraph-export-plate-{}", std::process::id()));
+        let k = Intrinsics::new(500.0, 500.0, 319.5, 239.5);
+        let plate: Vec<(i64, Value)> = path()
+            .frames
+            .iter()
+            .map(|f| {
+                let img = Image::from_fn(640, 480, 3, |_, _, c| [0.5, 0.25, 0.0][c]);
+                (f.frame as i64, Value::new(ImageArt(img)))
+            })
+            .collect();
+        let mut ctx = run(
+            "export_cameras",
+            &[
+                ("format", ParamValue::Str("ply".into())),
+                ("path", ParamValue::Str("p.ply".into())),
+            ],
+            vec![
+                (
+                    "cameras",
+                    InputValue::One(Value::new(CameraPathArt(path()))),
+                ),
+                (
+                    "intrinsics",
+                    InputValue::One(Value::new(IntrinsicsArt(k.clone()))),
+                ),
+                (
+                    "points",
+                    InputValue::One(Value::new(PointCloudArt(cloud()))),
+                ),
+                ("plate", InputValue::Sequence(plate)),
+            ],
+            &dir,
+        )
+        .unwrap();
+        let rep = ctx.take_output::<ReportArt>("report").unwrap().0;
+        assert_eq!(
+            (rep["width"].as_u64(), rep["height"].as_u64()),
+            (Some(640), Some(480))
+        );
+        assert_eq!(rep["coloured"], true);
+        let text = std::fs::read_to_string(dir.join("p.ply")).unwrap();
+        let want = format!(
+            " {} {} 0 ",
+            vfxgraph_imaging::color::linear_to_srgb8(0.5),
+            vfxgraph_imaging::color::linear_to_srgb8(0.25)
+        );
+        let body = text.split("end_header\n").nth(1).unwrap();
+        assert_eq!(body.lines().count(), 20);
+        assert!(body.lines().all(|l| l.contains(&want)), "{body}");
+
+        formats::write_cameras(&dir.join("book.txt"), &path()).unwrap();
+        let mut ctx = run(
+            "import_cameras",
+            &[
+                ("format", ParamValue::Str("book".into())),
+                ("path", ParamValue::Str("book.txt".into())),
+            ],
+            vec![(
+                "intrinsics",
+                InputValue::One(Value::new(IntrinsicsArt(k.clone()))),
+            )],
+            &dir,
+        )
+        .unwrap();
+        assert_eq!(
+            ctx.take_output::<CameraPathArt>("cameras").unwrap().0,
+            path()
+        );
+        assert_eq!(ctx.take_output::<IntrinsicsArt>("intrinsics").unwrap().0, k);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
     #[test]
     fn bad_input_gives_clear_errors() {
         let dir = std::env::temp_dir().join(format!("vfxgraph-export-bad-{}", std::process::id()));
