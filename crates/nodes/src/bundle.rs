@@ -103,9 +103,15 @@ pub fn register(r: &mut Registry) {
     r.register_node(FnNode::new(
         NodeSpec::new(
             "read_cameras",
-            "Reads a camera path: the book's cameras file (`Frame i`, R rows, t) or its JSON form.",
+            "Reads a camera path: the book's cameras file (`Frame i`, R rows, t) or its JSON form. \
+             With `intrinsics` connected, the path carries that K (the book's file has none).",
         )
         .mode(Mode::Once)
+        .input(PortSpec::optional(PortSpec::one(
+            "intrinsics",
+            IntrinsicsArt::NAME,
+            "K to attach to the path",
+        )))
         .param(ParamSpec::required(
             "path",
             ParamType::Path(PathRole::Input),
@@ -117,7 +123,10 @@ pub fn register(r: &mut Registry) {
             "one [R|t] per frame",
         )),
         |ctx| {
-            let path = formats::read_cameras(&ctx.path("path"))?;
+            let mut path = formats::read_cameras(&ctx.path("path"))?;
+            if let Some(k) = ctx.input_opt::<IntrinsicsArt>("intrinsics")? {
+                path.intrinsics = Some(k.0.clone());
+            }
             ctx.output("cameras", CameraPathArt(path));
             Ok(())
         },
@@ -185,6 +194,7 @@ mod tests {
                     pose: p.clone(),
                 })
                 .collect(),
+            intrinsics: None,
         };
         let cloud = PointCloud {
             points: world

@@ -116,6 +116,12 @@ pub fn adjust_sequence(
         },
     };
     let report = solve(&mut problem, options)?;
+    let [f, u0, v0] = problem.intrinsics[0].params;
+    let mut k_out = k.clone();
+    k_out.f2 = f * k.f2 / k.f1;
+    k_out.f1 = f;
+    k_out.u0 = u0;
+    k_out.v0 = v0;
     let out_path = CameraPath {
         frames: path
             .frames
@@ -129,6 +135,7 @@ pub fn adjust_sequence(
                 },
             })
             .collect(),
+        intrinsics: Some(k_out.clone()),
     };
     let out_cloud = PointCloud {
         points: problem
@@ -139,12 +146,6 @@ pub fn adjust_sequence(
         track_ids: cloud.track_ids.clone(),
         errors: report.point_rms.clone(),
     };
-    let [f, u0, v0] = problem.intrinsics[0].params;
-    let mut k_out = k.clone();
-    k_out.f2 = f * k.f2 / k.f1;
-    k_out.f1 = f;
-    k_out.u0 = u0;
-    k_out.v0 = v0;
     Ok(AdjustedSequence {
         path: out_path,
         cloud: out_cloud,
@@ -226,6 +227,7 @@ mod tests {
                     },
                 })
                 .collect(),
+            intrinsics: None,
         };
         let cloud = PointCloud {
             points: world

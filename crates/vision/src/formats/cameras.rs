@@ -26,6 +26,10 @@ pub struct FramePose {
 pub struct CameraPath {
     /// One pose per frame, in file order.
     pub frames: Vec<FramePose>,
+    /// The intrinsics K shared by every frame, when known (the book's cameras file does not carry
+    /// them: it is paired with a `g7cam.txt`). JSON: `"intrinsics"`, omitted when unknown.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub intrinsics: Option<crate::camera::Intrinsics>,
 }
 
 /// Parse a cameras file.
@@ -67,7 +71,10 @@ pub fn parse_cameras(text: &str, file: &str) -> Result<CameraPath> {
         });
         i += 14;
     }
-    Ok(CameraPath { frames })
+    Ok(CameraPath {
+        frames,
+        intrinsics: None,
+    })
 }
 
 /// Format a cameras file as the book writes it.
@@ -118,6 +125,7 @@ mod tests {
                     ),
                 })
                 .collect(),
+            intrinsics: None,
         };
         let text = format_cameras(&cams);
         assert!(text.starts_with("Frame 0\n"));

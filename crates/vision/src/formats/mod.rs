@@ -146,6 +146,7 @@ mod tests {
                 frame: 3,
                 pose: Pose::identity(),
             }],
+            intrinsics: None,
         };
         let marked = MarkedPoints {
             frames: vec![MarkedFrame {
