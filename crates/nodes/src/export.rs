@@ -41,11 +41,15 @@ pub fn register(r: &mut Registry) {
         )
         .mode(Mode::Once)
         .input(PortSpec::one("cameras", CameraPathArt::NAME, "the solved cameras"))
-        .input(PortSpec::one(
-            "intrinsics",
-            IntrinsicsArt::NAME,
-            "K shared by every frame (with the image size, or connect the plate)",
-        ))
+        .input(
+            PortSpec::one(
+                "intrinsics",
+                IntrinsicsArt::NAME,
+                "K shared by every frame, when the camera path does not carry it (with the image \
+                 size, or connect the plate or set width/height)",
+            )
+            .optional(),
+        )
         .input(PortSpec::one("points", PointCloudArt::NAME, "the solved points").optional())
         .input(
             PortSpec::one(
@@ -178,8 +182,19 @@ fn run_export(ctx: &mut Context<'_>) -> Result<(), NodeError> {
         up: UpAxis::parse(p.str("up_axis"))
             .ok_or_else(|| NodeError::msg(format!("unknown up axis `{}`", p.str("up_axis"))))?,
     };
-    let mut intrinsics = ctx.input::<IntrinsicsArt>("intrinsics")?.0.clone();
     let path = ctx.input::<CameraPathArt>("cameras")?.0.clone();
+    let mut intrinsics = match (
+        ctx.input_opt::<IntrinsicsArt>("intrinsics")?,
+        &path.intrinsics,
+    ) {
+        (Some(k), _) => k.0.clone(),
+        (None, Some(k)) => k.clone(),
+        (None, None) => {
+            return Err(NodeError::msg(
+                "no K: the camera path carries none, so connect `intrinsics`",
+            ))
+        }
+    };
     let cloud: Option<PointCloud> = ctx
         .input_opt::<PointCloudArt>("points")?
         .map(|c| c.0.clone());
@@ -307,7 +322,9 @@ fn run_import(ctx: &mut Context<'_>) -> Result<(), NodeError> {
                 })?
                 .0
                 .clone();
-            (formats::read_cameras(&path)?, k, PointCloud::default())
+            let mut cams = formats::read_cameras(&path)?;
+            cams.intrinsics = Some(k.clone());
+            (cams, k, PointCloud::default())
         }
     };
     ctx.output("cameras", CameraPathArt(cameras));
@@ -341,6 +358,7 @@ mod tests {
                     }
                 })
                 .collect(),
+            intrinsics: None,
         }
     }
 
@@ -517,10 +535,9 @@ mod tests {
             &dir,
         )
         .unwrap();
-        assert_eq!(
-            ctx.take_output::<CameraPathArt>("cameras").unwrap().0,
-            path()
-        );
+        let back = ctx.take_output::<CameraPathArt>("cameras").unwrap().0;
+        assert_eq!(back.frames, path().frames);
+        assert_eq!(back.intrinsics.as_ref(), Some(&k));
         assert_eq!(ctx.take_output::<IntrinsicsArt>("intrinsics").unwrap().0, k);
         std::fs::remove_dir_all(&dir).unwrap();
     }
@@ -550,6 +567,21 @@ mod tests {
         .err()
         .unwrap();
         assert!(e.to_string().contains("image size"), "{e}");
+        let e = run(
+            "export_cameras",
+            &[
+                ("format", ParamValue::Str("json".into())),
+                ("path", ParamValue::Str("a.json".into())),
+            ],
+            vec![(
+                "cameras",
+                InputValue::One(Value::new(CameraPathArt(path()))),
+            )],
+            &dir,
+        )
+        .err()
+        .unwrap();
+        assert!(e.to_string().contains("no K"), "{e}");
         let k = Intrinsics::new(1000.0, 1000.0, 320.0, 240.0).with_size(640, 480);
         let e = run(
             "export_cameras",

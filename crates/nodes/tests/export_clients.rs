@@ -94,7 +94,13 @@ fn shot(k: Intrinsics) -> Shot {
         })
         .collect();
     let n = points.len();
-    let mut s = Shot::new(k, CameraPath { frames });
+    let mut s = Shot::new(
+        k,
+        CameraPath {
+            frames,
+            intrinsics: None,
+        },
+    );
     s.cloud = Some(PointCloud {
         points,
         track_ids: (0..n as u64).collect(),
@@ -279,6 +285,7 @@ fn regenerate_book_standin() {
                     }
                 })
                 .collect(),
+            intrinsics: None,
         },
     );
     let mut points = Vec::new();

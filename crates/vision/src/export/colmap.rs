@@ -419,8 +419,11 @@ pub fn parse(cameras: (&str, &str), images: (&str, &str), points3d: (&str, &str)
         cloud.errors.push(if e < 0.0 { f64::NAN } else { e });
     }
     Ok(Model {
+        path: CameraPath {
+            frames,
+            intrinsics: Some(intrinsics.clone()),
+        },
         intrinsics,
-        path: CameraPath { frames },
         names,
         cloud,
     })

@@ -464,7 +464,10 @@ pub(crate) mod test_shot {
         let n = points.len();
         Shot {
             intrinsics: k,
-            path: CameraPath { frames },
+            path: CameraPath {
+                frames,
+                intrinsics: None,
+            },
             cloud: Some(PointCloud {
                 points,
                 track_ids: (0..n as u64).map(|i| 500 + i).collect(),
