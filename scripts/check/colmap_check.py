@@ -48,7 +48,21 @@ def main():
             p = img.project_point(xyz)
             if p is not None:
                 cmp.add(ours, (p[0] - 0.5, p[1] - 0.5), (fr["frame"], j, "project_point"))
-    # Tracks: every observation of a point is listed both ways.
+    # Tracks: every observation of a point is listed both ways, and lies where the point
+    # projects (the test's observations are projections rounded to 1/64 px).
+    n_obs, worst_obs = 0, 0.0
+    for pid, p in rec.points3D.items():
+        for el in p.track.elements:
+            img = rec.images[el.image_id]
+            uv = img.project_point(p.xyz)
+            xy = img.points2D[el.point2D_idx].xy
+            worst_obs = max(worst_obs, float(np.hypot(*(np.asarray(uv) - xy))))
+            n_obs += 1
+    bound = 0.5 / 64 * 2 ** 0.5 + 1e-9
+    print("tracks: %d observations, max distance to the projection %.3e px (bound %.3e) -> %s"
+          % (n_obs, worst_obs, bound, "OK" if worst_obs <= bound else "FAIL"))
+    if worst_obs > bound:
+        fail("an observation is %.3e px from its point's projection" % worst_obs)
     for pid, p in rec.points3D.items():
         for el in p.track.elements:
             img = rec.images[el.image_id]

@@ -15,6 +15,7 @@ use vfxgraph_nodes::export::export;
 use vfxgraph_vision::camera::{Camera, Intrinsics, Pose};
 use vfxgraph_vision::export::{colmap, SceneOptions, Shot, UpAxis};
 use vfxgraph_vision::formats::{CameraPath, FramePose};
+use vfxgraph_vision::klt::{Track, Tracks};
 use vfxgraph_vision::points::PointCloud;
 use vfxgraph_vision::rotation::axis_angle_to_r;
 
@@ -101,6 +102,45 @@ fn shot(k: Intrinsics) -> Shot {
             intrinsics: None,
         },
     );
+    // Tracks: each point observed (its projection, rounded to 1/64 px like a tracker's output)
+    // from its first frame inside the image until it leaves it.
+    let mut tracks = Vec::new();
+    for (j, p) in points.iter().enumerate() {
+        let p = Point3::new(p[0], p[1], p[2]);
+        let mut run: Vec<[f64; 2]> = Vec::new();
+        let mut first = None;
+        for (fi, f) in s.path.frames.iter().enumerate() {
+            let cam = Camera {
+                intrinsics: s.intrinsics.clone(),
+                pose: f.pose.clone(),
+            };
+            let inside = cam.depth(&p) > 0.0
+                && cam
+                    .project(&p)
+                    .is_ok_and(|x| x.x >= 0.0 && x.y >= 0.0 && x.x <= 1279.0 && x.y <= 719.0);
+            if inside {
+                let x = cam.project(&p).unwrap();
+                first.get_or_insert(fi);
+                run.push([(x.x * 64.0).round() / 64.0, (x.y * 64.0).round() / 64.0]);
+            } else if first.is_some() {
+                break;
+            }
+        }
+        if let Some(first) = first {
+            tracks.push(Track {
+                id: j as u64,
+                slot: j,
+                first,
+                points: run,
+                lost: None,
+            });
+        }
+    }
+    s.tracks = Some(Tracks {
+        frames: s.path.frames.iter().map(|f| f.frame as i64).collect(),
+        slots: n,
+        tracks,
+    });
     s.cloud = Some(PointCloud {
         points,
         track_ids: (0..n as u64).collect(),

@@ -92,4 +92,60 @@ mod tests {
             assert!(fj["rms_px"].is_null());
         }
     }
+
+    /// With tracks, each frame's solve error is the RMS distance between the tracked positions
+    /// and the projections: exact tracks give 0, a track 3-4-5 px off in one frame gives that
+    /// frame sqrt(25 / n).
+    #[test]
+    fn solve_error_per_frame_from_tracks() {
+        use crate::klt::{Track, Tracks};
+        let mut s = shot();
+        let cloud = s.cloud.clone().unwrap();
+        let frames: Vec<i64> = s.path.frames.iter().map(|f| f.frame as i64).collect();
+        let tracks: Vec<Track> = cloud
+            .points
+            .iter()
+            .zip(&cloud.track_ids)
+            .enumerate()
+            .map(|(slot, (p, id))| Track {
+                id: *id,
+                slot,
+                first: 0,
+                points: s
+                    .path
+                    .frames
+                    .iter()
+                    .map(|f| {
+                        let cam = crate::Camera {
+                            intrinsics: s.intrinsics.clone(),
+                            pose: f.pose.clone(),
+                        };
+                        let x = cam.project(&Point3::new(p[0], p[1], p[2])).unwrap();
+                        [x.x, x.y]
+                    })
+                    .collect(),
+                lost: None,
+            })
+            .collect();
+        let mut t = Tracks {
+            frames,
+            slots: tracks.len(),
+            tracks,
+        };
+        t.tracks[7].points[2][0] += 3.0;
+        t.tracks[7].points[2][1] += 4.0;
+        let n = t.tracks.len();
+        s.tracks = Some(t);
+        let v = to_value(&s, 24.0).unwrap();
+        for (i, fj) in v["frames"].as_array().unwrap().iter().enumerate() {
+            assert_eq!(fj["observations"], n);
+            let rms = fj["rms_px"].as_f64().unwrap();
+            let want = if i == 2 {
+                (25.0 / n as f64).sqrt()
+            } else {
+                0.0
+            };
+            assert!((rms - want).abs() < 1e-9, "frame {i}: {rms} vs {want}");
+        }
+    }
 }
