@@ -13,7 +13,7 @@
 
 use std::fmt::Write as _;
 
-use super::{continuous_quaternions, SceneOptions, Shot, TargetUp, FILM_BACK_MM};
+use super::{continuous_quaternions, SceneOptions, Shot, TargetUp, FILM_BACK_MM, N};
 use crate::error::Result;
 
 /// The lens and film parameters of the Blender camera for a shot (see the module doc).
@@ -112,13 +112,13 @@ CLIP = ({}, {})
             s,
             "    ({}, ({}, {}, {}), ({}, {}, {}, {})),",
             o.target_frame(f.frame),
-            m[(0, 3)],
-            m[(1, 3)],
-            m[(2, 3)],
-            q[0],
-            q[1],
-            q[2],
-            q[3]
+            N(m[(0, 3)]),
+            N(m[(1, 3)]),
+            N(m[(2, 3)]),
+            N(q[0]),
+            N(q[1]),
+            N(q[2]),
+            N(q[3])
         );
     }
     s.push_str("]\nPOINTS = [\n");

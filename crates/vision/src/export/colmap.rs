@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::Vector3;
 
-use super::{quaternion_wxyz, rotation_from_wxyz, Shot};
+use super::{quaternion_wxyz, rotation_from_wxyz, Shot, N};
 use crate::camera::{Intrinsics, Pose};
 use crate::error::{Result, VisionError};
 use crate::formats::{data_lines, number, parse_error, read_text, CameraPath, FramePose};
@@ -126,13 +126,13 @@ pub fn format(shot: &Shot) -> Result<TextModel> {
             images,
             "{} {} {} {} {} {} {} {} 1 {name}",
             img + 1,
-            q[0],
-            q[1],
-            q[2],
-            q[3],
-            t.x,
-            t.y,
-            t.z
+            N(q[0]),
+            N(q[1]),
+            N(q[2]),
+            N(q[3]),
+            N(t.x),
+            N(t.y),
+            N(t.z)
         );
         let obs: Vec<String> = per_image[img]
             .iter()

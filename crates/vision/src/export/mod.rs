@@ -416,6 +416,22 @@ pub fn format_frame(pattern: &str, frame: i64) -> String {
     out
 }
 
+/// A number as the exporters write it: the shortest text that reads back as the same f64, in
+/// scientific notation when tiny or huge (so float noise like 1.3e-23 stays short).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct N(pub f64);
+
+impl std::fmt::Display for N {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let a = self.0.abs();
+        if a != 0.0 && (a < 1e-4 || a >= 1e15) {
+            write!(f, "{:e}", self.0)
+        } else {
+            write!(f, "{}", self.0)
+        }
+    }
+}
+
 /// Quaternions (w, x, y, z) of successive rotations with signs chosen so that neighbours have
 /// a positive dot product (interpolation between keys takes the short way).
 pub(crate) fn continuous_quaternions(rs: &[Matrix3<f64>]) -> Vec<[f64; 4]> {
@@ -552,6 +568,22 @@ mod tests {
             .windows(2)
             .all(|w| w[0].iter().zip(&w[1]).map(|(a, b)| a * b).sum::<f64>() > 0.0));
         assert!(rotation_from_wxyz([0.0; 4]).is_err());
+    }
+
+    #[test]
+    fn numbers_read_back_exactly() {
+        for v in [
+            1.3234892447826845e-23,
+            -0.5,
+            0.0,
+            1228.4022637363655,
+            2e20,
+            -7.5e-5,
+        ] {
+            let s = N(v).to_string();
+            assert_eq!(s.parse::<f64>().unwrap(), v, "{s}");
+            assert!(s.len() < 25, "{s}");
+        }
     }
 
     #[test]

@@ -11,7 +11,7 @@ use std::fmt::Write as _;
 
 use nalgebra::Matrix3;
 
-use super::{SceneOptions, Shot, TargetUp, FILM_BACK_MM};
+use super::{SceneOptions, Shot, TargetUp, FILM_BACK_MM, N};
 use crate::error::Result;
 
 /// The angles (x, y, z) in radians of a rotation M = Ry(y) · Rx(x) · Rz(z).
@@ -60,13 +60,13 @@ pub fn chan(shot: &Shot, o: &SceneOptions) -> Result<String> {
             s,
             "{} {} {} {} {} {} {} {}",
             o.target_frame(f.frame),
-            m[(0, 3)],
-            m[(1, 3)],
-            m[(2, 3)],
-            a[0],
-            a[1],
-            a[2],
-            vfov
+            N(m[(0, 3)]),
+            N(m[(1, 3)]),
+            N(m[(2, 3)]),
+            N(a[0]),
+            N(a[1]),
+            N(a[2]),
+            N(vfov)
         );
     }
     Ok(s)

@@ -12,7 +12,7 @@
 
 use std::fmt::Write as _;
 
-use super::{SceneOptions, Shot, TargetUp, FILM_BACK_MM};
+use super::{SceneOptions, Shot, TargetUp, FILM_BACK_MM, N};
 use crate::error::Result;
 
 /// The lens parameters of the USD camera (tenths of a scene unit).
@@ -99,10 +99,10 @@ def Xform "World"
         let row = |c: usize| {
             format!(
                 "({}, {}, {}, {})",
-                m[(0, c)],
-                m[(1, c)],
-                m[(2, c)],
-                m[(3, c)]
+                N(m[(0, c)]),
+                N(m[(1, c)]),
+                N(m[(2, c)]),
+                N(m[(3, c)])
             )
         };
         let _ = writeln!(
