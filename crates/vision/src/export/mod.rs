@@ -424,7 +424,7 @@ pub(crate) struct N(pub f64);
 impl std::fmt::Display for N {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let a = self.0.abs();
-        if a != 0.0 && (a < 1e-4 || a >= 1e15) {
+        if a != 0.0 && !(1e-4..1e15).contains(&a) {
             write!(f, "{:e}", self.0)
         } else {
             write!(f, "{}", self.0)
