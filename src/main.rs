@@ -260,6 +260,7 @@ fn dispatch(cli: Cli, registry: &Registry) -> Result<u8, String> {
                 jobs,
                 cache_dir: cache_dir(&graph.graph, &cache),
                 force,
+                cancel: None,
             };
             let bars = progress::Bars::new(&g, quiet || json);
             let rep = exec::run(&g, registry, &opts, &bars).map_err(|e| e.to_string())?;
@@ -310,6 +311,7 @@ fn dispatch(cli: Cli, registry: &Registry) -> Result<u8, String> {
                 jobs: None,
                 cache_dir: cache_dir(&graph.graph, &cache),
                 force,
+                cancel: None,
             };
             let p = exec::plan(&g, &opts).map_err(|e| e.to_string())?;
             if json {
@@ -344,6 +346,7 @@ fn dispatch(cli: Cli, registry: &Registry) -> Result<u8, String> {
                 jobs: None,
                 cache_dir: cache_dir(&graph.graph, &cache),
                 force: vec![],
+                cancel: None,
             };
             let p = exec::plan(&g, &opts).map_err(|e| e.to_string())?;
             print!("{}", report::dot(&g, &p));

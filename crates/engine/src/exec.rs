@@ -16,8 +16,8 @@
 use std::collections::{BTreeMap, HashMap};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::{Mutex, OnceLock};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex, OnceLock};
 use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
@@ -39,6 +39,10 @@ pub struct RunOptions {
     pub cache_dir: Option<PathBuf>,
     /// Node ids whose instances run even if cached.
     pub force: Vec<String>,
+    /// Raised by the caller (e.g. on Ctrl-C) to stop the run: instances not yet started are
+    /// skipped, running nodes see [`Context::cancelled`](crate::Context::cancelled) and may
+    /// stop early (a node that stops reports an error, so nothing partial is cached).
+    pub cancel: Option<Arc<AtomicBool>>,
 }
 
 /// What happened to an instance in a run.
@@ -625,6 +629,7 @@ struct State {
 
 struct Runner<'a> {
     c: Common<'a>,
+    cancel: Arc<AtomicBool>,
     registry: &'a Registry,
     state: Vec<State>,
     observer: &'a dyn Observer,
@@ -654,6 +659,7 @@ pub fn run(
         .collect();
     let runner = Runner {
         c,
+        cancel: opts.cancel.clone().unwrap_or_default(),
         registry,
         state,
         observer,
@@ -731,6 +737,18 @@ impl<'a> Runner<'a> {
     fn resolve(&self, i: usize) {
         let inst = &self.c.insts[i];
         let graph = self.c.graph;
+        if self.cancel.load(Ordering::Relaxed) {
+            self.finish(
+                i,
+                Done {
+                    status: Status::Skipped,
+                    reason: "run cancelled".into(),
+                    seconds: 0.0,
+                    digests: BTreeMap::new(),
+                },
+            );
+            return;
+        }
         // Skip if an input failed.
         if let Some(&j) = inst.upstream.iter().find(|&&j| {
             self.state[j]
@@ -878,6 +896,7 @@ impl<'a> Runner<'a> {
             inputs,
             seed: seed_for(graph.seed, &gn.id, inst.frame),
             progress: &progress,
+            cancel: &self.cancel,
             outputs: BTreeMap::new(),
         };
         let result = catch_unwind(AssertUnwindSafe(|| gn.node.run(&mut ctx)));

@@ -7,6 +7,7 @@
 use std::collections::BTreeMap;
 use std::fmt;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use crate::artifact::{ArtifactType, Value};
 use crate::param::{ParamSpec, ParamType, Params, PathRole};
@@ -214,6 +215,8 @@ pub enum InputValue {
     Sequence(Vec<(i64, Value)>),
 }
 
+static NEVER_CANCELLED: AtomicBool = AtomicBool::new(false);
+
 /// What a running node sees: its params, inputs, frame and seed; where it puts its outputs.
 pub struct Context<'a> {
     pub(crate) node_id: &'a str,
@@ -224,6 +227,7 @@ pub struct Context<'a> {
     pub(crate) inputs: BTreeMap<&'static str, InputValue>,
     pub(crate) seed: u64,
     pub(crate) progress: &'a (dyn Fn(f32) + Sync),
+    pub(crate) cancel: &'a AtomicBool,
     pub(crate) outputs: BTreeMap<&'static str, (Value, Vec<u8>)>,
 }
 
@@ -245,6 +249,7 @@ impl<'a> Context<'a> {
             inputs: inputs.into_iter().collect(),
             seed: 0,
             progress: &|_| {},
+            cancel: &NEVER_CANCELLED,
             outputs: BTreeMap::new(),
         }
     }
@@ -268,6 +273,17 @@ impl<'a> Context<'a> {
     /// PCG stream so results do not depend on scheduling.
     pub fn seed(&self) -> u64 {
         self.seed
+    }
+
+    /// True once the run was cancelled ([`RunOptions::cancel`](crate::RunOptions)): long work
+    /// should stop and return an error (nothing partial is cached).
+    pub fn cancelled(&self) -> bool {
+        self.cancel.load(Ordering::Relaxed)
+    }
+
+    /// The run's cancel flag, for algorithms that poll an `AtomicBool` themselves.
+    pub fn cancel_flag(&self) -> &AtomicBool {
+        self.cancel
     }
 
     /// Reports progress in [0, 1] for long work.

@@ -356,6 +356,7 @@ fn no_cache_runs_everything_and_writes_nothing() {
         jobs: Some(2),
         cache_dir: None,
         force: vec![],
+        cancel: None,
     };
     let r = exec::run(&g, &registry(), &o, &exec::Quiet).unwrap();
     assert!(r.nodes.iter().all(|n| n.status == Status::Ran));

@@ -1,37 +1,72 @@
-//! Rendering nodes (book ch. 9): `read_scene` reads the book's `.scn` scene language into a
-//! `scene` artifact; `render` path-traces it to a linear HDR image (write it with
-//! `write_image` to EXR/PFM, or `tonemap` + PNG).
+//! Rendering nodes (book ch. 9–10): `read_scene` reads the book's `.scn` scene language or a
+//! YAML scene (+ OBJ meshes) into a `scene` artifact, loading the dome image it names;
+//! `render` path-traces it to a linear HDR image (write it with `write_image` to EXR/PFM, or
+//! `tonemap` + PNG), optionally lit by a `dome` from the HDR nodes and seen by frame f's camera
+//! of a solved `camera_path`.
 
+use std::path::Path;
 use std::sync::Mutex;
 
+use nalgebra::Vector3;
+use vfxgraph_engine::artifact::codec::{put_bytes, put_u64, Reader};
 use vfxgraph_engine::artifact::{decode_json, encode_json};
 use vfxgraph_engine::{
     ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, ParamValue, PathRole,
     PortSpec, Registry,
 };
+use vfxgraph_render::dome::Dome;
+use vfxgraph_render::light::LightSampling;
 use vfxgraph_render::{
-    parse_scn, render, ConstantEnvironment, RenderSettings, Scene, Strategy, World,
+    parse_scn, parse_yaml_scene, render, Camera, ConstantEnvironment, Environment, RenderSettings,
+    Scene, Strategy, World,
 };
 
-use crate::artifacts::ImageArt;
+use crate::artifacts::{CameraPathArt, ImageArt, IntrinsicsArt};
+use crate::hdr::DomeArt;
 use crate::FnNode;
 
-/// A scene (`scene`): camera, objects, lights, dome, shadow catchers (book §9.13, §10).
-#[derive(Clone, Debug, PartialEq)]
-pub struct SceneArt(pub Scene);
+/// A scene (`scene`): camera, objects, lights, dome, shadow catchers (book §9.13, §10), with
+/// the dome image it names when that image could be read.
+#[derive(Clone, Debug)]
+pub struct SceneArt {
+    /// The scene model.
+    pub scene: Scene,
+    /// The loaded, oriented dome of `scene.dome` (`None` without a dome, or when its image was
+    /// not found: then `render` needs a `dome` input).
+    pub dome: Option<Dome>,
+}
 
 impl ArtifactType for SceneArt {
     const NAME: &'static str = "scene";
     const DOC: &'static str = "A scene to render: camera (K[R|t] and image size), objects \
-        (spheres, triangles) with materials (Lambert, mirror, normalized Blinn-Phong), \
-        polygonal area lights, background or HDR dome, shadow catchers (book ch. 9-10).";
+        (spheres, triangles; shadow catchers flagged) with materials (Lambert, mirror, \
+        normalized Blinn-Phong), polygonal area lights, background colour or HDR dome (with \
+        its image), book ch. 9-10.";
     fn encode(&self, out: &mut Vec<u8>) {
-        encode_json(&self.0, out)
+        let mut json = Vec::new();
+        encode_json(&self.scene, &mut json);
+        put_bytes(out, &json);
+        match &self.dome {
+            None => put_u64(out, 0),
+            Some(d) => {
+                put_u64(out, 1);
+                let mut b = Vec::new();
+                DomeArt(d.clone()).encode(&mut b);
+                put_bytes(out, &b);
+            }
+        }
     }
     fn decode(bytes: &[u8]) -> Result<Self, String> {
-        let scene: Scene = decode_json(bytes)?;
+        let mut r = Reader::new(bytes);
+        let scene: Scene = decode_json(r.bytes()?)?;
         scene.camera.validate().map_err(|e| e.to_string())?;
-        Ok(SceneArt(scene))
+        let dome = match r.u64()? {
+            0 => None,
+            1 => Some(DomeArt::decode(r.bytes()?)?.0),
+            t => return Err(format!("bad dome tag {t}")),
+        };
+        r.finish()?;
+        Ok(SceneArt { scene, dome })
     }
 }
 
@@ -41,17 +76,22 @@ pub fn register(r: &mut Registry) {
     r.register_node(FnNode::new(
         NodeSpec::new(
             "read_scene",
-            "Reads a scene file: the book's S3D `.scn` language (scene/hdrscene, view, primobj, \
-             polyobj, group, sphere, trilist, plastic, polylight, hdrdome, plshadow; book §9.13). \
-             Errors name file:line:column. Polylight colours are multiplied by π and kd·d_col is \
-             the diffuse albedo, so direct light matches the book's images (see the render \
-             crate's `scn` docs).",
+            "Reads a scene file, by extension: the book's S3D `.scn` language (scene/hdrscene, \
+             view, primobj, polyobj, group, sphere, trilist, plastic, polylight, hdrdome, \
+             plshadow; book §9.13), or a YAML scene (`.yaml`/`.yml`: camera look_at or K/R/t, \
+             spheres, quads, polygons, triangles, OBJ meshes with transforms, lambert/mirror/\
+             plastic/blinn_phong materials, area lights, dome image or colour, catchers; see \
+             the render crate's `yaml_scene` docs). Errors name file:line:column. Loads the \
+             dome image the scene names (relative to the scene file). Polylight colours of \
+             `.scn` are multiplied by π and kd·d_col is the diffuse albedo, so direct light \
+             matches the book's images. Only the scene file is hashed for the cache: after \
+             editing an OBJ or dome image in place, use --force (see README, known gaps).",
         )
         .mode(Mode::Once)
         .param(ParamSpec::required(
             "path",
             ParamType::Path(PathRole::Input),
-            "the .scn file, relative to the graph file",
+            "the .scn or .yaml scene file, relative to the graph file",
         ))
         .output(PortSpec::one("scene", SceneArt::NAME, "the scene")),
         run_read_scene,
@@ -59,10 +99,13 @@ pub fn register(r: &mut Registry) {
     r.register_node(FnNode::new(
         NodeSpec::new(
             "render",
-            "Path-traces a scene (book ch. 9): next-event estimation on the area lights with \
-             multiple importance sampling, Russian roulette, one random stream per pixel (same \
-             image for any thread count). Output: mean radiance per pixel (linear HDR) and the \
-             variance of that mean.",
+            "Path-traces a scene (book ch. 9): next-event estimation on the area lights and \
+             the dome with multiple importance sampling, Russian roulette, one random stream \
+             per pixel (same image for any thread count). Light: the `dome` input if \
+             connected, else the scene's dome, else its background colour. With `cameras` \
+             (per frame: set `per_frame: true`), frame f is seen by that path's [R|t] of frame \
+             f with the scene camera's K (or the `intrinsics` input's). Output: mean radiance \
+             per pixel (linear HDR) and the variance of that mean.",
         )
         .mode(Mode::Either)
         .seeded()
@@ -94,15 +137,54 @@ pub fn register(r: &mut Registry) {
             "width",
             ParamType::Int { min: 0, max: 65536 },
             ParamValue::Int(0),
-            "image width override (0 = the scene camera's; K is rescaled)",
+            "image width override (0 = the camera's; K is rescaled)",
         ))
         .param(ParamSpec::optional(
             "height",
             ParamType::Int { min: 0, max: 65536 },
             ParamValue::Int(0),
-            "image height override (0 = the scene camera's)",
+            "image height override (0 = the camera's)",
+        ))
+        .param(ParamSpec::optional(
+            "objects",
+            ParamType::Enum(&["all", "catchers_only"]),
+            ParamValue::Str("all".into()),
+            "`catchers_only` drops the synthetic objects, keeping shadow catchers, lights and \
+             dome (the empty-set render of differential rendering, book §10.10)",
+        ))
+        .param(ParamSpec::optional(
+            "light_sampling",
+            ParamType::Enum(&["area", "solid_angle"]),
+            ParamValue::Str("area".into()),
+            "how next-event estimation picks a point on a light triangle: uniformly by area \
+             (book §9.11) or by the solid angle it subtends (Arvo 1995; less noise from large, \
+             near lights)",
         ))
         .input(PortSpec::one("scene", SceneArt::NAME, "the scene"))
+        .input(
+            PortSpec::one(
+                "dome",
+                DomeArt::NAME,
+                "a light dome replacing the scene's dome or background",
+            )
+            .optional(),
+        )
+        .input(
+            PortSpec::one(
+                "cameras",
+                CameraPathArt::NAME,
+                "a solved camera path: frame f renders with that frame's [R|t]",
+            )
+            .optional(),
+        )
+        .input(
+            PortSpec::one(
+                "intrinsics",
+                IntrinsicsArt::NAME,
+                "K (and image size, if known) replacing the scene camera's",
+            )
+            .optional(),
+        )
         .output(PortSpec::one(
             "image",
             ImageArt::NAME,
@@ -117,6 +199,28 @@ pub fn register(r: &mut Registry) {
     ));
 }
 
+/// Loads and orients the dome image a scene names (relative to `dir`); `None` if the file does
+/// not exist (a `dome` input can provide it later).
+fn load_dome(scene: &Scene, dir: &Path) -> Result<Option<Dome>, NodeError> {
+    let Some(spec) = &scene.dome else {
+        return Ok(None);
+    };
+    let path = dir.join(&spec.image);
+    if !path.exists() {
+        return Ok(None);
+    }
+    let mut img = vfxgraph_imaging::io::read_image(&path)
+        .map_err(|e| NodeError::msg(format!("dome image {}: {e}", path.display())))?;
+    if spec.scale != 1.0 {
+        let k = spec.scale as f32;
+        img.data.iter_mut().for_each(|v| *v *= k);
+    }
+    let v = |p: vfxgraph_render::Vec3| Vector3::new(p.x, p.y, p.z);
+    let dome = Dome::new(&img, v(spec.orig), v(spec.south))
+        .map_err(|e| NodeError::msg(format!("dome image {}: {e}", path.display())))?;
+    Ok(Some(dome))
+}
+
 fn run_read_scene(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let path = ctx.path("path");
     let text = std::fs::read_to_string(&path)
@@ -126,34 +230,99 @@ fn run_read_scene(ctx: &mut Context<'_>) -> Result<(), NodeError> {
         .and_then(|e| e.to_str())
         .unwrap_or("")
         .to_ascii_lowercase();
+    let dir = path.parent().unwrap_or(Path::new("."));
     let scene = match ext.as_str() {
         "scn" => parse_scn(&text).map_err(|e| NodeError::msg(format!("{}:{e}", path.display())))?,
+        "yaml" | "yml" => {
+            parse_yaml_scene(&text, dir)
+                .map_err(|e| NodeError::msg(format!("{}:{e}", path.display())))?
+                .scene
+        }
         _ => {
             return Err(NodeError::msg(format!(
-                "{}: unknown scene format `.{ext}` (expected .scn)",
+                "{}: unknown scene format `.{ext}` (expected .scn, .yaml or .yml)",
                 path.display()
             )))
         }
     };
-    ctx.output("scene", SceneArt(scene));
+    let dome = load_dome(&scene, dir)?;
+    ctx.output("scene", SceneArt { scene, dome });
     Ok(())
 }
 
-fn run_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let scene = &ctx.input::<SceneArt>("scene")?.0;
-    if scene.dome.is_some() {
-        return Err(NodeError::msg(
-            "the scene has an hdrdome: dome lighting needs the dome module (not merged yet)",
-        ));
-    }
-    let p = ctx.params();
+/// The camera of this instance: the scene's, or frame f's pose of `cameras` with K from
+/// `intrinsics` or the scene camera (book §2.8), then the size override.
+fn instance_camera(ctx: &Context<'_>, scene: &Scene) -> Result<Camera, NodeError> {
     let mut camera = scene.camera.clone();
+    if let Some(k) = ctx.input_opt::<IntrinsicsArt>("intrinsics")? {
+        let k = &k.0;
+        camera.k = [[k.f1, k.s, k.u0], [0.0, k.f2, k.v0], [0.0, 0.0, 1.0]];
+        if let (Some(w), Some(h)) = (k.width, k.height) {
+            (camera.width, camera.height) = (w as usize, h as usize);
+        }
+    }
+    if let Some(path) = ctx.input_opt::<CameraPathArt>("cameras")? {
+        let Some(f) = ctx.frame() else {
+            return Err(NodeError::msg(
+                "the `cameras` input renders one frame per instance: set `per_frame: true` on \
+                 this render node",
+            ));
+        };
+        let frames = &path.0.frames;
+        let pose = frames.iter().find(|p| p.frame as i64 == f).ok_or_else(|| {
+            let range = match (frames.first(), frames.last()) {
+                (Some(a), Some(b)) => format!("frames {}–{}", a.frame, b.frame),
+                _ => "no frames".into(),
+            };
+            NodeError::msg(format!(
+                "the camera path has no camera for frame {f} (it has {range}, {} cameras)",
+                frames.len()
+            ))
+        })?;
+        let (r, t) = (&pose.pose.r, &pose.pose.t);
+        camera.r = [
+            [r[(0, 0)], r[(0, 1)], r[(0, 2)]],
+            [r[(1, 0)], r[(1, 1)], r[(1, 2)]],
+            [r[(2, 0)], r[(2, 1)], r[(2, 2)]],
+        ];
+        camera.t = [t.x, t.y, t.z];
+    }
+    camera
+        .validate()
+        .map_err(|e| NodeError::msg(format!("camera of this frame: {e}")))?;
+    let p = ctx.params();
     let (w, h) = (p.i64("width") as usize, p.i64("height") as usize);
     if w > 0 || h > 0 {
         let w = if w > 0 { w } else { camera.width };
         let h = if h > 0 { h } else { camera.height };
         camera = camera.resized(w, h);
     }
+    Ok(camera)
+}
+
+fn run_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+    let art = ctx.input::<SceneArt>("scene")?;
+    let input_dome = ctx.input_opt::<DomeArt>("dome")?.map(|d| &d.0);
+    let env: &dyn Environment;
+    let constant;
+    match (input_dome, &art.dome, &art.scene.dome) {
+        (Some(d), _, _) | (None, Some(d), _) => env = d,
+        (None, None, Some(spec)) => {
+            return Err(NodeError::msg(format!(
+                "the scene's dome image `{}` was not found when the scene was read: connect a \
+                 `dome` input (e.g. read_image → dome)",
+                spec.image
+            )))
+        }
+        (None, None, None) => {
+            constant = ConstantEnvironment {
+                radiance: art.scene.background,
+            };
+            env = &constant;
+        }
+    }
+    let camera = instance_camera(ctx, &art.scene)?;
+    let p = ctx.params();
     let settings = RenderSettings {
         spp: p.i64("spp") as u32,
         max_depth: p.i64("max_depth") as u32,
@@ -161,16 +330,22 @@ fn run_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
         strategy: Strategy::Mis,
         ..Default::default()
     };
-    let world = World::new(scene);
-    let env = ConstantEnvironment {
-        radiance: scene.background,
+    let sampling = if p.str("light_sampling") == "solid_angle" {
+        LightSampling::SolidAngle
+    } else {
+        LightSampling::Area
+    };
+    let world = if p.str("objects") == "catchers_only" {
+        World::with_light_sampling(&art.scene.without_synthetic_objects(), sampling)
+    } else {
+        World::with_light_sampling(&art.scene, sampling)
     };
     // The engine's progress callback is not `Sync`; serialize calls through a mutex.
     let out = {
         let progress = Mutex::new(|f: f32| ctx.progress(f));
         render(
             &world,
-            &env,
+            env,
             &camera,
             &settings,
             &|f| {
@@ -178,7 +353,7 @@ fn run_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
                     cb(f)
                 }
             },
-            None,
+            Some(ctx.cancel_flag()),
         )
         .map_err(|e| NodeError::msg(e.to_string()))?
     };
@@ -196,52 +371,221 @@ fn run_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::testing::spec;
-    use vfxgraph_engine::{InputValue, Params, Value};
+    use crate::testing::{params, spec};
+    use vfxgraph_engine::{InputValue, Value};
+    use vfxgraph_imaging::Image;
+    use vfxgraph_vision::formats::{CameraPath, FramePose};
+    use vfxgraph_vision::Pose;
 
     const SCN: &str = "scene{ camera = view{ from = {0,-4,1}, at = {0,0,0.5}, fov = 60, imgw = 32, imgh = 24 }
       polylight{ color = {3,3,3}, shape = trilist{ {{-1,-1,3},{1,-1,3},{1,1,3}} } }
       object = primobj{ material = plastic{ kd = .5, ks = .4, se = 30 }, shape = sphere{ center = {0,0,0.6}, radius = .6 } }
       object = polyobj{ material = plastic{ kd = .8 }, shape = trilist{ {{-5,-5,0},{5,-5,0},{5,5,0}}, {{-5,-5,0},{5,5,0},{-5,5,0}} } } }";
 
+    /// A white-furnace YAML scene: an albedo-1 sphere inside a dome whose image is constant.
+    const FURNACE: &str = "camera:\n  look_at: {from: [0, 0, 4], at: [0, 0, 0], fov: 40}\n  size: [12, 8]\nobjects:\n  - sphere: {center: [0, 0, 0], radius: 1}\n    material: {type: lambert, albedo: 1}\ndome: {image: sky.pfm, scale: 2}\n";
+
+    fn read(dir: &Path, name: &str) -> Result<SceneArt, NodeError> {
+        let rs = spec("read_scene");
+        let ps = params(&rs, &[("path", ParamValue::Str(name.into()))]);
+        let mut ctx = Context::for_test(&rs, &ps, dir, None, vec![]);
+        run_read_scene(&mut ctx)?;
+        Ok(ctx.take_output::<SceneArt>("scene").unwrap())
+    }
+
+    fn render_node(
+        scene: SceneArt,
+        frame: Option<i64>,
+        extra: Vec<(&'static str, InputValue)>,
+        set: &[(&str, ParamValue)],
+    ) -> Result<Image, NodeError> {
+        let sp = spec("render");
+        let mut set = set.to_vec();
+        if !set.iter().any(|(k, _)| *k == "spp") {
+            set.push(("spp", ParamValue::Int(8)));
+        }
+        let ps = params(&sp, &set);
+        let dir = std::env::temp_dir();
+        let mut inputs = vec![("scene", InputValue::One(Value::new(scene)))];
+        inputs.extend(extra);
+        let mut ctx = Context::for_test(&sp, &ps, &dir, frame, inputs);
+        run_render(&mut ctx)?;
+        Ok(ctx.take_output::<ImageArt>("image").unwrap().0)
+    }
+
+    fn encoded<T: ArtifactType>(v: &T) -> Vec<u8> {
+        let mut b = Vec::new();
+        v.encode(&mut b);
+        b
+    }
+
     #[test]
     fn read_then_render() {
         let dir = tempfile::tempdir().unwrap();
         std::fs::write(dir.path().join("s.scn"), SCN).unwrap();
-        let rs = spec("read_scene");
-        let params = Params::new([("path".to_string(), ParamValue::Str("s.scn".into()))].into());
-        let mut ctx = Context::for_test(&rs, &params, dir.path(), None, vec![]);
-        run_read_scene(&mut ctx).unwrap();
-        let scene = ctx.take_output::<SceneArt>("scene").unwrap();
+        let scene = read(dir.path(), "s.scn").unwrap();
         // Canonical round trip.
-        let mut bytes = Vec::new();
-        scene.encode(&mut bytes);
-        assert_eq!(SceneArt::decode(&bytes).unwrap(), scene);
+        let bytes = encoded(&scene);
+        assert_eq!(encoded(&SceneArt::decode(&bytes).unwrap()), bytes);
         assert!(SceneArt::decode(b"{}").is_err());
-
-        let sp = spec("render");
-        let params = Params::new(
-            [
-                ("spp".to_string(), ParamValue::Int(4)),
-                ("max_depth".to_string(), ParamValue::Int(3)),
-                ("seed".to_string(), ParamValue::Int(0)),
-                ("width".to_string(), ParamValue::Int(16)),
-                ("height".to_string(), ParamValue::Int(0)),
-            ]
-            .into(),
-        );
-        let mut ctx = Context::for_test(
-            &sp,
-            &params,
-            dir.path(),
+        let img = render_node(
+            scene,
             None,
-            vec![("scene", InputValue::One(Value::new(scene)))],
-        );
-        run_render(&mut ctx).unwrap();
-        let img = ctx.take_output::<ImageArt>("image").unwrap().0;
+            vec![],
+            &[
+                ("max_depth", ParamValue::Int(3)),
+                ("width", ParamValue::Int(16)),
+            ],
+        )
+        .unwrap();
         assert_eq!((img.width, img.height, img.channels), (16, 24, 3));
         assert!(img.data.iter().all(|v| v.is_finite()));
         assert!(img.data.iter().any(|&v| v > 0.0));
+    }
+
+    /// Mean of the image and the largest deviation from `want`.
+    fn spread(img: &Image, want: f32) -> (f32, f32) {
+        let mean = img.data.iter().sum::<f32>() / img.data.len() as f32;
+        let dev = img
+            .data
+            .iter()
+            .map(|v| (v - want).abs())
+            .fold(0.0, f32::max);
+        (mean, dev)
+    }
+
+    #[test]
+    fn yaml_scene_with_a_dome_image_is_a_white_furnace() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("f.yaml"), FURNACE).unwrap();
+        let sky = Image::from_fn(16, 8, 3, |_, _, _| 0.25);
+        vfxgraph_imaging::io::write_image(&dir.path().join("sky.pfm"), &sky).unwrap();
+        let scene = read(dir.path(), "f.yaml").unwrap();
+        assert!(scene.dome.is_some());
+        let bytes = encoded(&scene);
+        assert_eq!(encoded(&SceneArt::decode(&bytes).unwrap()), bytes);
+        // Dome radiance 0.25 × scale 2: every pixel sees 0.5 (sphere or dome).
+        let img = render_node(
+            scene.clone(),
+            None,
+            vec![],
+            &[("max_depth", ParamValue::Int(64))],
+        )
+        .unwrap();
+        let (mean, dev) = spread(&img, 0.5);
+        assert!((mean - 0.5).abs() < 0.01 && dev < 0.15, "{mean} {dev}");
+        // A `dome` input replaces the scene's dome.
+        let other = Dome::y_up(&Image::from_fn(8, 4, 3, |_, _, _| 0.125)).unwrap();
+        let img = render_node(
+            scene,
+            None,
+            vec![("dome", InputValue::One(Value::new(DomeArt(other))))],
+            &[("max_depth", ParamValue::Int(64))],
+        )
+        .unwrap();
+        let (mean, dev) = spread(&img, 0.125);
+        assert!((mean - 0.125).abs() < 0.003 && dev < 0.04, "{mean} {dev}");
+    }
+
+    #[test]
+    fn scn_hdrdome_lights_the_scene() {
+        // The book's hdrscene/hdrdome with a constant image: an albedo-1 sphere (kd = 1,
+        // d_col white) renders the dome's radiance everywhere.
+        let dir = tempfile::tempdir().unwrap();
+        let scn = "hdrscene{ hdrdome{ orig = {1, 0, 0}, south = {0, 0, 1}, hdrimg = \"sky.pfm\" }
+          camera = view{ from = {0,-4,0}, at = {0,0,0}, fov = 40, imgw = 12, imgh = 8 }
+          object = primobj{ material = plastic{ kd = 1 }, shape = sphere{ center = {0,0,0}, radius = 1 } } }";
+        std::fs::write(dir.path().join("d.scn"), scn).unwrap();
+        let sky = Image::from_fn(16, 8, 3, |_, _, _| 0.5);
+        vfxgraph_imaging::io::write_image(&dir.path().join("sky.pfm"), &sky).unwrap();
+        let scene = read(dir.path(), "d.scn").unwrap();
+        assert!(scene.dome.is_some());
+        let img = render_node(scene, None, vec![], &[("max_depth", ParamValue::Int(64))]).unwrap();
+        let (mean, dev) = spread(&img, 0.5);
+        assert!((mean - 0.5).abs() < 0.01 && dev < 0.15, "{mean} {dev}");
+    }
+
+    #[test]
+    fn a_dome_image_that_is_missing_needs_a_dome_input() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("f.yaml"), FURNACE).unwrap();
+        let scene = read(dir.path(), "f.yaml").unwrap();
+        assert!(scene.dome.is_none() && scene.scene.dome.is_some());
+        let e = render_node(scene, None, vec![], &[]).unwrap_err();
+        assert!(
+            e.message.contains("sky.pfm") && e.message.contains("`dome` input"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn catchers_only_drops_the_synthetic_objects() {
+        let dir = tempfile::tempdir().unwrap();
+        // A catcher floor under a black sphere, seen from above in a unit sky.
+        let text = "camera:\n  look_at: {from: [0, 3, 0.001], at: [0, 0, 0], fov: 30}\n  size: [9, 9]\nobjects:\n  - sphere: {center: [0, 0.6, 0], radius: 0.5}\n    material: {type: lambert, albedo: 0}\n  - quad: {corner: [-5, 0, -5], edge1: [10, 0, 0], edge2: [0, 0, 10]}\n    catcher: true\ndome: {color: 1}\n";
+        std::fs::write(dir.path().join("c.yaml"), text).unwrap();
+        let scene = read(dir.path(), "c.yaml").unwrap();
+        let spp = ("spp", ParamValue::Int(256));
+        let all = render_node(scene.clone(), None, vec![], std::slice::from_ref(&spp)).unwrap();
+        let empty = render_node(
+            scene,
+            None,
+            vec![],
+            &[spp, ("objects", ParamValue::Str("catchers_only".into()))],
+        )
+        .unwrap();
+        // Centre pixel: the black sphere (all) vs the bare floor (albedo 0.8 under a unit sky).
+        let (c_all, c_empty) = (all.get(4, 4, 1), empty.get(4, 4, 1));
+        assert!((c_empty - 0.8).abs() < 0.05, "{c_empty}");
+        assert!(c_all == 0.0, "{c_all}");
+    }
+
+    #[test]
+    fn cameras_input_renders_frame_f() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("s.scn"), SCN).unwrap();
+        let scene = read(dir.path(), "s.scn").unwrap();
+        let c = &scene.scene.camera;
+        let pose_of = |dx: f64| Pose {
+            r: nalgebra::Matrix3::from_fn(|i, j| c.r[i][j]),
+            t: Vector3::new(c.t[0] + dx, c.t[1], c.t[2]),
+        };
+        let path = CameraPath {
+            frames: vec![
+                FramePose {
+                    frame: 3,
+                    pose: pose_of(0.0),
+                },
+                FramePose {
+                    frame: 4,
+                    pose: pose_of(0.5),
+                },
+            ],
+            intrinsics: None,
+        };
+        let cams = || {
+            vec![(
+                "cameras",
+                InputValue::One(Value::new(CameraPathArt(path.clone()))),
+            )]
+        };
+        let base = render_node(scene.clone(), Some(3), vec![], &[]).unwrap();
+        // Frame 3's camera is the scene's: the same image; frame 4's moved: another image.
+        assert_eq!(
+            render_node(scene.clone(), Some(3), cams(), &[]).unwrap(),
+            base
+        );
+        assert_ne!(
+            render_node(scene.clone(), Some(4), cams(), &[]).unwrap(),
+            base
+        );
+        let e = render_node(scene.clone(), Some(7), cams(), &[]).unwrap_err();
+        assert!(
+            e.message.contains("no camera for frame 7") && e.message.contains("3–4"),
+            "{e}"
+        );
+        let e = render_node(scene, None, cams(), &[]).unwrap_err();
+        assert!(e.message.contains("per_frame: true"), "{e}");
     }
 
     #[test]
@@ -252,16 +596,21 @@ mod tests {
             "scene{\n  camera = view{ fov = 0 }\n}",
         )
         .unwrap();
+        std::fs::write(
+            dir.path().join("bad.yaml"),
+            "camera:\n  look_at: {from: [0, 0, 1], at: [0, 0, 0]}\n  size: [8, 8]\nobjects:\n  - obj: m.obj\n",
+        )
+        .unwrap();
+        std::fs::write(dir.path().join("m.obj"), "v 0 0 0\nf 1 2 3\n").unwrap();
         std::fs::write(dir.path().join("x.obj"), "").unwrap();
-        let rs = spec("read_scene");
         for (name, want) in [
             ("bad.scn", "bad.scn:2:12"),
+            ("bad.yaml", "bad.yaml:5:10: "),
+            ("bad.yaml", "m.obj:2: face corner"),
             ("x.obj", "unknown scene format"),
             ("missing.scn", "cannot read"),
         ] {
-            let params = Params::new([("path".to_string(), ParamValue::Str(name.into()))].into());
-            let mut ctx = Context::for_test(&rs, &params, dir.path(), None, vec![]);
-            let e = run_read_scene(&mut ctx).unwrap_err();
+            let e = read(dir.path(), name).unwrap_err();
             assert!(e.message.contains(want), "{e}");
         }
     }

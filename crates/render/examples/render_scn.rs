@@ -4,19 +4,21 @@
 //! cargo run --release -p vfxgraph-render --example render_scn -- SCENE.scn \
 //!     [--spp N] [--max-depth D] [--seed S] [--threads T] [--width W --height H] \
 //!     [--out PREFIX] [--exposure STOPS] [--time-budget SECONDS] [--diffuse-only]
-//!     [--dump-scene FILE.json]
+//!     [--dump-scene FILE.json] [--light-sampling area|solid_angle]
 //! ```
 //! `--diffuse-only` drops the Blinn–Phong lobes (keeps ρd) so peers without that BRDF can render
 //! the same scene; `--dump-scene` writes the scene (after the size override) as JSON for
 //! `scripts/bench/cornell_mitsuba.py`.
 //! Writes PREFIX.pfm (linear HDR) and PREFIX.png (Reinhard-free sRGB clip after exposure), and
-//! prints one JSON line: paths, wall and CPU seconds, paths per CPU-second, NaN count.
+//! prints one JSON line: paths, wall and CPU seconds, paths per CPU-second, NaN count, and the
+//! mean over pixels and channels of the variance of each pixel's mean (`mean_variance`).
 //! With `--time-budget`, renders with doubling spp until the budget would be exceeded (for
 //! equal-time comparisons) and reports the spp it reached.
 
 use std::path::PathBuf;
 
 use vfxgraph_imaging::{tonemap, write_image, Operator};
+use vfxgraph_render::light::LightSampling;
 use vfxgraph_render::{
     parse_scn, render, Brdf, ConstantEnvironment, Lambert, RenderSettings, World,
 };
@@ -44,6 +46,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let (mut threads, mut out, mut exposure, mut size, mut budget) =
         (0usize, None::<PathBuf>, 0.0f32, None, None::<f64>);
     let (mut diffuse_only, mut dump) = (false, None::<PathBuf>);
+    let mut light_sampling = LightSampling::Area;
     let mut it = args.iter();
     while let Some(a) = it.next() {
         let mut val = || it.next().ok_or(format!("{a} needs a value"));
@@ -57,6 +60,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "--time-budget" => budget = Some(val()?.parse()?),
             "--diffuse-only" => diffuse_only = true,
             "--dump-scene" => dump = Some(PathBuf::from(val()?)),
+            "--light-sampling" => {
+                light_sampling = match val()?.as_str() {
+                    "area" => LightSampling::Area,
+                    "solid_angle" => LightSampling::SolidAngle,
+                    o => return Err(format!("--light-sampling {o}: area or solid_angle").into()),
+                }
+            }
             "--width" => {
                 let w: usize = val()?.parse()?;
                 size = Some((w, size.map_or(0, |s: (usize, usize)| s.1)));
@@ -90,7 +100,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .num_threads(threads)
         .build()?;
     let threads = pool.current_num_threads();
-    let world = World::new(&scene);
+    let world = World::with_light_sampling(&scene, light_sampling);
     let env = ConstantEnvironment {
         radiance: scene.background,
     };
@@ -122,7 +132,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!(
         "{{\"scene\": {:?}, \"width\": {}, \"height\": {}, \"spp\": {}, \"max_depth\": {}, \"threads\": {}, \
          \"paths\": {}, \"render_seconds\": {:.3}, \"wall_seconds\": {:.3}, \"cpu_seconds\": {:.3}, \
-         \"paths_per_cpu_second\": {:.0}, \"nonfinite\": {}}}",
+         \"paths_per_cpu_second\": {:.0}, \"nonfinite\": {}, \"light_sampling\": \"{:?}\", \
+         \"mean_variance\": {:.6e}}}",
         path.display().to_string(),
         camera.width,
         camera.height,
@@ -134,7 +145,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         wall,
         cpu,
         stats.paths as f64 / cpu,
-        stats.nonfinite
+        stats.nonfinite,
+        light_sampling,
+        result.variance.data.iter().map(|&v| v as f64).sum::<f64>()
+            / result.variance.data.len() as f64
     );
     if let Some(prefix) = out {
         if let Some(dir) = prefix.parent() {

@@ -31,6 +31,9 @@ use nalgebra::{Matrix3, Vector3};
 use vfxgraph_imaging::color::luminance;
 use vfxgraph_imaging::Image;
 
+use crate::environment::{Environment, EnvironmentSample};
+use crate::math::{Rgb, Vec3};
+
 /// What can be wrong with a dome's image or orientation.
 #[derive(thiserror::Error, Debug, Clone, PartialEq)]
 pub enum DomeError {
@@ -184,6 +187,8 @@ pub struct Dome {
     /// Rows: u, v, n (world → dome frame).
     frame: Matrix3<f64>,
     dist: Distribution2D,
+    /// Every texel is black (nothing to sample).
+    black: bool,
 }
 
 impl Dome {
@@ -235,6 +240,7 @@ impl Dome {
             }
         }
         Ok(Dome {
+            black: !image.data.iter().any(|&v| v > 0.0),
             dist: Distribution2D::new(&func, w, h),
             image,
             orig,
@@ -378,6 +384,35 @@ impl Dome {
             e += row * d_omega;
         }
         e
+    }
+}
+
+/// The dome as the path tracer's environment (book 10.9: image-based lighting): escaped paths
+/// read [`Dome::radiance`], next-event estimation draws [`Dome::sample`] and weighs it against
+/// BRDF sampling with [`Dome::pdf`] (all in solid angle).
+impl Environment for Dome {
+    fn radiance(&self, dir: Vec3) -> Rgb {
+        let v = Dome::radiance(self, &Vector3::new(dir.x, dir.y, dir.z));
+        Rgb::new(v.x, v.y, v.z)
+    }
+    fn sample(&self, u: [f64; 2]) -> Option<EnvironmentSample> {
+        let s = Dome::sample(self, u);
+        if s.pdf_solid_angle.is_nan() || s.pdf_solid_angle <= 0.0 || s.pdf_solid_angle.is_infinite()
+        {
+            return None;
+        }
+        let d = s.direction;
+        Some(EnvironmentSample {
+            wi: Vec3::new(d.x, d.y, d.z),
+            radiance: Rgb::new(s.radiance.x, s.radiance.y, s.radiance.z),
+            pdf_solid_angle: s.pdf_solid_angle,
+        })
+    }
+    fn pdf(&self, dir: Vec3) -> f64 {
+        Dome::pdf(self, &Vector3::new(dir.x, dir.y, dir.z))
+    }
+    fn is_black(&self) -> bool {
+        self.black
     }
 }
 

@@ -1,7 +1,8 @@
 //! # vfxgraph-render
 //!
 //! Physically based path tracing for the book's chapter 9 (Madeira & Velho, *Introduction to
-//! Visual Effects*): a scene model ([`Scene`]) with the book's `.scn` reader ([`scn`]), a
+//! Visual Effects*): a scene model ([`Scene`]) with the book's `.scn` reader ([`scn`]) and a YAML reader
+//! ([`yaml_scene`], with Wavefront OBJ meshes: [`obj`]), a
 //! calibrated pinhole [`Camera`] (K[R|t], book §2.8), spheres and triangles under a SAH
 //! [`bvh::Bvh`], the BRDFs of §9.5 with importance sampling ([`brdf`]), polygonal area lights
 //! ([`light`]), an [`Environment`] at infinity, and a path tracer with next-event estimation,
@@ -20,13 +21,16 @@ pub mod environment;
 pub mod integrator;
 pub mod light;
 pub mod math;
+pub mod obj;
 pub mod ray;
 pub mod render;
 pub mod sampling;
 pub mod scene;
 pub mod scn;
 pub mod shape;
+pub mod spherical_triangle;
 pub mod world;
+pub mod yaml_scene;
 
 pub use brdf::{BlinnPhong, Brdf, Lambert, Mirror};
 pub use camera::{Camera, CameraError};
@@ -37,3 +41,4 @@ pub use render::{render, RenderError, RenderOutput, RenderSettings, RenderStats}
 pub use scene::{AreaLight, DomeSpec, Object, Scene, Shape};
 pub use scn::{parse_scn, ScnError};
 pub use world::World;
+pub use yaml_scene::{parse_yaml_scene, YamlScene, YamlSceneError};

@@ -31,6 +31,23 @@ pub struct Object {
     pub shape: Shape,
     /// Reflectance.
     pub material: Brdf,
+    /// A shadow catcher (S3D `plshadow`, book §10.10): a stand-in for real geometry of the
+    /// photographed set (the ground under a dome). The path tracer shades it like any object;
+    /// differential rendering renders the scene with and without the synthetic objects and
+    /// keeps the catchers' change (see [`Scene::without_synthetic_objects`]).
+    #[serde(default)]
+    pub catcher: bool,
+}
+
+impl Object {
+    /// An ordinary (non-catcher) object.
+    pub fn new(shape: Shape, material: Brdf) -> Object {
+        Object {
+            shape,
+            material,
+            catcher: false,
+        }
+    }
 }
 
 /// A polygonal area light (S3D `polylight`, book §9.11): triangles emitting a constant
@@ -44,15 +61,20 @@ pub struct AreaLight {
 }
 
 /// An HDR light dome (S3D `hdrdome{orig, south, hdrimg}`, book §10): an equirectangular
-/// image and its orientation. Rendering with it needs the dome module's `Environment`.
+/// image and its orientation (see [`crate::dome`] for the conventions). Readers keep the file
+/// name; the caller loads the image and builds a [`crate::dome::Dome`], the scene's
+/// [`crate::Environment`].
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct DomeSpec {
     /// The `orig` direction (the dome's u axis before orthogonalization).
     pub orig: Vec3,
     /// The `south` direction (the dome's n axis).
     pub south: Vec3,
-    /// The image file, as written in the scene (resolved against the scene file's folder).
+    /// The image file, as written in the scene (relative to the scene file's folder).
     pub image: String,
+    /// Radiance scale applied to the image (1 for `.scn`).
+    #[serde(default = "one")]
+    pub scale: f64,
 }
 
 /// A whole scene (book §9.13).
@@ -66,9 +88,26 @@ pub struct Scene {
     pub lights: Vec<AreaLight>,
     /// Radiance of a constant environment (black for the book's `scene{…}`).
     pub background: Rgb,
-    /// The HDR dome of an `hdrscene{…}`, if any.
+    /// The HDR dome of an `hdrscene{…}` or a YAML scene, if any. When present it replaces
+    /// `background`.
     pub dome: Option<DomeSpec>,
-    /// Shadow catchers (S3D `plshadow`): rendered as ordinary objects by the path tracer;
-    /// differential rendering (book §10) treats them specially.
-    pub shadow_catchers: Vec<Object>,
+}
+
+impl Scene {
+    /// The shadow catchers (objects with [`Object::catcher`]).
+    pub fn catchers(&self) -> impl Iterator<Item = &Object> {
+        self.objects.iter().filter(|o| o.catcher)
+    }
+
+    /// The scene without its synthetic objects: only the shadow catchers, lights and dome
+    /// remain — the "empty set" render of differential rendering (book §10.10; Debevec 1998).
+    pub fn without_synthetic_objects(&self) -> Scene {
+        let mut s = self.clone();
+        s.objects.retain(|o| o.catcher);
+        s
+    }
+}
+
+fn one() -> f64 {
+    1.0
 }

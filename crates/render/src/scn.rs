@@ -563,23 +563,31 @@ fn material(v: &Val) -> Result<Brdf, ScnError> {
             return err(p, format!("{k} must be ≥ 0"));
         }
     }
-    let to_rgb = |v: Vec3, k: f64| Rgb::new(v.x * k, v.y * k, v.z * k);
+    let to_rgb = |v: Vec3| Rgb::new(v.x, v.y, v.z);
+    Ok(plastic(kd, ks, se, to_rgb(d_col), to_rgb(s_col)))
+}
+
+/// The S3D `plastic{kd, ks, se, d_col, s_col}` material as a BRDF (see the module
+/// documentation): ρd = kd·d_col, ρs = ks·s_col (both scaled down together where ρd + ρs
+/// exceeds 1), normalized Blinn–Phong of exponent `se`; `se < 0` is a perfect mirror of
+/// reflectance ks·s_col. Inputs must be non-negative (callers check and report).
+pub fn plastic(kd: f64, ks: f64, se: f64, d_col: Rgb, s_col: Rgb) -> Brdf {
     if se < 0.0 {
-        let r = to_rgb(s_col, ks);
+        let r = s_col * ks;
         let m = r.max_component().max(1.0);
-        return Ok(Brdf::Mirror(Mirror { reflectance: r / m }));
+        return Brdf::Mirror(Mirror { reflectance: r / m });
     }
-    let (d, s) = (to_rgb(d_col, kd), to_rgb(s_col, ks));
+    let (d, s) = (d_col * kd, s_col * ks);
     let m = (d + s).max_component().max(1.0);
     let (d, s) = (d / m, s / m);
     if s.is_black() {
-        Ok(Brdf::Lambert(Lambert { albedo: d }))
+        Brdf::Lambert(Lambert { albedo: d })
     } else {
-        Ok(Brdf::BlinnPhong(BlinnPhong {
+        Brdf::BlinnPhong(BlinnPhong {
             diffuse: d,
             specular: s,
             exponent: se,
-        }))
+        })
     }
 }
 
@@ -618,7 +626,7 @@ fn object(v: &Val, out: &mut Vec<Object>) -> Result<(), ScnError> {
         }
         _ => {}
     }
-    out.push(Object { shape, material });
+    out.push(Object::new(shape, material));
     Ok(())
 }
 
@@ -685,7 +693,6 @@ pub fn parse_scn(text: &str) -> Result<Scene, ScnError> {
         lights: Vec::new(),
         background: Rgb::BLACK,
         dome: None,
-        shadow_catchers: Vec::new(),
     };
     let mut have_camera = false;
     for it in &items {
@@ -740,6 +747,7 @@ pub fn parse_scn(text: &str) -> Result<Scene, ScnError> {
                     orig: f.vec3("orig", Vec3::new(1.0, 0.0, 0.0))?,
                     south: f.vec3("south", Vec3::new(0.0, 0.0, 1.0))?,
                     image,
+                    scale: 1.0,
                 });
             }
             (Some("shadow"), _) | (None, Some("plshadow")) => {
@@ -751,9 +759,10 @@ pub fn parse_scn(text: &str) -> Result<Scene, ScnError> {
                         albedo: Rgb::splat(0.9),
                     }),
                 };
-                scene.shadow_catchers.push(Object {
+                scene.objects.push(Object {
                     shape: shape(f.required("shape")?)?,
                     material,
+                    catcher: true,
                 });
             }
             (Some(k), _) => {

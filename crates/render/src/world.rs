@@ -2,7 +2,7 @@
 
 use crate::brdf::Brdf;
 use crate::bvh::{Bvh, Geom};
-use crate::light::LightSet;
+use crate::light::{LightSampling, LightSet};
 use crate::math::{Rgb, Vec3};
 use crate::ray::Ray;
 use crate::scene::{Scene, Shape};
@@ -44,15 +44,20 @@ pub struct World {
 }
 
 impl World {
-    /// Compiles a scene: objects, shadow catchers and light triangles become primitives of one
+    /// Compiles a scene: objects (shadow catchers included) and light triangles become primitives of one
     /// BVH. Degenerate triangles (zero area), non-positive or non-finite spheres are skipped
     /// and counted in [`World::skipped`].
     pub fn new(scene: &Scene) -> World {
+        World::with_light_sampling(scene, LightSampling::default())
+    }
+
+    /// [`World::new`] with the area lights sampled by `mode`.
+    pub fn with_light_sampling(scene: &Scene, mode: LightSampling) -> World {
         let mut geoms = Vec::new();
         let mut surfaces = Vec::new();
         let mut materials = Vec::new();
         let mut skipped = 0;
-        for obj in scene.objects.iter().chain(&scene.shadow_catchers) {
+        for obj in &scene.objects {
             let m = materials.len() as u32;
             materials.push(obj.material);
             match &obj.shape {
@@ -99,7 +104,7 @@ impl World {
             geoms,
             surfaces,
             materials,
-            lights: LightSet::new(light_items),
+            lights: LightSet::new(light_items).with_sampling(mode),
             skipped,
         }
     }

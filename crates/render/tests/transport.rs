@@ -3,6 +3,8 @@
 
 use std::f64::consts::PI;
 
+use vfxgraph_render::dome::Dome;
+use vfxgraph_render::light::LightSampling;
 use vfxgraph_render::ray::Ray;
 use vfxgraph_render::render::seeded_sampler;
 use vfxgraph_render::shape::Sphere;
@@ -25,9 +27,34 @@ fn lambert(r: f64) -> Brdf {
 
 #[test]
 fn white_furnace() {
-    // Albedo-1 diffuse spheres, a mirror sphere and a ground quad inside a uniform dome: every
-    // pixel must see the dome's radiance (nothing absorbs, nothing emits).
     let l_env = 0.7;
+    furnace(
+        &ConstantEnvironment {
+            radiance: Rgb::splat(l_env),
+        },
+        l_env,
+    );
+}
+
+#[test]
+fn white_furnace_through_the_dome_sampler() {
+    // The same furnace lit by an HDR dome whose image is constant, in a tilted orientation:
+    // the dome's importance sampling (2-D CDF, sin θ, pdf in solid angle) and its MIS weights
+    // must leave every pixel at the dome's radiance.
+    let l_env = 0.7f32;
+    let img = vfxgraph_imaging::Image::from_fn(32, 16, 3, |_, _, _| l_env);
+    let dome = Dome::new(
+        &img,
+        nalgebra::Vector3::new(1.0, 0.2, 0.3),
+        nalgebra::Vector3::new(0.1, 0.3, 1.0),
+    )
+    .unwrap();
+    furnace(&dome, l_env as f64);
+}
+
+/// Albedo-1 diffuse spheres, a mirror sphere and a ground quad inside a uniform environment:
+/// every pixel must see the environment's radiance (nothing absorbs, nothing emits).
+fn furnace(env: &dyn Environment, l_env: f64) {
     let scene = Scene {
         camera: camera(Vec3::new(0.0, -6.0, 2.0), Vec3::new(0.0, 0.0, 0.5), 24, 16),
         objects: vec![
@@ -37,6 +64,7 @@ fn white_furnace() {
                     radius: 1.0,
                 }),
                 material: lambert(1.0),
+                catcher: false,
             },
             Object {
                 shape: Shape::Sphere(Sphere {
@@ -46,6 +74,7 @@ fn white_furnace() {
                 material: Brdf::Mirror(Mirror {
                     reflectance: Rgb::WHITE,
                 }),
+                catcher: false,
             },
             Object {
                 shape: Shape::Triangles {
@@ -56,23 +85,20 @@ fn white_furnace() {
                     ),
                 },
                 material: lambert(1.0),
+                catcher: false,
             },
         ],
         lights: vec![],
         background: Rgb::splat(l_env),
         dome: None,
-        shadow_catchers: vec![],
     };
     let world = World::new(&scene);
-    let env = ConstantEnvironment {
-        radiance: scene.background,
-    };
     let settings = RenderSettings {
         spp: 32,
         max_depth: 200,
         ..Default::default()
     };
-    let out = render(&world, &env, &scene.camera, &settings, &|_| {}, None).unwrap();
+    let out = render(&world, env, &scene.camera, &settings, &|_| {}, None).unwrap();
     assert_eq!(out.stats.nonfinite, 0);
     let n = out.image.pixel_count();
     let (mut sum, mut var) = (0.0, 0.0);
@@ -138,6 +164,7 @@ fn irradiance_from_a_polygonal_light_matches_the_closed_form() {
                 ),
             },
             material: lambert(rho),
+            catcher: false,
         }],
         lights: vec![AreaLight {
             radiance: Rgb::splat(l),
@@ -145,44 +172,52 @@ fn irradiance_from_a_polygonal_light_matches_the_closed_form() {
         }],
         background: Rgb::BLACK,
         dome: None,
-        shadow_catchers: vec![],
     };
-    let world = World::new(&scene);
     let env = ConstantEnvironment {
         radiance: Rgb::BLACK,
     };
     let from = Vec3::new(0.0, -1.0, 2.0);
     let ray = Ray::new(from, (p - from).normalized());
-    for (strategy, n) in [
-        (Strategy::LightOnly, 20_000),
-        (Strategy::Mis, 40_000),
-        (Strategy::BrdfOnly, 400_000),
-    ] {
-        let tracer = PathTracer {
-            world: &world,
-            environment: &env,
-            max_depth: 1,
-            rr_depth: 100,
-            strategy,
-        };
-        let mut s = seeded_sampler(5);
-        let (mut sum, mut sq) = (0.0, 0.0);
-        for _ in 0..n {
-            let v = tracer.radiance(ray, &mut s).g;
-            sum += v;
-            sq += v * v;
+    let mut light_only_sd = Vec::new();
+    for mode in [LightSampling::Area, LightSampling::SolidAngle] {
+        let world = World::with_light_sampling(&scene, mode);
+        for (strategy, n) in [
+            (Strategy::LightOnly, 20_000),
+            (Strategy::Mis, 40_000),
+            (Strategy::BrdfOnly, 400_000),
+        ] {
+            let tracer = PathTracer {
+                world: &world,
+                environment: &env,
+                max_depth: 1,
+                rr_depth: 100,
+                strategy,
+            };
+            let (m, se) = estimate(&tracer, ray, n, 5);
+            assert!(
+                (m - truth).abs() < 3.0 * se.max(1e-9),
+                "{mode:?} {strategy:?}: {m} ± {se} vs {truth}"
+            );
+            assert!(
+                se < 0.02 * truth,
+                "{mode:?} {strategy:?}: estimate too noisy to mean anything ({se})"
+            );
+            if strategy == Strategy::LightOnly {
+                light_only_sd.push(se * (n as f64).sqrt());
+            }
         }
-        let m = sum / n as f64;
-        let se = ((sq / n as f64 - m * m) / (n as f64 - 1.0)).sqrt();
-        assert!(
-            (m - truth).abs() < 3.0 * se.max(1e-9),
-            "{strategy:?}: {m} ± {se} vs {truth}"
-        );
-        assert!(
-            se < 0.02 * truth,
-            "{strategy:?}: estimate too noisy to mean anything ({se})"
-        );
     }
+    // This light is large and near: sampling its solid angle removes the 1/r² and cos θ_light
+    // variation of area sampling, leaving only the receiver's cosine.
+    eprintln!(
+        "direct light, per-sample sd / mean: area {:.4}, solid angle {:.4}",
+        light_only_sd[0] / truth,
+        light_only_sd[1] / truth
+    );
+    assert!(
+        light_only_sd[1] < 0.85 * light_only_sd[0],
+        "{light_only_sd:?}"
+    );
 }
 
 #[test]
@@ -205,6 +240,7 @@ fn mis_has_the_mean_of_each_single_strategy() {
                     specular: Rgb::splat(0.4),
                     exponent: 20.0,
                 }),
+                catcher: false,
             },
             Object {
                 shape: Shape::Sphere(Sphere {
@@ -212,6 +248,7 @@ fn mis_has_the_mean_of_each_single_strategy() {
                     radius: 0.5,
                 }),
                 material: lambert(0.7),
+                catcher: false,
             },
         ],
         lights: vec![AreaLight {
@@ -224,11 +261,15 @@ fn mis_has_the_mean_of_each_single_strategy() {
         }],
         background: Rgb::splat(0.3),
         dome: None,
-        shadow_catchers: vec![],
     };
-    let world = World::new(&scene);
+    for mode in [LightSampling::Area, LightSampling::SolidAngle] {
+        mis_agrees(&World::with_light_sampling(&scene, mode), scene.background);
+    }
+}
+
+fn mis_agrees(world: &World, background: Rgb) {
     let env = ConstantEnvironment {
-        radiance: scene.background,
+        radiance: background,
     };
     let from = Vec3::new(0.0, -2.0, 1.5);
     let target = Vec3::new(-0.2, 0.3, 0.0);
@@ -240,7 +281,7 @@ fn mis_has_the_mean_of_each_single_strategy() {
         (Strategy::BrdfOnly, 400_000),
     ] {
         let tracer = PathTracer {
-            world: &world,
+            world,
             environment: &env,
             max_depth: 4,
             rr_depth: 2,
@@ -316,4 +357,166 @@ fn same_image_for_any_thread_count() {
         render(&world, &env, &scene.camera, &settings, &|_| {}, Some(&flag)).unwrap_err(),
         RenderError::Cancelled
     );
+}
+
+/// A smooth, strongly non-uniform dome: a bright warm blob high in the sky over a dim
+/// gradient (y-up world, zenith on the top row).
+fn blob_dome() -> Dome {
+    let (w, h) = (64usize, 32usize);
+    let img = vfxgraph_imaging::Image::from_fn(w, h, 3, |x, y, c| {
+        let (dx, dy) = (x as f32 - 40.0, y as f32 - 9.0);
+        let blob = 30.0 * (-(dx * dx + dy * dy) / 18.0).exp();
+        let sky = 0.2 + 0.3 * (1.0 - y as f32 / h as f32);
+        (sky + blob) * [1.0, 0.8, 0.6][c]
+    });
+    Dome::y_up(&img).unwrap()
+}
+
+/// Mean and standard error of `n` path estimates (green channel) along `ray`.
+fn estimate(tracer: &PathTracer, ray: Ray, n: usize, seed: u64) -> (f64, f64) {
+    let mut s = seeded_sampler(seed);
+    let (mut sum, mut sq) = (0.0, 0.0);
+    for _ in 0..n {
+        let v = tracer.radiance(ray, &mut s).g;
+        sum += v;
+        sq += v * v;
+    }
+    let m = sum / n as f64;
+    (m, ((sq / n as f64 - m * m) / (n as f64 - 1.0)).sqrt())
+}
+
+#[test]
+fn dome_direct_light_matches_the_brute_force_irradiance() {
+    // A Lambertian floor (normal +y) under a non-uniform dome, direct light only: the radiance
+    // leaving it is rho/pi * E, E summed over every texel. Dome NEE, MIS and BRDF-only agree
+    // with it; dome NEE is the least noisy.
+    let dome = blob_dome();
+    let rho = 0.8;
+    let big = 50.0;
+    let floor = quad(
+        Vec3::ZERO,
+        Vec3::new(big, 0.0, 0.0),
+        Vec3::new(0.0, 0.0, big),
+    );
+    let scene = Scene {
+        camera: Camera::look_at(
+            Vec3::new(0.0, 2.0, 3.0),
+            Vec3::ZERO,
+            Vec3::new(0.0, 1.0, 0.0),
+            50.0,
+            8,
+            8,
+        )
+        .unwrap(),
+        objects: vec![Object::new(
+            Shape::Triangles { triangles: floor },
+            lambert(rho),
+        )],
+        lights: vec![],
+        background: Rgb::BLACK,
+        dome: None,
+    };
+    let world = World::new(&scene);
+    let truth = rho / PI * dome.irradiance_brute_force(&nalgebra::Vector3::y()).y;
+    let from = Vec3::new(0.0, 1.0, 2.0);
+    let ray = Ray::new(from, (Vec3::ZERO - from).normalized());
+    let mut ses = Vec::new();
+    for (strategy, n) in [
+        (Strategy::LightOnly, 40_000),
+        (Strategy::Mis, 40_000),
+        (Strategy::BrdfOnly, 400_000),
+    ] {
+        let tracer = PathTracer {
+            world: &world,
+            environment: &dome,
+            max_depth: 1,
+            rr_depth: 100,
+            strategy,
+        };
+        let (m, se) = estimate(&tracer, ray, n, 11);
+        // Bilinear lookup vs texel centres: allow 0.5 % on top of 3 sigma.
+        assert!(
+            (m - truth).abs() < 3.0 * se + 5e-3 * truth,
+            "{strategy:?}: {m} ± {se} vs {truth}"
+        );
+        ses.push(se * (n as f64).sqrt());
+    }
+    // Per-sample noise: importance-sampled dome beats cosine sampling on this peaked dome.
+    assert!(ses[0] < 0.5 * ses[2], "per-sample sd {ses:?}");
+}
+
+#[test]
+fn dome_nee_has_the_mean_of_brdf_sampling() {
+    // Glossy floor, an occluding diffuse sphere and a mirror sphere under the non-uniform dome,
+    // several bounces: MIS (dome NEE + BRDF sampling) and BRDF-only agree within noise.
+    let dome = blob_dome();
+    let floor = quad(
+        Vec3::ZERO,
+        Vec3::new(4.0, 0.0, 0.0),
+        Vec3::new(0.0, 0.0, 4.0),
+    );
+    let scene = Scene {
+        camera: Camera::look_at(
+            Vec3::new(0.0, 2.0, 3.0),
+            Vec3::ZERO,
+            Vec3::new(0.0, 1.0, 0.0),
+            50.0,
+            8,
+            8,
+        )
+        .unwrap(),
+        objects: vec![
+            Object::new(
+                Shape::Triangles { triangles: floor },
+                Brdf::BlinnPhong(BlinnPhong {
+                    diffuse: Rgb::new(0.5, 0.4, 0.3),
+                    specular: Rgb::splat(0.4),
+                    exponent: 20.0,
+                }),
+            ),
+            Object::new(
+                Shape::Sphere(Sphere {
+                    center: Vec3::new(0.3, 0.5, -0.2),
+                    radius: 0.5,
+                }),
+                lambert(0.7),
+            ),
+            Object::new(
+                Shape::Sphere(Sphere {
+                    center: Vec3::new(-0.9, 0.4, 0.1),
+                    radius: 0.4,
+                }),
+                Brdf::Mirror(Mirror {
+                    reflectance: Rgb::splat(0.9),
+                }),
+            ),
+        ],
+        lights: vec![],
+        background: Rgb::BLACK,
+        dome: None,
+    };
+    let world = World::new(&scene);
+    let from = Vec3::new(0.2, 1.2, 2.0);
+    let ray = Ray::new(from, (Vec3::new(0.0, 0.0, 0.3) - from).normalized());
+    let run = |strategy, n| {
+        let tracer = PathTracer {
+            world: &world,
+            environment: &dome,
+            max_depth: 4,
+            rr_depth: 2,
+            strategy,
+        };
+        estimate(&tracer, ray, n, 21)
+    };
+    let (m0, s0) = run(Strategy::Mis, 100_000);
+    let (m1, s1) = run(Strategy::BrdfOnly, 400_000);
+    let (m2, s2) = run(Strategy::LightOnly, 100_000);
+    for (name, m, s) in [("brdf-only", m1, s1), ("light-only", m2, s2)] {
+        let z = (m - m0) / (s * s + s0 * s0).sqrt();
+        assert!(
+            z.abs() < 3.5,
+            "{name} {m} ± {s} vs MIS {m0} ± {s0} (z = {z:.2})"
+        );
+    }
+    assert!(m0 > 0.0 && s0 < 0.02 * m0, "{m0} ± {s0}");
 }

@@ -25,6 +25,7 @@ pub mod error;
 pub mod export;
 pub mod formats;
 pub mod klt;
+pub mod matchmove;
 pub mod normalize;
 pub mod optimize;
 pub mod points;

@@ -296,6 +296,7 @@ impl Scratch {
             jobs: Some(2),
             cache_dir: Some(self.path(".vfxgraph")),
             force: vec![],
+            cancel: None,
         }
     }
     pub fn run(&self, text: &str) -> RunReport {

@@ -54,10 +54,12 @@ fn reads_the_books_modeling_scene() {
     assert_eq!(dome.image, "dome.pfm");
     assert!((dome.south.y - 0.821183).abs() < 1e-12);
     assert_eq!((s.camera.width, s.camera.height), (1280, 720));
-    assert_eq!(s.shadow_catchers.len(), 1);
-    assert_eq!(s.objects.len(), 2);
+    let catchers: Vec<_> = s.catchers().collect();
+    assert_eq!(catchers.len(), 1);
+    assert_eq!(s.objects.len(), 3);
+    assert_eq!(s.without_synthetic_objects().objects.len(), 1);
     // `kd = 1.0.` (the book's typo) reads as 1.0: albedo = d_col.
-    match s.shadow_catchers[0].material {
+    match catchers[0].material {
         Brdf::Lambert(l) => assert!((l.albedo.r - 0.576563).abs() < 1e-12),
         other => panic!("{other:?}"),
     }

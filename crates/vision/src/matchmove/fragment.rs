@@ -1,0 +1,228 @@
+//! Calibration of one fragment (book §7.9, after the best pair of §7.2–7.6).
+//!
+//! The best pair's inlier points seed the fragment. Each frame's camera is resected from them
+//! (RANSAC on the DLT, factored, K replaced by the known K, then refined with K fixed). Then the
+//! refinement cycles: a bundle adjustment of all cameras and points of the fragment (K fixed);
+//! then, for each tolerance (10, 5, 3 px), every feature of the fragment is re-triangulated so
+//! that its reprojection error is below the tolerance in ALL frames — from all frames, or failing
+//! that from one of a few frame pairs — and dropped if none does, followed by another bundle
+//! adjustment.
+
+use nalgebra::{Point2, Point3, Vector3};
+use rand::SeedableRng;
+use rand_pcg::Pcg64;
+use serde::{Deserialize, Serialize};
+
+use super::fragments::Fragment;
+use super::pair::{best_pair, PairOptions};
+use super::{bundle_adjust_indexed, reprojection_error, through, triangulate_views};
+use crate::calibration::resect_known_k;
+use crate::camera::{Intrinsics, Pose};
+use crate::error::{Result, VisionError};
+use crate::klt::Tracks;
+use crate::ransac::RansacParams;
+
+/// The refinement cycles' constants.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct RefineOptions {
+    /// Re-triangulation tolerances, pixels, one cycle each (book: 10, 5, 3).
+    pub tolerances: Vec<f64>,
+    /// Most Levenberg–Marquardt iterations per bundle adjustment.
+    pub ba_iterations: usize,
+}
+
+impl Default for RefineOptions {
+    fn default() -> Self {
+        RefineOptions {
+            tolerances: vec![10.0, 5.0, 3.0],
+            ba_iterations: 30,
+        }
+    }
+}
+
+impl RefineOptions {
+    /// The last (tightest) tolerance: what counts as an inlier in the reports.
+    pub fn final_tolerance(&self) -> f64 {
+        self.tolerances.last().copied().unwrap_or(3.0)
+    }
+}
+
+/// Figures of one fragment's solve.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FragmentReport {
+    /// First and last frame numbers.
+    pub frames: (i64, i64),
+    /// Features tracked through the fragment.
+    pub features: usize,
+    /// Features kept as 3D points at the end.
+    pub inliers: usize,
+    /// The best pair's frame numbers.
+    pub pair: (i64, i64),
+    /// Its inliers.
+    pub pair_inliers: usize,
+    /// Candidate pairs evaluated, and how many failed the intrinsics test.
+    pub candidates: usize,
+    /// Pairs rejected by the intrinsics-consistency test.
+    pub rejected_by_k: usize,
+    /// RMS reprojection error after the last bundle adjustment, pixels.
+    pub rms: f64,
+    /// Scale relative to the first fragment (filled by the junction).
+    pub scale: f64,
+}
+
+/// A solved fragment, in its own frame and scale.
+#[derive(Clone, Debug)]
+pub struct FragmentSolution {
+    /// The fragment.
+    pub fragment: Fragment,
+    /// Poses indexed by frame index over the whole sequence (`None` outside the fragment).
+    pub poses: Vec<Option<Pose>>,
+    /// Points indexed by track index (`None` for tracks not kept).
+    pub points: Vec<Option<Vector3<f64>>>,
+    /// Figures.
+    pub report: FragmentReport,
+}
+
+/// Re-triangulates every feature of the fragment under `tolerance` (module docs).
+fn retriangulate(
+    tracks: &Tracks,
+    k: &Intrinsics,
+    frag: &Fragment,
+    poses: &[Option<Pose>],
+    tolerance: f64,
+) -> Vec<Option<Vector3<f64>>> {
+    let mut points = vec![None; tracks.tracks.len()];
+    let mid = (frag.first + frag.last) / 2;
+    let pairs = [(frag.first, frag.last), (frag.first, mid), (mid, frag.last)];
+    for &ti in &frag.features {
+        let obs = through(&tracks.tracks[ti], frag.first, frag.last).expect("fragment feature");
+        let pose = |f: usize| poses[f].as_ref().expect("fragment pose");
+        let ok = |x: &Vector3<f64>| {
+            (frag.first..=frag.last)
+                .all(|f| reprojection_error(k, pose(f), x, &obs[f - frag.first]) <= tolerance)
+        };
+        let all: Vec<(&Pose, [f64; 2])> = (frag.first..=frag.last)
+            .map(|f| (pose(f), obs[f - frag.first]))
+            .collect();
+        let mut found = triangulate_views(k, &all).filter(|x| ok(x));
+        if found.is_none() {
+            for &(a, b) in &pairs {
+                if a == b {
+                    continue;
+                }
+                let two = [
+                    (pose(a), obs[a - frag.first]),
+                    (pose(b), obs[b - frag.first]),
+                ];
+                if let Some(x) = triangulate_views(k, &two).filter(|x| ok(x)) {
+                    found = Some(x);
+                    break;
+                }
+            }
+        }
+        points[ti] = found;
+    }
+    points
+}
+
+/// Solves one fragment (module docs): best pair, resection, refinement cycles.
+pub fn solve_fragment(
+    tracks: &Tracks,
+    k: &Intrinsics,
+    frag: &Fragment,
+    pair: &PairOptions,
+    refine: &RefineOptions,
+    seed: u64,
+) -> Result<FragmentSolution> {
+    let describe = || {
+        format!(
+            "fragment of frames {}..{}",
+            tracks.frames[frag.first], tracks.frames[frag.last]
+        )
+    };
+    let best = best_pair(tracks, k, frag, pair, seed)?;
+    let mut rng = Pcg64::seed_from_u64(super::derive_seed(seed, 3, 0));
+    let n = tracks.frames.len();
+    let mut poses: Vec<Option<Pose>> = vec![None; n];
+    let p3: Vec<Point3<f64>> = best.points.iter().map(|(_, x)| Point3::from(*x)).collect();
+    let resection = RansacParams {
+        threshold: pair.resection_tolerance,
+        max_iterations: 500,
+        ..RansacParams::default()
+    };
+    for (f, slot) in poses
+        .iter_mut()
+        .enumerate()
+        .take(frag.last + 1)
+        .skip(frag.first)
+    {
+        let p2: Vec<Point2<f64>> = best
+            .points
+            .iter()
+            .map(|(q, _)| {
+                let o = tracks.tracks[frag.features[*q]].points
+                    [f - tracks.tracks[frag.features[*q]].first];
+                Point2::new(o[0], o[1])
+            })
+            .collect();
+        let est = resect_known_k(&p3, &p2, k, &resection, &mut rng).map_err(|e| {
+            VisionError::Degenerate(format!(
+                "{}: resection of frame {} failed: {e}",
+                describe(),
+                tracks.frames[f]
+            ))
+        })?;
+        *slot = Some(est.camera.pose);
+    }
+    let mut points: Vec<Option<Vector3<f64>>> = vec![None; tracks.tracks.len()];
+    for (q, x) in &best.points {
+        points[frag.features[*q]] = Some(*x);
+    }
+    let in_fragment = |_: usize, f: usize| f >= frag.first && f <= frag.last;
+    let mut report = bundle_adjust_indexed(
+        tracks,
+        k,
+        &mut poses,
+        &mut points,
+        &in_fragment,
+        crate::bundle::Loss::Trivial,
+        refine.ba_iterations,
+    )?;
+    for &tol in &refine.tolerances {
+        points = retriangulate(tracks, k, frag, &poses, tol);
+        let kept = points.iter().filter(|p| p.is_some()).count();
+        if kept < 6 {
+            return Err(VisionError::Degenerate(format!(
+                "{}: only {kept} features reproject within {tol} px in every frame",
+                describe()
+            )));
+        }
+        report = bundle_adjust_indexed(
+            tracks,
+            k,
+            &mut poses,
+            &mut points,
+            &in_fragment,
+            crate::bundle::Loss::Trivial,
+            refine.ba_iterations,
+        )?;
+    }
+    let inliers = points.iter().filter(|p| p.is_some()).count();
+    Ok(FragmentSolution {
+        fragment: frag.clone(),
+        poses,
+        points,
+        report: FragmentReport {
+            frames: (tracks.frames[frag.first], tracks.frames[frag.last]),
+            features: frag.features.len(),
+            inliers,
+            pair: (tracks.frames[best.pair.0], tracks.frames[best.pair.1]),
+            pair_inliers: best.points.len(),
+            candidates: best.candidates,
+            rejected_by_k: best.rejected_k,
+            rms: report.final_rms,
+            scale: 1.0,
+        },
+    })
+}

@@ -1,0 +1,202 @@
+//! Global bundle adjustment of a whole sequence (the standard alternative to the book's
+//! relaxation, §7.14): every track seen in enough posed frames is triangulated robustly, then all
+//! cameras and points are adjusted together by the sparse Schur solver of [`crate::bundle`] with
+//! a robust loss; observations farther than a shrinking threshold are marked outliers, their
+//! tracks re-triangulated from the rest, and the adjustment repeated.
+
+use nalgebra::Vector3;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use super::{bundle_adjust_indexed, reprojection_error, triangulate_views};
+use crate::bundle::Loss;
+use crate::camera::{Intrinsics, Pose};
+use crate::error::{Result, VisionError};
+use crate::klt::Tracks;
+
+/// The robust loss of the adjustment.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum RobustLoss {
+    /// Plain least squares.
+    None,
+    /// Huber's loss.
+    Huber,
+    /// Cauchy's loss.
+    Cauchy,
+}
+
+/// The global adjustment's constants.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct GlobalOptions {
+    /// Robust loss.
+    pub loss: RobustLoss,
+    /// Its scale, pixels.
+    pub loss_scale: f64,
+    /// Outlier thresholds of the successive rounds, pixels; one adjustment per round, plus the
+    /// first one at `triangulation_tolerance`.
+    pub thresholds: Vec<f64>,
+    /// Initial triangulation: observations farther than this are outliers, pixels.
+    pub triangulation_tolerance: f64,
+    /// Tracks with fewer inlier observations in posed frames get no point.
+    pub min_observations: usize,
+    /// Most Levenberg–Marquardt iterations per adjustment.
+    pub max_iterations: usize,
+}
+
+impl Default for GlobalOptions {
+    fn default() -> Self {
+        GlobalOptions {
+            loss: RobustLoss::Huber,
+            loss_scale: 1.0,
+            thresholds: vec![3.0],
+            triangulation_tolerance: 10.0,
+            min_observations: 3,
+            max_iterations: 50,
+        }
+    }
+}
+
+impl GlobalOptions {
+    fn loss(&self) -> Loss {
+        match self.loss {
+            RobustLoss::None => Loss::Trivial,
+            RobustLoss::Huber => Loss::Huber {
+                scale: self.loss_scale,
+            },
+            RobustLoss::Cauchy => Loss::Cauchy {
+                scale: self.loss_scale,
+            },
+        }
+    }
+}
+
+/// Robust triangulation of one track: from all posed observations, then from those within
+/// `tolerance`, repeated once; returns the point and the inlier flag of each observation.
+pub(crate) fn triangulate_track(
+    k: &Intrinsics,
+    track: &crate::klt::Track,
+    poses: &[Option<Pose>],
+    start: Option<Vector3<f64>>,
+    tolerance: f64,
+    min_observations: usize,
+) -> Option<(Vector3<f64>, Vec<bool>)> {
+    let posed: Vec<(usize, &Pose, [f64; 2])> = track
+        .points
+        .iter()
+        .enumerate()
+        .filter_map(|(j, o)| poses.get(track.first + j)?.as_ref().map(|p| (j, p, *o)))
+        .collect();
+    if posed.len() < min_observations.max(2) {
+        return None;
+    }
+    let mut x = match start {
+        Some(x) => x,
+        None => triangulate_views(
+            k,
+            &posed.iter().map(|(_, p, o)| (*p, *o)).collect::<Vec<_>>(),
+        )?,
+    };
+    let mut flags = vec![false; track.points.len()];
+    for _ in 0..2 {
+        let inl: Vec<(&Pose, [f64; 2])> = posed
+            .iter()
+            .filter(|(_, p, o)| reprojection_error(k, p, &x, o) <= tolerance)
+            .map(|(_, p, o)| (*p, *o))
+            .collect();
+        if inl.len() < min_observations.max(2) {
+            return None;
+        }
+        x = triangulate_views(k, &inl)?;
+    }
+    let mut count = 0;
+    for (j, p, o) in &posed {
+        if reprojection_error(k, p, &x, o) <= tolerance {
+            flags[*j] = true;
+            count += 1;
+        }
+    }
+    (count >= min_observations.max(2)).then_some((x, flags))
+}
+
+/// Triangulates every track robustly in parallel (deterministic: each track on its own).
+fn triangulate_all(
+    tracks: &Tracks,
+    k: &Intrinsics,
+    poses: &[Option<Pose>],
+    start: &[Option<Vector3<f64>>],
+    tolerance: f64,
+    min_observations: usize,
+) -> (Vec<Option<Vector3<f64>>>, Vec<Vec<bool>>) {
+    tracks
+        .tracks
+        .par_iter()
+        .enumerate()
+        .map(|(ti, t)| {
+            match triangulate_track(
+                k,
+                t,
+                poses,
+                start.get(ti).copied().flatten(),
+                tolerance,
+                min_observations,
+            ) {
+                Some((x, f)) => (Some(x), f),
+                None => (None, vec![false; t.points.len()]),
+            }
+        })
+        .unzip()
+}
+
+/// Adjusts every camera of `poses` (all frames must be posed) and every track's point together
+/// (module docs). Returns the poses and the points by track index.
+pub fn global_bundle_adjust(
+    tracks: &Tracks,
+    k: &Intrinsics,
+    poses: &[Option<Pose>],
+    options: &GlobalOptions,
+) -> Result<super::Structure> {
+    if options.thresholds.iter().any(|t| !(*t > 0.0)) || !(options.triangulation_tolerance > 0.0) {
+        return Err(VisionError::InvalidInput(
+            "global bundle adjustment thresholds must be positive".into(),
+        ));
+    }
+    let mut poses = poses.to_vec();
+    let none = vec![None; tracks.tracks.len()];
+    let (mut points, mut flags) = triangulate_all(
+        tracks,
+        k,
+        &poses,
+        &none,
+        options.triangulation_tolerance,
+        options.min_observations,
+    );
+    let mut thresholds = vec![options.triangulation_tolerance];
+    thresholds.extend(options.thresholds.iter().copied());
+    for (round, &threshold) in thresholds.iter().enumerate() {
+        if round > 0 {
+            let r = triangulate_all(
+                tracks,
+                k,
+                &poses,
+                &points,
+                threshold,
+                options.min_observations,
+            );
+            points = r.0;
+            flags = r.1;
+        }
+        let keep = |ti: usize, f: usize| flags[ti][f - tracks.tracks[ti].first];
+        bundle_adjust_indexed(
+            tracks,
+            k,
+            &mut poses,
+            &mut points,
+            &keep,
+            options.loss(),
+            options.max_iterations,
+        )?;
+    }
+    Ok((poses, points))
+}

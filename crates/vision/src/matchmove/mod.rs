@@ -1,0 +1,468 @@
+//! Matchmove (book chapter 7): the camera of every frame of a shot, from feature tracks and known
+//! intrinsics K.
+//!
+//! The stages, each its own module, named as GAPS.md restates the book's lost theory:
+//!
+//! 1. [`fragments`] (§7.11) cuts the sequence into overlapping fragments;
+//! 2. [`pair`] (§7.2–7.6) finds each fragment's best frame pair (RANSAC on F, E, cheirality,
+//!    triangulation, resection of every frame, the intrinsics-consistency test);
+//! 3. [`fragment`] (§7.9) resects every frame of a fragment and runs the refinement cycles
+//!    (bundle adjustment, re-triangulation at 10, 5, 3 px);
+//! 4. [`junction`] (§7.12) finds the scale between neighbouring fragments and chains them into
+//!    the first fragment's frame and scale;
+//! 5. [`extend`] gives a camera to frames no fragment covers (resection from the joined cloud);
+//! 6. [`global`] bundle-adjusts the whole sequence with a robust loss, and [`relax`] (§7.14) is
+//!    the book's alternating relaxation;
+//! 7. [`score`] measures a solve the way the issue scores the book's own cameras, and
+//!    [`report`] gathers per-frame and per-track figures.
+//!
+//! [`matchmove`] runs stages 1–6 (fragments in parallel); every constant is in
+//! [`MatchmoveOptions`] with the book's value as default.
+
+pub mod extend;
+pub mod fragment;
+pub mod fragments;
+pub mod global;
+pub mod junction;
+pub mod pair;
+pub mod relax;
+pub mod report;
+pub mod score;
+pub mod synthetic;
+
+use std::time::Instant;
+
+use nalgebra::{Matrix3x4, Point2, Point3, Vector3};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::camera::{Intrinsics, Pose};
+use crate::error::{Result, VisionError};
+use crate::formats::cameras::{CameraPath, FramePose};
+use crate::klt::Tracks;
+use crate::points::PointCloud;
+
+pub use fragment::{solve_fragment, FragmentSolution, RefineOptions};
+pub use fragments::{split_fragments, Fragment, FragmentOptions};
+pub use global::{global_bundle_adjust, GlobalOptions};
+pub use junction::{join_fragments, ScaleOptions};
+pub use pair::PairOptions;
+pub use relax::{relax, RelaxOptions};
+pub use report::{SolveReport, StageTime};
+pub use score::{score_cameras, BookScore};
+
+/// Poses by frame index (`None`: no camera for that frame).
+pub type Poses = Vec<Option<Pose>>;
+/// Points by track index (`None`: no point for that track).
+pub type TrackPoints = Vec<Option<Vector3<f64>>>;
+/// A camera path and its structure, by frame and track index.
+pub type Structure = (Poses, TrackPoints);
+
+/// Every constant of the matchmove, with the book's values as defaults.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct MatchmoveOptions {
+    /// Fragment cutting (§7.11).
+    pub fragments: FragmentOptions,
+    /// Best-pair search (§7.2–7.6).
+    pub pair: PairOptions,
+    /// Refinement cycles (§7.9).
+    pub refine: RefineOptions,
+    /// Scale search between fragments (§7.12).
+    pub scale: ScaleOptions,
+    /// Final robust bundle adjustment of the whole sequence (not in the book; `None` skips it).
+    pub global: Option<GlobalOptions>,
+    /// Seed of every random choice (RANSAC samples); each fragment derives its own stream.
+    pub seed: u64,
+}
+
+impl Default for MatchmoveOptions {
+    fn default() -> Self {
+        MatchmoveOptions {
+            fragments: FragmentOptions::default(),
+            pair: PairOptions::default(),
+            refine: RefineOptions::default(),
+            scale: ScaleOptions::default(),
+            global: Some(GlobalOptions::default()),
+            seed: 0,
+        }
+    }
+}
+
+/// The result of a solve: cameras, points, figures.
+#[derive(Clone, Debug)]
+pub struct Solve {
+    /// One pose per frame (with K attached).
+    pub path: CameraPath,
+    /// The reconstructed points, with the track id of each.
+    pub cloud: PointCloud,
+    /// Figures: per frame, per track, per stage.
+    pub report: SolveReport,
+}
+
+/// Projects X with K and pose; `None` behind the camera.
+#[inline]
+pub(crate) fn project(k: &Intrinsics, pose: &Pose, x: &Vector3<f64>) -> Option<[f64; 2]> {
+    let c = pose.r * x + pose.t;
+    if c.z <= 1e-12 {
+        return None;
+    }
+    let (u, v) = (c.x / c.z, c.y / c.z);
+    Some([k.f1 * u + k.s * v + k.u0, k.f2 * v + k.v0])
+}
+
+/// Reprojection error of X seen at `obs`, infinity behind the camera.
+#[inline]
+pub(crate) fn reprojection_error(
+    k: &Intrinsics,
+    pose: &Pose,
+    x: &Vector3<f64>,
+    obs: &[f64; 2],
+) -> f64 {
+    match project(k, pose, x) {
+        Some(p) => ((p[0] - obs[0]).powi(2) + (p[1] - obs[1]).powi(2)).sqrt(),
+        None => f64::INFINITY,
+    }
+}
+
+/// P = K[R|t].
+pub(crate) fn p_matrix(k: &Intrinsics, pose: &Pose) -> Matrix3x4<f64> {
+    k.k() * pose.matrix3x4()
+}
+
+/// Triangulates a point from its observations in posed frames (linear, then Gauss–Newton on the
+/// reprojection error); `None` if it lands at infinity or behind a camera.
+pub(crate) fn triangulate_views(
+    k: &Intrinsics,
+    views: &[(&Pose, [f64; 2])],
+) -> Option<Vector3<f64>> {
+    if views.len() < 2 {
+        return None;
+    }
+    let ps: Vec<Matrix3x4<f64>> = views.iter().map(|(p, _)| p_matrix(k, p)).collect();
+    let xs: Vec<Point2<f64>> = views.iter().map(|(_, x)| Point2::new(x[0], x[1])).collect();
+    let x0 = crate::two_view::triangulate_linear_n(&ps, &xs).ok()?;
+    let lm = crate::optimize::LmOptions {
+        max_iterations: 10,
+        ..Default::default()
+    };
+    let x = crate::two_view::triangulate_nonlinear(&ps, &xs, &x0, &lm).unwrap_or(x0);
+    let v = x.coords;
+    if !v.iter().all(|c| c.is_finite()) {
+        return None;
+    }
+    if views.iter().any(|(p, _)| (p.r * v + p.t).z <= 0.0) {
+        return None;
+    }
+    Some(v)
+}
+
+/// Observations of one track in frame indices `range` (all of them, in order), or `None` if the
+/// track is not seen in every frame of the range.
+pub(crate) fn through(track: &crate::klt::Track, first: usize, last: usize) -> Option<&[[f64; 2]]> {
+    if track.first <= first && track.end() > last {
+        Some(&track.points[first - track.first..=last - track.first])
+    } else {
+        None
+    }
+}
+
+/// A per-purpose seed: the options' seed mixed with a stage tag and an index (splitmix64), so that
+/// parallel stages draw independent, reproducible streams.
+pub(crate) fn derive_seed(seed: u64, tag: u64, index: u64) -> u64 {
+    let mut z =
+        seed ^ tag.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ index.wrapping_mul(0xD1B5_4A32_D192_ED03);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// Runs the whole matchmove on `tracks` with intrinsics `k` (book chapter 7, stages 1–6 of the
+/// module documentation). `progress` is called with (stage, done, total) for long work.
+pub fn matchmove(
+    tracks: &Tracks,
+    k: &Intrinsics,
+    options: &MatchmoveOptions,
+    progress: &(dyn Fn(&str, usize, usize) + Sync),
+) -> Result<Solve> {
+    k.validate()?;
+    tracks
+        .validate()
+        .map_err(|e| VisionError::InvalidInput(format!("tracks: {e}")))?;
+    let n = tracks.frames.len();
+    if n < 2 {
+        return Err(VisionError::InvalidInput(format!(
+            "a matchmove needs at least 2 frames, the tracks have {n}"
+        )));
+    }
+    let mut stages = Vec::new();
+    let t0 = Instant::now();
+    let fragments = split_fragments(tracks, &options.fragments)?;
+    stages.push(StageTime::new("fragments", t0));
+
+    let t0 = Instant::now();
+    let done = std::sync::atomic::AtomicUsize::new(0);
+    progress("fragments", 0, fragments.len());
+    let solutions: Vec<Result<FragmentSolution>> = fragments
+        .par_iter()
+        .enumerate()
+        .map(|(i, frag)| {
+            let r = solve_fragment(
+                tracks,
+                k,
+                frag,
+                &options.pair,
+                &options.refine,
+                derive_seed(options.seed, 1, i as u64),
+            );
+            let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+            progress("fragments", d, fragments.len());
+            r
+        })
+        .collect();
+    let solutions: Vec<FragmentSolution> = solutions.into_iter().collect::<Result<_>>()?;
+    stages.push(StageTime::new("fragment calibration", t0));
+
+    let t0 = Instant::now();
+    let joined = join_fragments(tracks, k, &solutions, &options.scale)?;
+    stages.push(StageTime::new("scale and junction", t0));
+
+    let t0 = Instant::now();
+    let (mut poses, mut points) = extend::extend_to_all_frames(
+        tracks,
+        k,
+        joined.poses,
+        joined.points,
+        derive_seed(options.seed, 2, 0),
+    )?;
+    stages.push(StageTime::new("extension", t0));
+
+    if let Some(g) = &options.global {
+        let t0 = Instant::now();
+        progress("global bundle adjustment", 0, 1);
+        let adjusted = global_bundle_adjust(tracks, k, &poses, g)?;
+        poses = adjusted.0;
+        points = adjusted.1;
+        progress("global bundle adjustment", 1, 1);
+        stages.push(StageTime::new("global bundle adjustment", t0));
+    }
+
+    let path = path_from_poses(tracks, k, &poses)?;
+    let cloud = cloud_from_points(tracks, k, &poses, &points);
+    let mut report =
+        report::solve_report(tracks, k, &poses, &points, options.refine.final_tolerance());
+    report.stages = stages;
+    report.fragments = solutions
+        .iter()
+        .zip(&joined.scales)
+        .map(|(s, &scale)| {
+            let mut r = s.report.clone();
+            r.scale = scale;
+            r
+        })
+        .collect();
+    Ok(Solve {
+        path,
+        cloud,
+        report,
+    })
+}
+
+/// A camera path from per-frame-index poses; every frame must have one.
+pub(crate) fn path_from_poses(
+    tracks: &Tracks,
+    k: &Intrinsics,
+    poses: &[Option<Pose>],
+) -> Result<CameraPath> {
+    let mut frames = Vec::with_capacity(poses.len());
+    for (i, p) in poses.iter().enumerate() {
+        let Some(p) = p else {
+            return Err(VisionError::Degenerate(format!(
+                "frame {} has no camera",
+                tracks.frames[i]
+            )));
+        };
+        if !(p.r.iter().chain(p.t.iter()).all(|v| v.is_finite())) {
+            return Err(VisionError::Degenerate(format!(
+                "frame {}: the solved camera is not finite",
+                tracks.frames[i]
+            )));
+        }
+        let frame = usize::try_from(tracks.frames[i]).map_err(|_| {
+            VisionError::InvalidInput(format!("negative frame number {}", tracks.frames[i]))
+        })?;
+        frames.push(FramePose {
+            frame,
+            pose: p.clone(),
+        });
+    }
+    Ok(CameraPath {
+        frames,
+        intrinsics: Some(k.clone()),
+    })
+}
+
+/// Poses of a camera path by frame index of `tracks` (`None` where the path has no camera).
+pub fn poses_by_index(tracks: &Tracks, path: &CameraPath) -> Vec<Option<Pose>> {
+    let by_frame: std::collections::HashMap<i64, &Pose> = path
+        .frames
+        .iter()
+        .map(|f| (f.frame as i64, &f.pose))
+        .collect();
+    tracks
+        .frames
+        .iter()
+        .map(|f| by_frame.get(f).map(|p| (*p).clone()))
+        .collect()
+}
+
+/// A point cloud from points keyed by track index, with each point's RMS error.
+pub(crate) fn cloud_from_points(
+    tracks: &Tracks,
+    k: &Intrinsics,
+    poses: &[Option<Pose>],
+    points: &[Option<Vector3<f64>>],
+) -> PointCloud {
+    let mut cloud = PointCloud::default();
+    for (t, x) in tracks.tracks.iter().zip(points) {
+        let Some(x) = x else { continue };
+        let (mut s, mut n) = (0.0, 0usize);
+        for (j, obs) in t.points.iter().enumerate() {
+            if let Some(Some(p)) = poses.get(t.first + j) {
+                let e = reprojection_error(k, p, x, obs);
+                if e.is_finite() {
+                    s += e * e;
+                    n += 1;
+                }
+            }
+        }
+        cloud.points.push([x.x, x.y, x.z]);
+        cloud.track_ids.push(t.id);
+        cloud.errors.push(if n > 0 {
+            (s / n as f64).sqrt()
+        } else {
+            f64::NAN
+        });
+    }
+    cloud
+}
+
+/// Points keyed by track index from a cloud (tracks without a point get `None`).
+pub fn points_by_track(tracks: &Tracks, cloud: &PointCloud) -> Vec<Option<Vector3<f64>>> {
+    let by_id: std::collections::HashMap<u64, [f64; 3]> = cloud
+        .track_ids
+        .iter()
+        .copied()
+        .zip(cloud.points.iter().copied())
+        .collect();
+    tracks
+        .tracks
+        .iter()
+        .map(|t| by_id.get(&t.id).map(|p| Vector3::new(p[0], p[1], p[2])))
+        .collect()
+}
+
+/// Bundle adjustment (book §7.7, the sparse solver of [`crate::bundle`]) of the posed frames and
+/// triangulated tracks, K fixed, over the observations `keep(track, frame)` accepts. `poses` is
+/// indexed by frame index, `points` by track index; `None` entries take no part. The gauge is
+/// fixed by the first posed frame and the scale of the first baseline.
+pub(crate) fn bundle_adjust_indexed(
+    tracks: &Tracks,
+    k: &Intrinsics,
+    poses: &mut [Option<Pose>],
+    points: &mut [Option<Vector3<f64>>],
+    keep: &(dyn Fn(usize, usize) -> bool + Sync),
+    loss: crate::bundle::Loss,
+    max_iterations: usize,
+) -> Result<crate::bundle::SolverReport> {
+    use crate::bundle::{CameraModel, CameraPose, Gauge, Observation, Point, Problem};
+    let mut cam_index = vec![usize::MAX; poses.len()];
+    let mut cameras = Vec::new();
+    let mut cam_frame = Vec::new();
+    for (f, p) in poses.iter().enumerate() {
+        if let Some(p) = p {
+            cam_index[f] = cameras.len();
+            cam_frame.push(f);
+            cameras.push(CameraPose::from_rt(&p.r, &p.t, 0));
+        }
+    }
+    let mut pts = Vec::new();
+    let mut pt_track = Vec::new();
+    let mut observations = Vec::new();
+    for (ti, (t, x)) in tracks.tracks.iter().zip(points.iter()).enumerate() {
+        let Some(x) = x else { continue };
+        let pi = pts.len();
+        let before = observations.len();
+        for (j, o) in t.points.iter().enumerate() {
+            let f = t.first + j;
+            if f < poses.len() && cam_index[f] != usize::MAX && keep(ti, f) {
+                observations.push(Observation {
+                    camera: cam_index[f],
+                    point: pi,
+                    pixel: nalgebra::Vector2::new(o[0], o[1]),
+                });
+            }
+        }
+        if observations.len() - before < 2 {
+            observations.truncate(before);
+            continue;
+        }
+        pts.push(Point {
+            position: *x,
+            fixed: false,
+        });
+        pt_track.push(ti);
+    }
+    if cameras.len() < 2 || pts.is_empty() {
+        return Err(VisionError::Degenerate(format!(
+            "bundle adjustment needs 2 cameras and some points ({} cameras, {} points)",
+            cameras.len(),
+            pts.len()
+        )));
+    }
+    let problem_cameras = cameras.len();
+    let mut problem = Problem {
+        cameras,
+        intrinsics: vec![crate::bundle::Intrinsics {
+            model: CameraModel::Pinhole {
+                aspect: k.f2 / k.f1,
+                skew: k.s,
+            },
+            params: [k.f1, k.u0, k.v0],
+            fixed: true,
+        }],
+        points: pts,
+        observations,
+        gauge: Gauge::FixFirstCameraAndScale,
+    };
+    let options = crate::bundle::SolverOptions {
+        max_iterations,
+        loss,
+        // Long tracks couple almost every pair of cameras: the reduced camera system of a shot
+        // is nearly dense, where dense Cholesky beats the sparse one (measured on the book's
+        // 286 frames: 0.54 vs 0.77 s per iteration).
+        linear_solver: if problem_cameras <= 600 {
+            crate::bundle::LinearSolverKind::DenseSchur
+        } else {
+            crate::bundle::LinearSolverKind::Auto
+        },
+        ..Default::default()
+    };
+    let report = crate::bundle::solve(&mut problem, &options)
+        .map_err(|e| VisionError::Degenerate(format!("bundle adjustment: {e}")))?;
+    for (c, &f) in problem.cameras.iter().zip(&cam_frame) {
+        poses[f] = Some(Pose::new(c.rotation_matrix(), c.translation));
+    }
+    for (p, &ti) in problem.points.iter().zip(&pt_track) {
+        points[ti] = Some(p.position);
+    }
+    Ok(report)
+}
+
+#[allow(dead_code)]
+pub(crate) fn to_point3(v: &Vector3<f64>) -> Point3<f64> {
+    Point3::from(*v)
+}
+
+#[cfg(test)]
+mod tests;

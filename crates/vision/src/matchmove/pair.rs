@@ -1,0 +1,252 @@
+//! The best frame pair of a fragment (book §7.2–7.6, as GAPS.md restates them).
+//!
+//! For every candidate pair (i, j) of the fragment whose features moved more than
+//! `min_displacement` pixels: RANSAC on the fundamental matrix, E = KᵀFK, the factorization that
+//! puts the points in front of both cameras, triangulation of the features
+//! ([`crate::two_view::reconstruct_two_view`]). Every frame of the fragment is then resected from
+//! those points by RANSAC on the 6-point DLT with a `resection_tolerance` pixel threshold; a
+//! feature stays an inlier only if it is one in every frame, and the pair is rejected if any
+//! frame's DLT camera, factored as K'[R|t], has a K' farther than `max_k_difference` (largest
+//! entry difference) from the known K. The pair with the most inliers wins.
+//!
+//! The book tries every pair; `stride` restricts the candidates to every `stride`-th frame (plus
+//! the last) — with the default 6, about 60 pairs of a 60-frame fragment instead of 1800, at no
+//! loss we could measure. Pairs are evaluated in parallel, each with its own seeded stream; ties
+//! go to the earlier pair, so the choice does not depend on the thread count.
+
+use nalgebra::{Point2, Point3, Vector3};
+use rand::SeedableRng;
+use rand_pcg::Pcg64;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use super::fragments::{mean_displacement, Fragment};
+use super::{derive_seed, through};
+use crate::calibration::{factor_camera, resect_ransac};
+use crate::camera::Intrinsics;
+use crate::error::{Result, VisionError};
+use crate::klt::Tracks;
+use crate::ransac::RansacParams;
+use crate::two_view::{reconstruct_two_view, EpipolarResidual, TwoViewOptions};
+
+/// The best-pair search's constants.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct PairOptions {
+    /// Only pairs whose features moved more than this on average, pixels (book: 4).
+    pub min_displacement: f64,
+    /// Candidate frames: every `stride`-th frame of the fragment and its last (book: 1).
+    pub stride: usize,
+    /// Sampson-distance threshold of the RANSAC on F, pixels.
+    pub epipolar_threshold: f64,
+    /// Most RANSAC iterations on F (book: 60 fixed; ours stop adaptively below this).
+    pub ransac_iterations: usize,
+    /// Resection (6-point DLT) RANSAC threshold, pixels (book: 15).
+    pub resection_tolerance: f64,
+    /// Largest entry difference between a frame's DLT K' and the known K (book: 100).
+    pub max_k_difference: f64,
+    /// A pair with fewer inliers than this is not a candidate.
+    pub min_inliers: usize,
+}
+
+impl Default for PairOptions {
+    fn default() -> Self {
+        PairOptions {
+            min_displacement: 4.0,
+            stride: 6,
+            epipolar_threshold: 1.5,
+            ransac_iterations: 500,
+            resection_tolerance: 15.0,
+            max_k_difference: 100.0,
+            min_inliers: 12,
+        }
+    }
+}
+
+/// The winning pair and its seed reconstruction.
+#[derive(Clone, Debug)]
+pub struct BestPair {
+    /// Frame indices (into `Tracks::frames`) of the pair.
+    pub pair: (usize, usize),
+    /// Inlier features (indices into `Fragment::features`) and their 3D points, in the frame
+    /// of camera i (which is [I|0]); camera j has a unit baseline.
+    pub points: Vec<(usize, Vector3<f64>)>,
+    /// Pairs evaluated.
+    pub candidates: usize,
+    /// Pairs rejected by the intrinsics-consistency test.
+    pub rejected_k: usize,
+}
+
+/// Why a pair was not kept.
+enum PairFailure {
+    TwoView(VisionError),
+    IntrinsicsTest,
+    TooFew,
+}
+
+/// Evaluates one pair: its inlier features and their points, or why it failed.
+fn evaluate_pair(
+    k: &Intrinsics,
+    frag: &Fragment,
+    obs: &[&[[f64; 2]]],
+    i: usize,
+    j: usize,
+    options: &PairOptions,
+    seed: u64,
+) -> std::result::Result<Vec<(usize, Vector3<f64>)>, PairFailure> {
+    let mut rng = Pcg64::seed_from_u64(seed);
+    let (li, lj) = (i - frag.first, j - frag.first);
+    let a: Vec<Point2<f64>> = obs
+        .iter()
+        .map(|o| Point2::new(o[li][0], o[li][1]))
+        .collect();
+    let b: Vec<Point2<f64>> = obs
+        .iter()
+        .map(|o| Point2::new(o[lj][0], o[lj][1]))
+        .collect();
+    let two_view = TwoViewOptions {
+        ransac: RansacParams {
+            threshold: options.epipolar_threshold,
+            max_iterations: options.ransac_iterations.max(1),
+            min_iterations: 20.min(options.ransac_iterations.max(1)),
+            ..RansacParams::default()
+        },
+        residual: EpipolarResidual::Sampson,
+        refine_pose: true,
+        refine_points: true,
+        homography_ratio: 0.95,
+        min_inliers: options.min_inliers.max(8),
+    };
+    let rec =
+        reconstruct_two_view(&a, &b, k, k, &two_view, &mut rng).map_err(PairFailure::TwoView)?;
+    let feats: Vec<usize> = rec.point_indices.clone();
+    let p3: Vec<Point3<f64>> = rec.points3d.0.clone();
+    if feats.len() < options.min_inliers.max(6) {
+        return Err(PairFailure::TooFew);
+    }
+    let mut inlier = vec![true; feats.len()];
+    let res_params = RansacParams {
+        threshold: options.resection_tolerance,
+        max_iterations: 200,
+        min_iterations: 10,
+        refit_rounds: 1,
+        local_optimization: false,
+        ..RansacParams::default()
+    };
+    let kk = k.k();
+    for f in frag.first..=frag.last {
+        let lf = f - frag.first;
+        let p2: Vec<Point2<f64>> = feats
+            .iter()
+            .map(|&q| Point2::new(obs[q][lf][0], obs[q][lf][1]))
+            .collect();
+        let res =
+            resect_ransac(&p3, &p2, &res_params, &mut rng).map_err(|_| PairFailure::TooFew)?;
+        let cam = factor_camera(&res.p).map_err(|_| PairFailure::IntrinsicsTest)?;
+        let kf = cam.intrinsics.k();
+        let diff = (kf - kk).abs().max();
+        if !(diff <= options.max_k_difference) {
+            return Err(PairFailure::IntrinsicsTest);
+        }
+        for (flag, r) in inlier.iter_mut().zip(&res.inliers) {
+            *flag &= *r;
+        }
+        if inlier.iter().filter(|&&x| x).count() < options.min_inliers {
+            return Err(PairFailure::TooFew);
+        }
+    }
+    Ok(feats
+        .iter()
+        .zip(&p3)
+        .zip(&inlier)
+        .filter(|(_, &ok)| ok)
+        .map(|((&q, p), _)| (q, p.coords))
+        .collect())
+}
+
+/// Finds the fragment's best pair (module docs).
+pub fn best_pair(
+    tracks: &Tracks,
+    k: &Intrinsics,
+    frag: &Fragment,
+    options: &PairOptions,
+    seed: u64,
+) -> Result<BestPair> {
+    let obs: Vec<&[[f64; 2]]> = frag
+        .features
+        .iter()
+        .map(|&t| through(&tracks.tracks[t], frag.first, frag.last).expect("fragment feature"))
+        .collect();
+    let stride = options.stride.max(1);
+    let mut grid: Vec<usize> = (frag.first..=frag.last).step_by(stride).collect();
+    if *grid.last().unwrap() != frag.last {
+        grid.push(frag.last);
+    }
+    let mut pairs = Vec::new();
+    for (x, &i) in grid.iter().enumerate() {
+        for &j in &grid[x + 1..] {
+            if mean_displacement(tracks, &frag.features, i, j) > options.min_displacement {
+                pairs.push((i, j));
+            }
+        }
+    }
+    let describe = || {
+        format!(
+            "fragment of frames {}..{} ({} features)",
+            tracks.frames[frag.first],
+            tracks.frames[frag.last],
+            frag.features.len()
+        )
+    };
+    if pairs.is_empty() {
+        return Err(VisionError::Degenerate(format!(
+            "{}: no frame pair whose features moved more than {} px",
+            describe(),
+            options.min_displacement
+        )));
+    }
+    let results: Vec<_> = pairs
+        .par_iter()
+        .enumerate()
+        .map(|(n, &(i, j))| {
+            evaluate_pair(k, frag, &obs, i, j, options, derive_seed(seed, 7, n as u64))
+        })
+        .collect();
+    type Seed = Vec<(usize, Vector3<f64>)>;
+    let mut best: Option<(usize, Seed)> = None;
+    let (mut zero_baseline, mut rejected_k) = (0usize, 0usize);
+    for (n, r) in results.into_iter().enumerate() {
+        match r {
+            Ok(points) => {
+                if best.as_ref().is_none_or(|b| points.len() > b.1.len()) {
+                    best = Some((n, points));
+                }
+            }
+            Err(PairFailure::TwoView(VisionError::ZeroBaseline)) => zero_baseline += 1,
+            Err(PairFailure::IntrinsicsTest) => rejected_k += 1,
+            Err(_) => {}
+        }
+    }
+    match best {
+        Some((n, points)) => Ok(BestPair {
+            pair: pairs[n],
+            points,
+            candidates: pairs.len(),
+            rejected_k,
+        }),
+        None if zero_baseline * 2 >= pairs.len() => Err(VisionError::Degenerate(format!(
+            "{}: no parallax — {} of {} frame pairs are explained by a rotation about the camera \
+             centre (a tripod pan cannot be matchmoved in 3D)",
+            describe(),
+            zero_baseline,
+            pairs.len()
+        ))),
+        None => Err(VisionError::Degenerate(format!(
+            "{}: none of {} frame pairs gave a consistent reconstruction ({} failed the \
+             intrinsics test)",
+            describe(),
+            pairs.len(),
+            rejected_k
+        ))),
+    }
+}

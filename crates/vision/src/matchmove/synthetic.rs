@@ -1,0 +1,188 @@
+//! A synthetic shot with known cameras, for testing the matchmove: a camera dollying and panning
+//! through a field of textured points, observed by KLT-like tracks — finite lifetimes, features
+//! lost when they leave the image and their slots refilled with new points (a new track), Gaussian
+//! pixel noise, and a fraction of outlier tracks that drift away from their point as KLT windows
+//! slide along edges.
+
+#![allow(clippy::needless_range_loop)] // a simulation over frame and slot indices
+
+use nalgebra::Vector3;
+use rand::{Rng, SeedableRng};
+use rand_pcg::Pcg64;
+
+use crate::camera::{Intrinsics, Pose};
+use crate::klt::{LostReason, Track, Tracks};
+use crate::rotation::axis_angle_to_r;
+use crate::synthetic::gaussian;
+
+/// What to generate.
+#[derive(Clone, Debug)]
+pub struct ShotOptions {
+    /// Frames.
+    pub frames: usize,
+    /// Feature slots per frame.
+    pub slots: usize,
+    /// Pixel noise σ.
+    pub noise: f64,
+    /// Fraction of new tracks that drift (outliers).
+    pub outlier_fraction: f64,
+    /// Drift per frame of an outlier track, pixels (random walk σ).
+    pub drift: f64,
+    /// Mean track lifetime, frames (geometric).
+    pub mean_track_length: f64,
+    /// Sideways travel of the camera over the shot, scene units (0: a tripod pan).
+    pub travel: f64,
+    /// Pan over the shot, radians.
+    pub pan: f64,
+    /// Seed.
+    pub seed: u64,
+}
+
+impl Default for ShotOptions {
+    fn default() -> Self {
+        ShotOptions {
+            frames: 150,
+            slots: 150,
+            noise: 0.5,
+            outlier_fraction: 0.1,
+            drift: 0.7,
+            mean_track_length: 60.0,
+            travel: 3.0,
+            pan: 0.25,
+            seed: 1,
+        }
+    }
+}
+
+/// The generated shot and its truth.
+#[derive(Clone, Debug)]
+pub struct SyntheticShot {
+    /// The tracks.
+    pub tracks: Tracks,
+    /// Intrinsics (1280×720).
+    pub k: Intrinsics,
+    /// True pose of every frame.
+    pub truth: Vec<Pose>,
+    /// Ids of the outlier tracks.
+    pub outliers: Vec<u64>,
+}
+
+/// The true camera of frame `i` of `n`.
+fn pose_at(i: usize, n: usize, o: &ShotOptions) -> Pose {
+    let s = i as f64 / (n.max(2) - 1) as f64;
+    let centre = Vector3::new(o.travel * s, 0.15 * (3.0 * s).sin(), 0.4 * o.travel * s);
+    let r = axis_angle_to_r(&Vector3::new(0.03 * (2.0 * s).sin(), -o.pan * s, 0.01 * s));
+    Pose::new(r, -(r * centre))
+}
+
+/// Generates a shot (module docs).
+pub fn synthetic_shot(o: &ShotOptions) -> SyntheticShot {
+    let mut rng = Pcg64::seed_from_u64(o.seed);
+    let k = Intrinsics::new(1100.0, 1100.0, 639.5, 359.5).with_size(1280, 720);
+    let (w, h) = (1280.0, 720.0);
+    let truth: Vec<Pose> = (0..o.frames).map(|i| pose_at(i, o.frames, o)).collect();
+    let scene: Vec<Vector3<f64>> = (0..6000)
+        .map(|_| {
+            Vector3::new(
+                rng.random_range(-8.0..12.0),
+                rng.random_range(-3.0..3.0),
+                rng.random_range(5.0..16.0),
+            )
+        })
+        .collect();
+    let project = |p: &Pose, x: &Vector3<f64>| super::project(&k, p, x);
+    let inside = |q: [f64; 2]| q[0] >= 8.0 && q[0] < w - 8.0 && q[1] >= 8.0 && q[1] < h - 8.0;
+    // Live features: (track index, point index, drift, remaining life).
+    type Live = (usize, usize, [f64; 2], usize);
+    let mut live: Vec<Option<Live>> = vec![None; o.slots];
+    let mut tracks: Vec<Track> = Vec::new();
+    let mut outliers = Vec::new();
+    for f in 0..o.frames {
+        let pose = &truth[f];
+        // Advance or lose live features.
+        for slot in 0..o.slots {
+            let Some((ti, pi, mut drift, life)) = live[slot] else {
+                continue;
+            };
+            let q = project(pose, &scene[pi]);
+            let lost = match q {
+                Some(q) if inside(q) && life > 0 => {
+                    if tracks[ti].points.len() > 1 && outliers.contains(&tracks[ti].id) {
+                        drift[0] += o.drift * gaussian(&mut rng);
+                        drift[1] += o.drift * gaussian(&mut rng);
+                    }
+                    tracks[ti].points.push([
+                        q[0] + drift[0] + o.noise * gaussian(&mut rng),
+                        q[1] + drift[1] + o.noise * gaussian(&mut rng),
+                    ]);
+                    live[slot] = Some((ti, pi, drift, life - 1));
+                    None
+                }
+                Some(q) => Some(q),
+                None => Some([0.0, 0.0]),
+            };
+            if let Some(at) = lost {
+                tracks[ti].lost = Some(crate::klt::Loss {
+                    frame: f,
+                    at,
+                    reason: LostReason::LeftImage,
+                });
+                live[slot] = None;
+            }
+        }
+        // Refill empty slots with visible points at least 10 px from live features.
+        let mut positions: Vec<[f64; 2]> = live
+            .iter()
+            .flatten()
+            .map(|(ti, ..)| *tracks[*ti].points.last().unwrap())
+            .collect();
+        for slot in 0..o.slots {
+            if live[slot].is_some() {
+                continue;
+            }
+            for _ in 0..50 {
+                let pi = rng.random_range(0..scene.len());
+                let Some(q) = project(pose, &scene[pi]) else {
+                    continue;
+                };
+                if !inside(q)
+                    || positions
+                        .iter()
+                        .any(|p| (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) < 100.0)
+                {
+                    continue;
+                }
+                let id = tracks.len() as u64;
+                if rng.random::<f64>() < o.outlier_fraction {
+                    outliers.push(id);
+                }
+                let u: f64 = rng.random::<f64>().max(1e-9);
+                let life = (-u.ln() * o.mean_track_length) as usize + 2;
+                let obs = [
+                    q[0] + o.noise * gaussian(&mut rng),
+                    q[1] + o.noise * gaussian(&mut rng),
+                ];
+                tracks.push(Track {
+                    id,
+                    slot,
+                    first: f,
+                    points: vec![obs],
+                    lost: None,
+                });
+                live[slot] = Some((tracks.len() - 1, pi, [0.0, 0.0], life));
+                positions.push(q);
+                break;
+            }
+        }
+    }
+    SyntheticShot {
+        tracks: Tracks {
+            frames: (0..o.frames as i64).collect(),
+            slots: o.slots,
+            tracks,
+        },
+        k,
+        truth,
+        outliers,
+    }
+}
