@@ -136,7 +136,10 @@ def main():
         "consistency_error": errs,
         "vfxgraph_s": {"calibrate": ours["calibrate_s"], "merge": ours["merge_s"],
                         "samples": ours["samples"], "lambda": ours["lambda"],
-                        "rust_reported_consistency": ours["consistency"]},
+                        "rust_reported_consistency": ours["consistency"],
+                        "monotonic": ours["monotonic"],
+                        "unconstrained_consistency": ours["unconstrained_consistency"],
+                        "unconstrained_monotonic": ours["unconstrained_monotonic"]},
         "opencv_s": {"calibrate": t_cal, "merge": t_merge, "robertson_calibrate": t_rob},
         "time_ratio_ours_over_opencv": ours_total / cv_total,
         "runs": a.runs,
@@ -148,6 +151,11 @@ def main():
     print("exposure-consistency error (median |ln E_j - median_j ln E|, 32<=Z<=223):")
     for k, v in errs.items():
         print(f"  {k:18s} {v:.4f}")
+    mono = lambda r: bool(np.all(np.diff(np.log(np.maximum(r, 1e-300)), axis=0) >= 0))
+    print(f"monotonic on 0..255: vfxgraph {ours['monotonic']} (unconstrained solve: "
+          f"{ours['unconstrained_monotonic']}, Rust-side consistency "
+          f"{ours['unconstrained_consistency']:.4f}), OpenCV Debevec {mono(cv_rgb)}, "
+          f"Robertson {mono(rob_rgb)}")
     print(f"vfxgraph (samples {ours['samples']}, lambda {ours['lambda']}): calibrate "
           f"{ours['calibrate_s']:.3f} s + merge {ours['merge_s']:.3f} s = {ours_total:.3f} s "
           f"(Rust-side consistency {ours['consistency']:.4f})")

@@ -350,21 +350,43 @@ impl<'a> Common<'a> {
             .collect()
     }
 
-    fn input_files(&self, i: usize) -> Vec<PathBuf> {
+    /// The files named by the path and path-list params of `role`, resolved, with the param
+    /// naming each. An empty path (the default of an optional path param) names no file.
+    fn role_files(&self, i: usize, role: PathRole) -> Vec<(&'static str, PathBuf)> {
         let inst = &self.insts[i];
         let gn = &self.graph.nodes[inst.node];
-        gn.spec()
-            .path_params(PathRole::Input)
-            .map(|p| resolve_path(&self.graph.dir, gn.params.str(p), inst.frame))
-            .collect()
+        let spec = gn.spec();
+        let mut files: Vec<(&'static str, PathBuf)> = spec
+            .path_params(role)
+            .filter(|p| !gn.params.str(p).is_empty())
+            .map(|p| {
+                (
+                    p,
+                    resolve_path(&self.graph.dir, gn.params.str(p), inst.frame),
+                )
+            })
+            .collect();
+        for p in spec.path_list_params(role) {
+            if gn.params.get(p).is_some() {
+                files.extend(
+                    gn.params
+                        .strs(p)
+                        .into_iter()
+                        .map(|t| (p, resolve_path(&self.graph.dir, t, None))),
+                );
+            }
+        }
+        files
+    }
+
+    fn input_files(&self, i: usize) -> Vec<(&'static str, PathBuf)> {
+        self.role_files(i, PathRole::Input)
     }
 
     fn output_files(&self, i: usize) -> Vec<PathBuf> {
-        let inst = &self.insts[i];
-        let gn = &self.graph.nodes[inst.node];
-        gn.spec()
-            .path_params(PathRole::Output)
-            .map(|p| resolve_path(&self.graph.dir, gn.params.str(p), inst.frame))
+        self.role_files(i, PathRole::Output)
+            .into_iter()
+            .map(|(_, p)| p)
             .collect()
     }
 
@@ -413,11 +435,13 @@ impl<'a> Common<'a> {
             h.update(&digest.0);
             record.inputs.insert(d.port.to_string(), digest.to_hex());
         }
-        for path in self.input_files(i) {
-            let digest = self
-                .hasher
-                .hash(&path)
-                .map_err(|e| format!("cannot read input file {}: {e}", path.display()))?;
+        for (param, path) in self.input_files(i) {
+            let digest = self.hasher.hash(&path).map_err(|e| {
+                format!(
+                    "param `{param}`: cannot read input file {}: {e}",
+                    path.display()
+                )
+            })?;
             h.update(b"file\0");
             h.update(&digest.0);
             record
@@ -465,6 +489,13 @@ impl<'a> Common<'a> {
         }
         if expected.len() != entry.files.len() {
             return Err("output files differ from the cached entry".into());
+        }
+        for f in &entry.read_files {
+            match self.hasher.hash(&f.path) {
+                Ok(d) if d.to_hex() == f.digest => {}
+                Ok(_) => return Err(format!("input file {} changed", f.path.display())),
+                Err(_) => return Err(format!("input file {} is missing", f.path.display())),
+            }
         }
         Ok(entry)
     }
@@ -708,7 +739,11 @@ pub fn run(
     })
 }
 
-type Computed = BTreeMap<&'static str, (Value, Vec<u8>)>;
+struct Computed {
+    outputs: BTreeMap<&'static str, (Value, Vec<u8>)>,
+    /// Files declared by the node while running, with their digests.
+    read_files: Vec<(PathBuf, Digest)>,
+}
 
 impl<'a> Runner<'a> {
     fn schedule<'s>(&'s self, s: &rayon::Scope<'s>, i: usize) {
@@ -829,10 +864,15 @@ impl<'a> Runner<'a> {
         self.observer.started(inst.node, inst.frame);
         let t = Instant::now();
         match self.compute(i) {
-            Ok(outputs) => {
+            Ok(computed) => {
                 let seconds = t.elapsed().as_secs_f64();
-                let digests = outputs.iter().map(|(k, (v, _))| (*k, v.digest())).collect();
-                self.store_outputs(i, &parts.key, &outputs, seconds);
+                let digests = computed
+                    .outputs
+                    .iter()
+                    .map(|(k, (v, _))| (*k, v.digest()))
+                    .collect();
+                self.store_outputs(i, &parts.key, &computed, seconds);
+                let outputs = computed.outputs;
                 {
                     let mut vals = self.state[i].values.lock().expect("values lock");
                     if self.state[i].consumers_left.load(Ordering::Acquire) > 0 {
@@ -898,6 +938,7 @@ impl<'a> Runner<'a> {
             progress: &progress,
             cancel: &self.cancel,
             outputs: BTreeMap::new(),
+            read_files: Vec::new(),
         };
         let result = catch_unwind(AssertUnwindSafe(|| gn.node.run(&mut ctx)));
         match result {
@@ -912,7 +953,10 @@ impl<'a> Runner<'a> {
                 return Err(format!("internal error (panic) in node: {msg}"));
             }
         }
-        let mut out = Computed::new();
+        let mut out = Computed {
+            outputs: BTreeMap::new(),
+            read_files: std::mem::take(&mut ctx.read_files),
+        };
         for p in &spec.outputs {
             let Some(encoded) = ctx.outputs.remove(p.name) else {
                 return Err(format!(
@@ -920,18 +964,18 @@ impl<'a> Runner<'a> {
                     p.name
                 ));
             };
-            out.insert(p.name, encoded);
+            out.outputs.insert(p.name, encoded);
         }
         Ok(out)
     }
 
-    fn store_outputs(&self, i: usize, key: &Digest, outputs: &Computed, seconds: f64) {
+    fn store_outputs(&self, i: usize, key: &Digest, computed: &Computed, seconds: f64) {
         let Some(store) = &self.c.store else { return };
         let inst = &self.c.insts[i];
         let gn = &self.c.graph.nodes[inst.node];
         let result: std::io::Result<()> = (|| {
             let mut outs = Vec::new();
-            for (port, (v, bytes)) in outputs {
+            for (port, (v, bytes)) in &computed.outputs {
                 store.put_object(&v.digest(), v.type_name(), bytes)?;
                 outs.push(ActionOutput {
                     port: port.to_string(),
@@ -955,6 +999,14 @@ impl<'a> Runner<'a> {
                     frame: inst.frame,
                     outputs: outs,
                     files,
+                    read_files: computed
+                        .read_files
+                        .iter()
+                        .map(|(path, d)| WrittenFile {
+                            path: path.clone(),
+                            digest: d.to_hex(),
+                        })
+                        .collect(),
                     seconds,
                 },
             )
@@ -1016,6 +1068,7 @@ impl<'a> Runner<'a> {
         tracing::info!("recomputing `{id}` (its cached output was lost)");
         let outputs = self.compute(j)?;
         let (v, bytes) = outputs
+            .outputs
             .get(port)
             .ok_or_else(|| format!("internal: no output `{port}`"))?;
         if v.digest() != digest {

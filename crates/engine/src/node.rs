@@ -9,7 +9,7 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use crate::artifact::{ArtifactType, Value};
+use crate::artifact::{ArtifactType, Digest, Value};
 use crate::param::{ParamSpec, ParamType, Params, PathRole};
 
 /// Whether a node type runs once, once per frame, or either (chosen by the graph).
@@ -157,6 +157,14 @@ impl NodeSpec {
             _ => None,
         })
     }
+
+    /// Names of path-list parameters with the given role.
+    pub fn path_list_params(&self, role: PathRole) -> impl Iterator<Item = &'static str> + '_ {
+        self.params.iter().filter_map(move |p| match p.ty {
+            ParamType::PathList(r) if r == role => Some(p.name),
+            _ => None,
+        })
+    }
 }
 
 /// A node type: a spec and a compute function.
@@ -229,6 +237,7 @@ pub struct Context<'a> {
     pub(crate) progress: &'a (dyn Fn(f32) + Sync),
     pub(crate) cancel: &'a AtomicBool,
     pub(crate) outputs: BTreeMap<&'static str, (Value, Vec<u8>)>,
+    pub(crate) read_files: Vec<(PathBuf, Digest)>,
 }
 
 impl<'a> Context<'a> {
@@ -251,6 +260,7 @@ impl<'a> Context<'a> {
             progress: &|_| {},
             cancel: &NEVER_CANCELLED,
             outputs: BTreeMap::new(),
+            read_files: Vec::new(),
         }
     }
 
@@ -295,6 +305,38 @@ impl<'a> Context<'a> {
     /// (`%04d`, `%d`, `####`) filled in for per-frame instances.
     pub fn path(&self, param: &str) -> PathBuf {
         resolve_path(self.graph_dir, self.params.str(param), self.frame)
+    }
+
+    /// A path-list parameter, each path resolved against the graph file's folder.
+    pub fn paths(&self, param: &str) -> Vec<PathBuf> {
+        self.params
+            .strs(param)
+            .into_iter()
+            .map(|t| resolve_path(self.graph_dir, t, None))
+            .collect()
+    }
+
+    /// Declares a file this run reads that no path parameter names — e.g. the images a list
+    /// file names (Make's discovered dependencies). Call it *before* reading the file: its
+    /// content digest is taken now, recorded with the cached result, and the result counts as
+    /// cached only while the file still has that digest; so an edit of the file in place reruns
+    /// the node (and, if its outputs change, everything downstream). An edit racing the read is
+    /// caught on the next run. Errors name the file (missing, unreadable, not a file).
+    pub fn declare_input_file(&mut self, path: &Path) -> Result<(), NodeError> {
+        let meta = std::fs::metadata(path)
+            .map_err(|e| NodeError::msg(format!("{}: {e}", path.display())))?;
+        if !meta.is_file() {
+            return Err(NodeError::msg(format!("{} is not a file", path.display())));
+        }
+        let digest = crate::fsutil::hash_file(path)
+            .map_err(|e| NodeError::msg(format!("{}: {e}", path.display())))?;
+        self.read_files.push((path.to_path_buf(), digest));
+        Ok(())
+    }
+
+    /// The files declared by [`Context::declare_input_file`] so far, with their digests.
+    pub fn declared_input_files(&self) -> &[(PathBuf, Digest)] {
+        &self.read_files
     }
 
     /// The name of the node's `i`-th declared input port (for nodes shared by several types).

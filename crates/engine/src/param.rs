@@ -148,6 +148,10 @@ pub enum ParamType {
     /// A file path, relative to the graph file's folder. Per-frame nodes may use a frame
     /// pattern (`%04d` or `####`).
     Path(PathRole),
+    /// A list of file paths (e.g. the photographs of an exposure stack), each relative to the
+    /// graph file's folder; input lists are hashed file by file like [`ParamType::Path`]. No
+    /// frame patterns.
+    PathList(PathRole),
     /// A list of floats (e.g. a 3-vector or a matrix in rows).
     FloatList {
         /// Required length, if fixed.
@@ -182,6 +186,8 @@ impl fmt::Display for ParamType {
             ParamType::Enum(c) => write!(f, "one of {}", c.join(" | ")),
             ParamType::Path(PathRole::Input) => write!(f, "input path"),
             ParamType::Path(PathRole::Output) => write!(f, "output path"),
+            ParamType::PathList(PathRole::Input) => write!(f, "list of input paths"),
+            ParamType::PathList(PathRole::Output) => write!(f, "list of output paths"),
             ParamType::FloatList { len: Some(n) } => write!(f, "list of {n} floats"),
             ParamType::FloatList { len: None } => write!(f, "list of floats"),
         }
@@ -244,6 +250,14 @@ impl ParamType {
                         ParamType::Enum(choices)
                     )))
                 }
+            }
+            (ParamType::PathList(_), ParamValue::List(items)) => {
+                for it in &items {
+                    if !matches!(it, ParamValue::Str(_)) {
+                        return Err(wrong(it, "a path (string) in the list"));
+                    }
+                }
+                Ok(ParamValue::List(items))
             }
             (ParamType::FloatList { len }, ParamValue::List(items)) => {
                 let mut out = Vec::with_capacity(items.len());
@@ -377,6 +391,20 @@ impl Params {
         }
     }
 
+    /// A path-list parameter as written.
+    pub fn strs(&self, name: &str) -> Vec<&str> {
+        match self.values.get(name) {
+            Some(ParamValue::List(l)) => l
+                .iter()
+                .map(|v| match v {
+                    ParamValue::Str(s) => s.as_str(),
+                    other => panic!("param `{name}` holds {other:?} (node spec bug)"),
+                })
+                .collect(),
+            other => panic!("param `{name}` is not a list: {other:?} (node spec bug)"),
+        }
+    }
+
     /// A float-list parameter.
     pub fn f64s(&self, name: &str) -> Vec<f64> {
         match self.values.get(name) {
@@ -418,6 +446,17 @@ mod tests {
         assert!(matches!(
             e.check(ParamValue::Str("aces".into())),
             Err(ParamCheck::Range(_))
+        ));
+        let l = ParamType::PathList(PathRole::Input);
+        let ok = ParamValue::List(vec![ParamValue::Str("a.png".into())]);
+        assert_eq!(l.check(ok.clone()), Ok(ok));
+        assert!(matches!(
+            l.check(ParamValue::List(vec![ParamValue::Int(1)])),
+            Err(ParamCheck::Type(_))
+        ));
+        assert!(matches!(
+            l.check(ParamValue::Str("a.png".into())),
+            Err(ParamCheck::Type(_))
         ));
     }
 

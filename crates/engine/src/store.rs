@@ -60,6 +60,10 @@ pub struct ActionEntry {
     /// Files written.
     #[serde(default)]
     pub files: Vec<WrittenFile>,
+    /// Files the node declared reading at run time (`Context::declare_input_file`), with their
+    /// digests when read; the entry is valid only while each still has its digest.
+    #[serde(default)]
+    pub read_files: Vec<WrittenFile>,
     /// Compute time in seconds.
     pub seconds: f64,
 }
@@ -411,6 +415,7 @@ mod tests {
                     digest: live.to_hex(),
                 }],
                 files: vec![],
+                read_files: vec![],
                 seconds: 0.0,
             },
         )

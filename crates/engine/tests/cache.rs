@@ -166,6 +166,50 @@ fn touching_reruns_nothing_content_change_reruns_readers() {
     assert_eq!(ran_cached(&r, "read"), (1, 3));
 }
 
+const LISTED: &str = "version: 1
+nodes:
+  listed: {type: sum_listed, params: {list: in/list.txt}}
+  paths: {type: sum_paths, params: {paths: [in/a.txt, in/b.txt]}}
+  l2: {type: add, inputs: {a: listed.out}, params: {offset: 100}}
+  p2: {type: add, inputs: {a: paths.out}}
+";
+
+#[test]
+fn files_named_inside_a_list_or_a_path_list_are_hashed() {
+    let s = Scratch::new();
+    s.write("in/list.txt", "a.txt\nb.txt\n");
+    s.write("in/a.txt", "1\n");
+    s.write("in/b.txt", "2\n");
+    let r = s.run(LISTED);
+    assert!(r.nodes.iter().all(|n| n.status == Status::Ran), "{r:?}");
+    let r = s.run(LISTED);
+    assert!(r.nodes.iter().all(|n| n.status == Status::Cached), "{r:?}");
+    // Editing one listed file (the list file itself unchanged) reruns both readers and their
+    // dependants; plan says why.
+    s.write("in/b.txt", "5\n");
+    let p = exec::plan(&s.graph(LISTED), &s.opts()).unwrap();
+    let listed = p.nodes.iter().find(|n| n.id == "listed").unwrap();
+    assert_eq!(listed.status, PlanStatus::Run);
+    assert!(listed.reason.contains("b.txt changed"), "{}", listed.reason);
+    let paths = p.nodes.iter().find(|n| n.id == "paths").unwrap();
+    assert!(paths.reason.contains("b.txt changed"), "{}", paths.reason);
+    let r = s.run(LISTED);
+    for id in ["listed", "paths", "l2", "p2"] {
+        assert_eq!(ran_cached(&r, id), (1, 0), "{id}: {r:?}");
+    }
+    let r = s.run(LISTED);
+    assert!(r.nodes.iter().all(|n| n.status == Status::Cached), "{r:?}");
+    // A listed file that disappears: the cached entry is invalid, the rerun fails naming it.
+    fs::remove_file(s.path("in/a.txt")).unwrap();
+    let r = s.run(LISTED);
+    let listed = r.nodes.iter().find(|n| n.id == "listed").unwrap();
+    assert_eq!(listed.status, Status::Failed);
+    assert!(listed.reason.contains("a.txt"), "{}", listed.reason);
+    let paths = r.nodes.iter().find(|n| n.id == "paths").unwrap();
+    assert_eq!(paths.status, Status::Failed);
+    assert!(paths.reason.contains("a.txt"), "{}", paths.reason);
+}
+
 #[test]
 fn missing_input_file_fails_that_frame_only() {
     let s = Scratch::new();

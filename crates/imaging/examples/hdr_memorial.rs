@@ -65,10 +65,22 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     vfxgraph_imaging::io::write_atomic(&out.join("response.csv"), csv.as_bytes())?;
     vfxgraph_imaging::write_image(&out.join("radiance.pfm"), &img)?;
     let monotonic = (0..curve.channels()).all(|c| curve.is_monotonic(c, 0, 255));
+    // The paper's unconstrained solution, for comparison (not timed).
+    let free = calibrate_debevec(
+        &stack,
+        &CalibrateOptions {
+            monotonic: false,
+            ..opts
+        },
+    )?;
+    let free_err = consistency_error(&stack, &free, 32, 223)?.unwrap_or(f64::NAN);
+    let free_monotonic = (0..free.channels()).all(|c| free.is_monotonic(c, 0, 255));
     println!(
         "{{\"decode_s\": {decode_s:.4}, \"calibrate_s\": {cal_s:.4}, \"merge_s\": {merge_s:.4}, \
          \"consistency\": {err:.5}, \"masked_pixels\": {masked}, \"samples\": {samples}, \
-         \"lambda\": {lambda}, \"monotonic\": {monotonic}, \"threads\": {}}}",
+         \"lambda\": {lambda}, \"monotonic\": {monotonic}, \
+         \"unconstrained_consistency\": {free_err:.5}, \
+         \"unconstrained_monotonic\": {free_monotonic}, \"threads\": {}}}",
         rayon::current_num_threads()
     );
     Ok(())

@@ -1,21 +1,25 @@
-//! HDR radiance maps and light domes (book chapter 10): `read_exposure_stack`, `hdr_calibrate`,
-//! `hdr_merge`, `hdr_to_ldr`, `plot_response`, `write_response`, `dome`. The algorithms live in
+//! HDR radiance maps and light domes (book chapter 10): `read_exposure_stack`,
+//! `align_exposures`, `hdr_calibrate`, `hdr_merge`, `hdr_to_ldr`, `plot_response`, `write_response`, `dome`. The algorithms live in
 //! `vfxgraph_imaging::hdr` (Debevec & Malik 1997) and `vfxgraph_render::dome`.
 
 use nalgebra::{Matrix3, Vector3};
+use std::path::PathBuf;
 use vfxgraph_engine::artifact::codec::{put_bytes, put_f64, put_u64, Reader};
 use vfxgraph_engine::{
     ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, ParamValue, PathRole,
     PortSpec, Registry,
 };
+
 use vfxgraph_imaging::hdr::{
-    calibrate_debevec, ldr_from_hdr, merge_debevec, probe_to_equirect, read_exposure_list,
-    CalibrateOptions, Exposure, ExposureStack, ProbeCircle, ResponseCurve, Sampling, LEVELS,
+    align_exposures, calibrate_debevec, exposure_list_files, ldr_from_hdr, merge_debevec,
+    probe_to_equirect, read_exposure_files, read_exposure_files_exif, AlignChain, AlignOptions,
+    CalibrateOptions, Exposure, ExposureStack, HdrError, ProbeCircle, ResponseCurve, Sampling,
+    LEVELS,
 };
 use vfxgraph_imaging::Image;
 use vfxgraph_render::dome::Dome;
 
-use crate::artifacts::ImageArt;
+use crate::artifacts::{CameraArt, ImageArt, ReportArt};
 use crate::FnNode;
 
 /// An exposure stack (`exposure_stack`): 8-bit codes, exposure times, optional mask.
@@ -146,18 +150,33 @@ pub fn register(r: &mut Registry) {
     r.register_node(FnNode::new(
         NodeSpec::new(
             "read_exposure_stack",
-            "Reads bracketed 8-bit PNG/JPEG photographs named by a list file in Debevec's \
-             format (`#` comments, the count, then `file seconds` lines, seconds like 1/250; \
-             names relative to the list; a missing .ppm falls back to the .png/.jpg with the \
-             same stem) as raw codes (book 10.2). Validates sizes and distinct times. \
-             Cache limitation: the key covers the list file, not the images it names — after \
-             editing an image in place, touch the list or run with --force.",
+            "Reads bracketed 8-bit PNG/JPEG photographs as raw codes (book 10.2), named either \
+             by `list`, a list file in Debevec's format (`#` comments, the count, then `file \
+             seconds` lines, seconds like 1/250; names relative to the list; a missing .ppm \
+             falls back to the .png/.jpg with the same stem), or by `paths` with `times` in \
+             seconds — or without `times`, from each photograph's EXIF ExposureTime (× ISO / \
+             FNumber² relative to the first photograph when recorded). Validates sizes and \
+             distinct times. The images are part of the cache key: editing one reruns the node.",
         )
+        .version(2)
         .mode(Mode::Once)
-        .param(ParamSpec::required(
+        .param(ParamSpec::optional(
             "list",
             ParamType::Path(PathRole::Input),
-            "the exposure list file",
+            ParamValue::Str(String::new()),
+            "the exposure list file (or give `paths`)",
+        ))
+        .param(ParamSpec::optional(
+            "paths",
+            ParamType::PathList(PathRole::Input),
+            ParamValue::List(vec![]),
+            "the photographs, when no `list` is given",
+        ))
+        .param(ParamSpec::optional(
+            "times",
+            ParamType::FloatList { len: None },
+            ParamValue::List(vec![]),
+            "exposure time in seconds of each of `paths`; [] = read EXIF",
         ))
         .param(ParamSpec::optional(
             "mask_color",
@@ -171,10 +190,55 @@ pub fn register(r: &mut Registry) {
     ));
     r.register_node(FnNode::new(
         NodeSpec::new(
+            "align_exposures",
+            "Aligns a hand-held bracket by Ward's median threshold bitmaps (Ward 2003; book \
+             10.x): per pair of exposures, bitmaps of pixels above a shared percentile (the \
+             median unless clipping makes it useless), an exclusion band around it, and an XOR \
+             + popcount search of ±1 px per pyramid level. Translations only. Pixels shifted in \
+             from outside the frame get code 0 (ignored by the merge) and join the mask.",
+        )
+        .param(ParamSpec::optional(
+            "levels",
+            ParamType::Int { min: 0, max: 16 },
+            ParamValue::Int(6),
+            "pyramid levels (shifts up to 2^(levels+1) - 1 px; fewer on small images)",
+        ))
+        .param(ParamSpec::optional(
+            "exclusion",
+            ParamType::Int { min: 0, max: 64 },
+            ParamValue::Int(4),
+            "codes around the threshold left out of the comparison (noise)",
+        ))
+        .param(ParamSpec::optional(
+            "reference",
+            ParamType::Int { min: -1, max: 1 << 20 },
+            ParamValue::Int(-1),
+            "index of the exposure that stays in place; -1 = the middle one",
+        ))
+        .param(ParamSpec::optional(
+            "chain",
+            ParamType::Enum(&["neighbours", "reference"]),
+            ParamValue::Str("neighbours".into()),
+            "compare each exposure with its neighbour towards the reference (shifts summed), \
+             or directly with the reference (OpenCV's AlignMTB)",
+        ))
+        .input(PortSpec::one("stack", StackArt::NAME, "the exposure stack"))
+        .output(PortSpec::one("stack", StackArt::NAME, "the aligned stack"))
+        .output(PortSpec::one(
+            "report",
+            ReportArt::NAME,
+            "{\"reference\": r, \"shifts\": [[dx, dy], ...]}: aligned(x, y) = exposure(x - dx, y - dy)",
+        )),
+        run_align,
+    ));
+    r.register_node(FnNode::new(
+        NodeSpec::new(
             "hdr_calibrate",
             "Recovers the camera response g = ln f⁻¹ per channel by Debevec & Malik's weighted \
-             least squares with smoothness λ, hat weights and g(128) = 0 (book 10.2–10.4).",
+             least squares with smoothness λ, hat weights and g(128) = 0 (book 10.2–10.4), \
+             constrained to be non-decreasing unless `monotonic: false`.",
         )
+        .version(2)
         .mode(Mode::Once)
         .seeded()
         .param(ParamSpec::optional(
@@ -197,6 +261,13 @@ pub fn register(r: &mut Registry) {
             ParamType::Enum(&["stratified", "random", "grid"]),
             ParamValue::Str("stratified".into()),
             "pixel selection: jittered grid, uniform random, or regular grid",
+        ))
+        .param(ParamSpec::optional(
+            "monotonic",
+            ParamType::Bool,
+            ParamValue::Bool(true),
+            "constrain g to be non-decreasing (least squares over monotonic curves, \
+             active-set); false = the paper's unconstrained solution",
         ))
         .input(PortSpec::one("stack", StackArt::NAME, "the exposure stack"))
         .output(PortSpec::one(
@@ -335,9 +406,11 @@ pub fn register(r: &mut Registry) {
             "dome",
             "Makes a light dome of an equirectangular image (book 10.7–10.8): oriented by \
              `orig` (centre column) and `south` (top row), or by a calibrated camera's rotation \
-             `rotation` (9 numbers, row by row: south = 2nd row, orig = −3rd row). The default \
-             is vfxgraph's y-up world: south = +y, orig = −z.",
+             R — from a connected `camera` or the `rotation` param (9 numbers, row by row): \
+             south = 2nd row, orig = −3rd row. The default is vfxgraph's y-up world: south = \
+             +y, orig = −z.",
         )
+        .version(2)
         .param(ParamSpec::optional(
             "orig",
             ParamType::FloatList { len: Some(3) },
@@ -369,13 +442,109 @@ pub fn register(r: &mut Registry) {
             ImageArt::NAME,
             "equirectangular radiance map",
         ))
+        .input(
+            PortSpec::one(
+                "camera",
+                CameraArt::NAME,
+                "the camera that photographed the probe (its R orients the dome)",
+            )
+            .optional(),
+        )
         .output(PortSpec::one("dome", DomeArt::NAME, "the oriented dome")),
         run_dome,
     ));
 }
 
+/// The names of two files for messages: their file names.
+fn file_name(p: &std::path::Path) -> String {
+    p.file_name().map_or_else(
+        || p.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    )
+}
+
+/// Rewrites stack validation errors in terms of the node's params and files.
+fn stack_error(e: HdrError, paths: &[PathBuf], files_param: &str, times_param: &str) -> NodeError {
+    match e {
+        HdrError::DuplicateExposure {
+            first,
+            second,
+            time,
+        } => NodeError::msg(format!(
+            "param `{times_param}`: {} and {} have the same exposure {time} s (a stack needs \
+             distinct exposures)",
+            file_name(&paths[first]),
+            file_name(&paths[second])
+        )),
+        HdrError::SizeMismatch {
+            index,
+            expected,
+            found,
+        } => NodeError::msg(format!(
+            "{} is {found}, {} is {expected}: the exposures of a stack must have one size",
+            file_name(&paths[index]),
+            file_name(&paths[0])
+        )),
+        other => NodeError::msg(format!(
+            "param `{files_param}`: {}",
+            NodeError::from(other).message
+        )),
+    }
+}
+
 fn run_read_stack(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let (mut stack, _) = read_exposure_list(&ctx.path("list"))?;
+    let p = ctx.params();
+    let (list, n_paths, times) = (
+        !p.str("list").is_empty(),
+        p.strs("paths").len(),
+        p.f64s("times"),
+    );
+    let mut stack = match (list, n_paths) {
+        (true, 0) => {
+            if !times.is_empty() {
+                return Err(NodeError::msg(
+                    "param `times` goes with `paths`; a `list` file holds its own times",
+                ));
+            }
+            let (paths, times) = exposure_list_files(&ctx.path("list"))?;
+            // The listed images are inputs too: declare them so an edit reruns the node.
+            for path in &paths {
+                ctx.declare_input_file(path)
+                    .map_err(|e| NodeError::msg(format!("param `list`: {e}")))?;
+            }
+            read_exposure_files(&paths, &times)
+                .map_err(|e| stack_error(e, &paths, "list", "list"))?
+        }
+        (false, 0) => {
+            return Err(NodeError::msg(
+                "give `list` (an exposure list file) or `paths` (with `times`, or EXIF)",
+            ))
+        }
+        (true, _) => return Err(NodeError::msg("give either `list` or `paths`, not both")),
+        (false, n) => {
+            let paths = ctx.paths("paths");
+            if times.is_empty() {
+                read_exposure_files_exif(&paths)
+                    .map_err(|e| stack_error(e, &paths, "paths", "paths (EXIF times)"))?
+                    .0
+            } else if times.len() != n {
+                return Err(NodeError::msg(format!(
+                    "param `paths` names {n} files but `times` has {} values",
+                    times.len()
+                )));
+            } else {
+                if let Some(i) = times.iter().position(|t| !(t.is_finite() && *t > 0.0)) {
+                    return Err(NodeError::msg(format!(
+                        "param `times`: value {} ({}) is not a positive number of seconds",
+                        i + 1,
+                        times[i]
+                    )));
+                }
+                read_exposure_files(&paths, &times)
+                    .map_err(|e| stack_error(e, &paths, "paths", "times"))?
+            }
+        }
+    };
     let mask = ctx.params().f64s("mask_color");
     if !mask.is_empty() {
         if mask
@@ -383,13 +552,45 @@ fn run_read_stack(ctx: &mut Context<'_>) -> Result<(), NodeError> {
             .any(|v| !(0.0..=255.0).contains(v) || v.fract() != 0.0)
         {
             return Err(NodeError::msg(
-                "mask_color values must be integers in 0-255",
+                "param `mask_color`: values must be integers in 0-255",
             ));
         }
         let code: Vec<u8> = mask.iter().map(|&v| v as u8).collect();
         stack.mask_code(&code)?;
     }
     ctx.output("stack", StackArt(stack));
+    Ok(())
+}
+
+fn run_align(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+    let p = ctx.params();
+    let stack = &ctx.input::<StackArt>("stack")?.0;
+    let reference = match p.i64("reference") {
+        -1 => None,
+        r if (r as usize) < stack.len() => Some(r as usize),
+        r => {
+            return Err(NodeError::msg(format!(
+                "param `reference`: exposure {r} does not exist (the stack has {})",
+                stack.len()
+            )))
+        }
+    };
+    let opts = AlignOptions {
+        levels: p.i64("levels") as usize,
+        exclusion: p.i64("exclusion") as u8,
+        reference,
+        chain: match p.str("chain") {
+            "reference" => AlignChain::Reference,
+            _ => AlignChain::Neighbours,
+        },
+    };
+    let (aligned, shifts) = align_exposures(stack, &opts)?;
+    let report = serde_json::json!({
+        "reference": reference.unwrap_or(stack.len() / 2),
+        "shifts": shifts.iter().map(|&(x, y)| [x, y]).collect::<Vec<_>>(),
+    });
+    ctx.output("stack", StackArt(aligned));
+    ctx.output("report", ReportArt(report));
     Ok(())
 }
 
@@ -403,6 +604,7 @@ fn run_calibrate(ctx: &mut Context<'_>) -> Result<(), NodeError> {
             .parse::<Sampling>()
             .map_err(NodeError::msg)?,
         seed: ctx.seed(),
+        monotonic: p.bool("monotonic"),
     };
     let curve = calibrate_debevec(&ctx.input::<StackArt>("stack")?.0, &opts)?;
     ctx.output("response", ResponseArt(curve));
@@ -555,7 +757,15 @@ fn run_dome(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let p = ctx.params();
     let img = &ctx.input::<ImageArt>("image")?.0;
     let rot = p.f64s("rotation");
-    let dome = if rot.is_empty() {
+    let camera = ctx.input_opt::<CameraArt>("camera")?;
+    let dome = if let Some(cam) = camera {
+        if !rot.is_empty() {
+            return Err(NodeError::msg(
+                "give the rotation by the `camera` input or the `rotation` param, not both",
+            ));
+        }
+        Dome::from_camera_rotation(img, &cam.0.pose.r)?
+    } else if rot.is_empty() {
         let (o, s) = (p.f64s("orig"), p.f64s("south"));
         Dome::new(
             img,
@@ -694,6 +904,174 @@ mod tests {
         assert!(run_read_stack(&mut ctx).is_err());
     }
 
+    fn strs(v: &[&str]) -> ParamValue {
+        ParamValue::List(v.iter().map(|s| ParamValue::Str(s.to_string())).collect())
+    }
+    fn floats(v: &[f64]) -> ParamValue {
+        ParamValue::List(v.iter().map(|&x| ParamValue::Float(x)).collect())
+    }
+    fn read_stack(dir: &Path, set: &[(&str, ParamValue)]) -> Result<StackArt, NodeError> {
+        let s = spec("read_exposure_stack");
+        let p = params(&s, set);
+        let mut ctx = Context::for_test(&s, &p, dir, None, vec![]);
+        run_read_stack(&mut ctx)?;
+        Ok(ctx.take_output::<StackArt>("stack").unwrap())
+    }
+
+    #[test]
+    fn paths_and_times_read_the_same_stack_as_the_list_and_errors_name_params() {
+        let dir = tempfile::tempdir().unwrap();
+        synthetic_stack(dir.path());
+        let d = dir.path();
+        let from_list = read_stack(d, &[("list", ParamValue::Str("list.txt".into()))]).unwrap();
+        let files = ["e0.png", "e1.png", "e2.png"];
+        let from_paths = read_stack(
+            d,
+            &[
+                ("paths", strs(&files)),
+                ("times", floats(&[0.25, 1.0, 4.0])),
+            ],
+        )
+        .unwrap();
+        assert_eq!(from_list, from_paths);
+        // The list form declares the images it reads (so the engine hashes them).
+        let s = spec("read_exposure_stack");
+        let p = params(&s, &[("list", ParamValue::Str("list.txt".into()))]);
+        let mut ctx = Context::for_test(&s, &p, d, None, vec![]);
+        run_read_stack(&mut ctx).unwrap();
+        let declared: Vec<_> = ctx
+            .declared_input_files()
+            .iter()
+            .map(|(p, _)| p.file_name().unwrap().to_string_lossy().into_owned())
+            .collect();
+        assert_eq!(declared, files);
+
+        let err = |set: &[(&str, ParamValue)]| read_stack(d, set).unwrap_err().message;
+        let e = err(&[("paths", strs(&files)), ("times", floats(&[0.25, 1.0]))]);
+        assert!(e.contains("`paths` names 3 files but `times` has 2"), "{e}");
+        let e = err(&[
+            ("paths", strs(&files)),
+            ("times", floats(&[0.25, 1.0, 0.25])),
+        ]);
+        assert!(
+            e.contains("`times`") && e.contains("e0.png and e2.png have the same exposure"),
+            "{e}"
+        );
+        let e = err(&[
+            ("paths", strs(&["e0.png", "nope.png"])),
+            ("times", floats(&[1.0, 2.0])),
+        ]);
+        assert!(e.contains("`paths`") && e.contains("nope.png"), "{e}");
+        std::fs::write(d.join("bad.txt"), "2\ne0.png 1\nmissing.png 2\n").unwrap();
+        let e = err(&[("list", ParamValue::Str("bad.txt".into()))]);
+        assert!(e.contains("`list`") && e.contains("missing.png"), "{e}");
+        let e = err(&[]);
+        assert!(e.contains("`list`") && e.contains("`paths`"), "{e}");
+        let e = err(&[
+            ("list", ParamValue::Str("list.txt".into())),
+            ("paths", strs(&files)),
+        ]);
+        assert!(e.contains("not both"), "{e}");
+        let e = err(&[
+            ("list", ParamValue::Str("list.txt".into())),
+            ("times", floats(&[1.0])),
+        ]);
+        assert!(e.contains("`times` goes with `paths`"), "{e}");
+        // PNGs carry no EXIF: without times, the error names the file.
+        let e = err(&[("paths", strs(&files))]);
+        assert!(e.contains("e0.png") && e.contains("EXIF"), "{e}");
+    }
+
+    #[test]
+    fn exif_times_of_jpegs_replace_the_times_param() {
+        use vfxgraph_imaging::hdr::{with_exposure_exif, ExposureSettings};
+        let dir = tempfile::tempdir().unwrap();
+        // Bracketed by shutter and aperture: 1/60 s f/8, 1/15 s f/8, 1/15 s f/4 (ISO 200).
+        let shots = [(1.0 / 60.0, 8.0), (1.0 / 15.0, 8.0), (1.0 / 15.0, 4.0)];
+        let mut names = Vec::new();
+        for (k, &(t, n)) in shots.iter().enumerate() {
+            let img = Image::from_fn(32, 16, 3, |x, y, c| {
+                (((x + 2 * y + c) as f64 / 80.0) * t * 64.0 / (n * n) * 8.0).min(1.0) as f32
+            });
+            let jpeg = vfxgraph_imaging::encode(&img, vfxgraph_imaging::Format::Jpeg).unwrap();
+            let tagged = with_exposure_exif(
+                &jpeg,
+                &ExposureSettings {
+                    time: t,
+                    f_number: Some(n),
+                    iso: Some(200.0),
+                },
+            )
+            .unwrap();
+            let name = format!("shot{k}.jpg");
+            std::fs::write(dir.path().join(&name), tagged).unwrap();
+            names.push(name);
+        }
+        let names: Vec<&str> = names.iter().map(String::as_str).collect();
+        let stack = read_stack(dir.path(), &[("paths", strs(&names))])
+            .unwrap()
+            .0;
+        let times: Vec<f64> = stack.exposures().iter().map(|e| e.time).collect();
+        // Seconds at the first photograph's f/8: f/4 gathers 4× the light of f/8.
+        let want = [1.0 / 60.0, 1.0 / 15.0, 4.0 / 15.0];
+        for (t, w) in times.iter().zip(want) {
+            assert!((t / w - 1.0).abs() < 1e-9, "{times:?}");
+        }
+        // Explicit times win over EXIF.
+        let stack = read_stack(
+            dir.path(),
+            &[("paths", strs(&names)), ("times", floats(&[1.0, 2.0, 3.0]))],
+        )
+        .unwrap()
+        .0;
+        assert_eq!(stack.exposures()[2].time, 3.0);
+    }
+
+    #[test]
+    fn align_node_reports_the_shifts_and_masks_the_borders() {
+        // Three exposures of a scene of random 4×4 blocks; the last one moved 3 px right, 2 up.
+        let (w, h) = (96usize, 64usize);
+        let scene = |x: i64, y: i64| -> f64 {
+            let k = (x.div_euclid(4) * 7919 + y.div_euclid(4) * 104729) as u64;
+            let r = k.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 40;
+            0.05 + 0.9 * (r as f64 / (1u64 << 24) as f64)
+        };
+        let exposures: Vec<Exposure> = [(0.5, (0i64, 0i64)), (1.0, (0, 0)), (2.0, (3, -2))]
+            .iter()
+            .map(|&(t, (dx, dy))| Exposure {
+                time: t,
+                codes: (0..w * h)
+                    .map(|p| {
+                        let (x, y) = ((p % w) as i64 - dx, (p / w) as i64 - dy);
+                        (255.0 * (scene(x, y) * t).min(1.0).sqrt()).round() as u8
+                    })
+                    .collect(),
+            })
+            .collect();
+        let stack = ExposureStack::new(w, h, 1, exposures).unwrap();
+        let s = spec("align_exposures");
+        let p = params(&s, &[]);
+        let input = vec![(
+            "stack",
+            InputValue::One(Value::new(StackArt(stack.clone()))),
+        )];
+        let mut ctx = Context::for_test(&s, &p, Path::new("."), None, input);
+        run_align(&mut ctx).unwrap();
+        let report = ctx.take_output::<ReportArt>("report").unwrap().0;
+        assert_eq!(report["reference"], 1);
+        assert_eq!(
+            report["shifts"],
+            serde_json::json!([[0, 0], [0, 0], [-3, 2]])
+        );
+        let aligned = ctx.take_output::<StackArt>("stack").unwrap().0;
+        assert!(aligned.is_masked(w - 1) && !aligned.is_masked(w * 10 + 10));
+        let p = params(&s, &[("reference", ParamValue::Int(3))]);
+        let input = vec![("stack", InputValue::One(Value::new(StackArt(stack))))];
+        let mut ctx = Context::for_test(&s, &p, Path::new("."), None, input);
+        let e = run_align(&mut ctx).unwrap_err();
+        assert!(e.message.contains("`reference`"), "{e}");
+    }
+
     #[test]
     fn dome_node_orients_and_round_trips() {
         let img = Image::from_fn(16, 8, 3, |x, y, c| (x + y + c) as f32);
@@ -714,6 +1092,22 @@ mod tests {
         let back = DomeArt::decode(&bytes).unwrap();
         assert_eq!(back.0.image(), &img);
         assert_eq!(back.0.south(), dome.0.south());
+        // The same rotation from a connected camera.
+        let cam = vfxgraph_vision::Camera::new(
+            vfxgraph_vision::Intrinsics::new(500.0, 500.0, 320.0, 240.0),
+            Matrix3::new(1.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 1.0, 0.0),
+            Vector3::zeros(),
+        );
+        let p0 = params(&s, &[]);
+        let input = vec![
+            ("image", InputValue::One(Value::new(ImageArt(img.clone())))),
+            ("camera", InputValue::One(Value::new(CameraArt(cam)))),
+        ];
+        let mut ctx = Context::for_test(&s, &p0, Path::new("."), None, input);
+        run_dome(&mut ctx).unwrap();
+        let from_cam = ctx.take_output::<DomeArt>("dome").unwrap();
+        assert_eq!(from_cam.0.south(), dome.0.south());
+        assert_eq!(from_cam.0.orig(), dome.0.orig());
         let bad = ParamValue::List(vec![ParamValue::Float(1.0); 4]);
         let p = params(&s, &[("rotation", bad)]);
         let input = vec![("image", InputValue::One(Value::new(ImageArt(img))))];

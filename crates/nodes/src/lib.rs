@@ -13,6 +13,8 @@ pub mod export;
 pub mod hdr;
 pub mod image_io;
 pub mod image_ops;
+pub mod matchmove;
+pub mod plot;
 pub mod render;
 #[cfg(test)]
 mod testing;
@@ -53,6 +55,7 @@ pub fn registry() -> Registry {
     // After `tracking`, which registers the `tracks` artifact.
     bundle::register(&mut r);
     export::register(&mut r);
+    matchmove::register(&mut r);
     hdr::register(&mut r);
     render::register(&mut r);
     r

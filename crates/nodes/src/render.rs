@@ -251,11 +251,18 @@ fn run_read_scene(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 }
 
 /// The camera of this instance: the scene's, or frame f's pose of `cameras` with K from
-/// `intrinsics` or the scene camera (book §2.8), then the size override.
+/// `intrinsics`, the path's own K, or the scene camera (book §2.8), then the size override.
 fn instance_camera(ctx: &Context<'_>, scene: &Scene) -> Result<Camera, NodeError> {
     let mut camera = scene.camera.clone();
-    if let Some(k) = ctx.input_opt::<IntrinsicsArt>("intrinsics")? {
-        let k = &k.0;
+    // K: the `intrinsics` input, else the camera path's own K, else the scene camera's.
+    let path_k = ctx
+        .input_opt::<CameraPathArt>("cameras")?
+        .and_then(|p| p.0.intrinsics.clone());
+    let k_in = ctx
+        .input_opt::<IntrinsicsArt>("intrinsics")?
+        .map(|k| k.0.clone());
+    if let Some(k) = k_in.or(path_k) {
+        let k = &k;
         camera.k = [[k.f1, k.s, k.u0], [0.0, k.f2, k.v0], [0.0, 0.0, 1.0]];
         if let (Some(w), Some(h)) = (k.width, k.height) {
             (camera.width, camera.height) = (w as usize, h as usize);

@@ -91,6 +91,53 @@ impl Node for ReadNum {
     }
 }
 
+/// Sums the numbers in the files a list file names (one relative name per line): the named
+/// files are declared at run time, as a list-file reader must.
+pub struct SumListed(NodeSpec);
+impl Node for SumListed {
+    fn spec(&self) -> &NodeSpec {
+        &self.0
+    }
+    fn run(&self, ctx: &mut Context<'_>) -> Result<(), NodeError> {
+        let list = ctx.path("list");
+        let text = std::fs::read_to_string(&list)
+            .map_err(|e| NodeError::msg(format!("{}: {e}", list.display())))?;
+        let dir = list.parent().unwrap().to_path_buf();
+        let mut v = 0.0;
+        for name in text.lines().filter(|l| !l.trim().is_empty()) {
+            let p = dir.join(name.trim());
+            ctx.declare_input_file(&p)?;
+            let t = std::fs::read_to_string(&p).map_err(|e| NodeError::msg(e.to_string()))?;
+            v += t
+                .trim()
+                .parse::<f64>()
+                .map_err(|e| NodeError::msg(e.to_string()))?;
+        }
+        ctx.output("out", v);
+        Ok(())
+    }
+}
+
+/// Sums the numbers in the files of a path-list param.
+pub struct SumPaths(NodeSpec);
+impl Node for SumPaths {
+    fn spec(&self) -> &NodeSpec {
+        &self.0
+    }
+    fn run(&self, ctx: &mut Context<'_>) -> Result<(), NodeError> {
+        let mut v = 0.0;
+        for p in ctx.paths("paths") {
+            let t = std::fs::read_to_string(&p).map_err(|e| NodeError::msg(e.to_string()))?;
+            v += t
+                .trim()
+                .parse::<f64>()
+                .map_err(|e| NodeError::msg(e.to_string()))?;
+        }
+        ctx.output("out", v);
+        Ok(())
+    }
+}
+
 pub struct WriteNum(NodeSpec);
 impl Node for WriteNum {
     fn spec(&self) -> &NodeSpec {
@@ -211,6 +258,26 @@ pub fn registry() -> Registry {
             .param(ParamSpec::required(
                 "path",
                 ParamType::Path(PathRole::Input),
+                "",
+            ))
+            .output(PortSpec::one("out", "float", "")),
+    ));
+    r.register_node(SumListed(
+        NodeSpec::new("sum_listed", "sum of the numbers in the files a list names")
+            .mode(Mode::Once)
+            .param(ParamSpec::required(
+                "list",
+                ParamType::Path(PathRole::Input),
+                "",
+            ))
+            .output(PortSpec::one("out", "float", "")),
+    ));
+    r.register_node(SumPaths(
+        NodeSpec::new("sum_paths", "sum of the numbers in the listed files")
+            .mode(Mode::Once)
+            .param(ParamSpec::required(
+                "paths",
+                ParamType::PathList(PathRole::Input),
                 "",
             ))
             .output(PortSpec::one("out", "float", "")),

@@ -6,8 +6,10 @@
 //! 1. [`stack`]: an [`ExposureStack`] — the raw 8-bit codes `Z` of several photographs of a static
 //!    scene and their exposure times `Δt` — read from a list file in the format of Debevec's
 //!    `memorial.hdr_image_list.txt` ([`read_exposure_list`]) or from explicit paths and times
-//!    ([`read_exposure_files`]), validated (same size, distinct positive exposures), with an
-//!    optional mask of pixels to ignore.
+//!    ([`read_exposure_files`]) or from the photographs' EXIF ([`read_exposure_files_exif`],
+//!    module [`exif`]), validated (same size, distinct positive exposures), with an optional mask
+//!    of pixels to ignore; hand-held brackets aligned by Ward's median threshold bitmaps
+//!    ([`align`]).
 //! 2. [`response`]: the camera's response `g = ln f⁻¹`, one [`ResponseCurve`] of 256 entries per
 //!    channel, recovered by [`calibrate_debevec`] (weighted linear least squares with a smoothness
 //!    term and `g(128) = 0`).
@@ -21,6 +23,8 @@
 //! *is* the camera's transfer function); radiance is linear and relative (the response has one
 //! free scale, fixed by `g(128) = 0` in every channel, see [`merge`] for what that does to colour).
 
+pub mod align;
+pub mod exif;
 pub mod merge;
 pub mod probe;
 pub mod response;
@@ -30,15 +34,21 @@ use std::path::PathBuf;
 
 use crate::error::ImageError;
 
+pub use align::{align_exposures, apply_shifts, mtb_shifts, AlignChain, AlignOptions};
+pub use exif::{
+    exposure_settings, read_exposure_settings, relative_exposures, with_exposure_exif,
+    ExposureSettings,
+};
 pub use merge::{consistency_error, ldr_from_hdr, merge_debevec};
 pub use probe::{probe_to_equirect, ProbeCircle};
 pub use response::{
-    calibrate_debevec, hat_weight, sample_pixels, solve_debevec, CalibrateOptions, ResponseCurve,
-    Sampling,
+    calibrate_debevec, debevec_objective, hat_weight, sample_pixels, solve_debevec,
+    solve_debevec_monotonic, CalibrateOptions, ResponseCurve, Sampling,
 };
 pub use stack::{
-    decode_codes, parse_exposure_list, parse_seconds, read_codes, read_exposure_files,
-    read_exposure_list, CodeImage, Exposure, ExposureStack, ListEntry,
+    decode_codes, exposure_list_files, parse_exposure_list, parse_seconds, read_codes,
+    read_exposure_files, read_exposure_files_exif, read_exposure_list, CodeImage, Exposure,
+    ExposureStack, ListEntry,
 };
 
 /// Number of 8-bit code values: the length of a response curve (Debevec & Malik 1997, §2.1).
@@ -60,6 +70,15 @@ pub enum HdrError {
         /// The operating system's error.
         #[source]
         source: std::io::Error,
+    },
+
+    /// A photograph's EXIF metadata is missing or lacks what is needed.
+    #[error("{}: {message}", path.display())]
+    Exif {
+        /// The photograph.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
     },
 
     /// The list file is malformed (line numbers start at 1).

@@ -178,6 +178,10 @@ pub struct CalibrateOptions {
     pub sampling: Sampling,
     /// Seed of the PCG stream for random strategies: equal seeds give equal curves.
     pub seed: u64,
+    /// Constrain `g` to be non-decreasing (`g(z+1) ≥ g(z)` for every z; see
+    /// [`solve_debevec_monotonic`]). The default: a camera's response is monotonic, and without
+    /// the constraint the rarely observed codes (Memorial's below ≈ 16) wiggle.
+    pub monotonic: bool,
 }
 
 impl Default for CalibrateOptions {
@@ -187,6 +191,7 @@ impl Default for CalibrateOptions {
             lambda: 10.0,
             sampling: Sampling::Stratified,
             seed: 0,
+            monotonic: true,
         }
     }
 }
@@ -279,8 +284,12 @@ pub fn calibrate_debevec(
                     z.push(e.codes[p * c_n + c]);
                 }
             }
-            solve_debevec(&z, p_n, &ln_dt, opts.lambda)
-                .map_err(|e| HdrError::Singular(format!("channel {c}: {e}")))
+            let solved = if opts.monotonic {
+                solve_debevec_monotonic(&z, p_n, &ln_dt, opts.lambda)
+            } else {
+                solve_debevec(&z, p_n, &ln_dt, opts.lambda)
+            };
+            solved.map_err(|e| HdrError::Singular(format!("channel {c}: {e}")))
         })
         .collect::<Result<Vec<_>, _>>()?;
     ResponseCurve::new(curves)
@@ -295,13 +304,152 @@ pub fn solve_debevec(
     ln_dt: &[f64],
     lambda: f64,
 ) -> Result<[f64; LEVELS], String> {
+    let (mut s, r, used) = normal_equations(z, exposures, ln_dt, lambda)?;
+    if !cholesky_factor(&mut s, LEVELS) {
+        return Err(singular(used));
+    }
+    normalise(&cholesky_apply(&s, &r, LEVELS))
+}
+
+/// [`solve_debevec`] under the constraints `g(z+1) ≥ g(z)` for z = 0…254: the same least-squares
+/// objective minimised over non-decreasing curves, so the result is the best monotonic curve for
+/// the data, not a patched one. Solved by a primal active-set method on the reduced 256-unknown
+/// system: the unconstrained minimum first (usually every constraint is inactive but a few among
+/// the rarely seen codes); then, repeatedly, the most violated constraint becomes an equality and
+/// the constraint with the most negative Lagrange multiplier is released, the equality-
+/// constrained minimum coming from the same Cholesky factor (`g = S⁻¹(r + Aᵀμ)`, with
+/// `(A S⁻¹ Aᵀ) μ = −A S⁻¹ r`), until every constraint holds and every multiplier is ≥ 0 (the KKT
+/// conditions). Codes the data never constrain simply follow the smoothness term.
+pub fn solve_debevec_monotonic(
+    z: &[u8],
+    exposures: usize,
+    ln_dt: &[f64],
+    lambda: f64,
+) -> Result<[f64; LEVELS], String> {
+    const N: usize = LEVELS;
+    let (mut s, r, used) = normal_equations(z, exposures, ln_dt, lambda)?;
+    if !cholesky_factor(&mut s, N) {
+        return Err(singular(used));
+    }
+    let g0 = cholesky_apply(&s, &r, N);
+    // x_k = S⁻¹ a_k for the constraint rows a_k = e_{k+1} − e_k, computed when first needed.
+    let mut x: Vec<Option<Vec<f64>>> = vec![None; N - 1];
+    let diff = |g: &[f64], k: usize| g[k + 1] - g[k];
+    let scale = g0.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(1.0);
+    let tol = 1e-10 * scale;
+    let mut active: Vec<usize> = Vec::new();
+    let mut g = g0.clone();
+    for _ in 0..4 * N {
+        // Equality-constrained minimum for the active set.
+        let mut mu = vec![0.0; active.len()];
+        if !active.is_empty() {
+            for &k in &active {
+                if x[k].is_none() {
+                    let mut a = vec![0.0; N];
+                    a[k] = -1.0;
+                    a[k + 1] = 1.0;
+                    x[k] = Some(cholesky_apply(&s, &a, N));
+                }
+            }
+            let m = active.len();
+            let mut mm = vec![0.0; m * m];
+            let mut rhs = vec![0.0; m];
+            for (i, &ki) in active.iter().enumerate() {
+                for (j, &kj) in active.iter().enumerate() {
+                    mm[i * m + j] = diff(x[kj].as_ref().expect("computed"), ki);
+                }
+                rhs[i] = -diff(&g0, ki);
+            }
+            if !cholesky_factor(&mut mm, m) {
+                return Err("monotonic solve: dependent constraints (a bug)".into());
+            }
+            mu = cholesky_apply(&mm, &rhs, m);
+            g.copy_from_slice(&g0);
+            for (&k, &mk) in active.iter().zip(&mu) {
+                for (gi, xi) in g.iter_mut().zip(x[k].as_ref().expect("computed")) {
+                    *gi += mk * xi;
+                }
+            }
+        }
+        // Release the constraint that pulls the wrong way, else add the most violated one.
+        if let Some((i, _)) = mu
+            .iter()
+            .enumerate()
+            .filter(|(_, &m)| m < -tol)
+            .min_by(|a, b| a.1.total_cmp(b.1))
+        {
+            active.remove(i);
+            continue;
+        }
+        let worst = (0..N - 1)
+            .filter(|k| !active.contains(k))
+            .map(|k| (k, diff(&g, k)))
+            .filter(|&(_, d)| d < -tol)
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        match worst {
+            Some((k, _)) => active.push(k),
+            None => break,
+        }
+    }
+    // Equalities hold to rounding: make them exact so the curve is non-decreasing bit for bit.
+    for k in 1..N {
+        g[k] = g[k].max(g[k - 1]);
+    }
+    normalise(&g)
+}
+
+/// The value of Debevec & Malik's objective (module documentation) at curve `g`, minimised over
+/// the `ln E_i`, up to a constant that does not depend on `g`: `gᵀSg − 2rᵀg` of the reduced
+/// normal equations. Lets callers compare curves on the same data (e.g. a constrained solution
+/// with a patched one).
+pub fn debevec_objective(
+    z: &[u8],
+    exposures: usize,
+    ln_dt: &[f64],
+    lambda: f64,
+    g: &[f64; LEVELS],
+) -> Result<f64, String> {
+    let (s, r, _) = normal_equations(z, exposures, ln_dt, lambda)?;
+    let mut q = 0.0;
+    for i in 0..LEVELS {
+        let si: f64 = (0..LEVELS).map(|j| s[i * LEVELS + j] * g[j]).sum();
+        q += g[i] * si - 2.0 * r[i] * g[i];
+    }
+    Ok(q)
+}
+
+fn singular(used: usize) -> String {
+    format!("the system is singular ({used} usable samples; use more samples or exposures)")
+}
+
+/// `g − g(128)`, checked finite.
+fn normalise(g: &[f64]) -> Result<[f64; LEVELS], String> {
+    let mut out = [0.0; LEVELS];
+    let g128 = g[128];
+    for (o, v) in out.iter_mut().zip(g) {
+        *o = v - g128;
+    }
+    if out.iter().any(|v| !v.is_finite()) {
+        return Err("the solution is not finite".into());
+    }
+    Ok(out)
+}
+
+/// The normal equations `S g = r` of the g block after eliminating every `ln E_i` (Schur
+/// complement), with the `g(128) = 0` row and the smoothness term; and the number of usable
+/// samples.
+fn normal_equations(
+    z: &[u8],
+    exposures: usize,
+    ln_dt: &[f64],
+    lambda: f64,
+) -> Result<(Vec<f64>, Vec<f64>, usize), String> {
     if exposures == 0 || ln_dt.len() != exposures || !z.len().is_multiple_of(exposures) {
         return Err("codes and exposure times disagree in length".into());
     }
     const N: usize = LEVELS;
-    // Normal equations of the g block after eliminating every ln E_i.
     let mut s = vec![0.0f64; N * N];
-    let mut r = [0.0f64; N];
+    let mut r = vec![0.0f64; N];
     let mut used = 0usize;
     let mut b: Vec<(usize, f64)> = Vec::with_capacity(exposures);
     for row in z.chunks_exact(exposures) {
@@ -347,23 +495,13 @@ pub fn solve_debevec(
             }
         }
     }
-    let g = cholesky_solve(&mut s, &r, N).ok_or_else(|| {
-        format!("the system is singular ({used} usable samples; use more samples or exposures)")
-    })?;
-    let mut out = [0.0; N];
-    let g128 = g[128];
-    for (o, v) in out.iter_mut().zip(&g) {
-        *o = v - g128;
-    }
-    if out.iter().any(|v| !v.is_finite()) {
-        return Err("the solution is not finite".into());
-    }
-    Ok(out)
+    Ok((s, r, used))
 }
 
-/// Solves `A x = b` for a symmetric positive-definite `n × n` matrix `a` (row-major, overwritten
-/// by its Cholesky factor). `None` if a pivot is not positive (relative to the matrix's scale).
-fn cholesky_solve(a: &mut [f64], b: &[f64], n: usize) -> Option<Vec<f64>> {
+/// Factors a symmetric positive-definite `n × n` matrix `a` (row-major) in place into its
+/// Cholesky factor `L` (lower triangle). False if a pivot is not positive (relative to the
+/// matrix's scale).
+fn cholesky_factor(a: &mut [f64], n: usize) -> bool {
     let scale = (0..n).map(|i| a[i * n + i].abs()).fold(0.0, f64::max);
     let tiny = scale * 1e-13;
     for j in 0..n {
@@ -372,7 +510,7 @@ fn cholesky_solve(a: &mut [f64], b: &[f64], n: usize) -> Option<Vec<f64>> {
             d -= a[j * n + k] * a[j * n + k];
         }
         if d.is_nan() || d <= tiny {
-            return None;
+            return false;
         }
         let d = d.sqrt();
         a[j * n + j] = d;
@@ -384,20 +522,25 @@ fn cholesky_solve(a: &mut [f64], b: &[f64], n: usize) -> Option<Vec<f64>> {
             a[i * n + j] = v / d;
         }
     }
+    true
+}
+
+/// Solves `L Lᵀ x = b` with the factor from [`cholesky_factor`].
+fn cholesky_apply(l: &[f64], b: &[f64], n: usize) -> Vec<f64> {
     let mut y = b.to_vec();
     for i in 0..n {
         for k in 0..i {
-            y[i] -= a[i * n + k] * y[k];
+            y[i] -= l[i * n + k] * y[k];
         }
-        y[i] /= a[i * n + i];
+        y[i] /= l[i * n + i];
     }
     for i in (0..n).rev() {
         for k in i + 1..n {
-            y[i] -= a[k * n + i] * y[k];
+            y[i] -= l[k * n + i] * y[k];
         }
-        y[i] /= a[i * n + i];
+        y[i] /= l[i * n + i];
     }
-    Some(y)
+    y
 }
 
 #[cfg(test)]
@@ -491,6 +634,77 @@ pub(crate) mod tests {
         assert_eq!(calibrate_debevec(&stack, &opts).unwrap(), curve);
         let other = CalibrateOptions { seed: 1, ..opts };
         assert_ne!(calibrate_debevec(&stack, &other).unwrap(), curve);
+    }
+
+    #[test]
+    fn monotonic_solution_is_the_constrained_minimum() {
+        // A noisy camera with a black-level pedestal (codes 16 + 239 f(X) + noise), few samples
+        // and little smoothing: the unconstrained curve is not monotonic at low codes.
+        let mut rng = Pcg64::seed_from_u64(3);
+        let times = [1.0 / 16.0, 0.25, 1.0, 4.0, 16.0];
+        let mut z = Vec::new();
+        for _ in 0..60 {
+            let e = 10f64.powf(rng.random_range(-2.5..1.5));
+            for t in times {
+                let code = 16.0
+                    + 239.0 * true_code(e * t, 0.6) / 255.0
+                    + 3.0 * (rng.random::<f64>() - 0.5);
+                z.push(code.round().clamp(0.0, 255.0) as u8);
+            }
+        }
+        let ln_dt: Vec<f64> = times.iter().map(|t: &f64| t.ln()).collect();
+        let lambda = 0.5;
+        let free = solve_debevec(&z, times.len(), &ln_dt, lambda).unwrap();
+        assert!(
+            free.windows(2).any(|w| w[1] < w[0]),
+            "the test needs a non-monotonic unconstrained curve"
+        );
+        let mono = solve_debevec_monotonic(&z, times.len(), &ln_dt, lambda).unwrap();
+        assert!(mono.windows(2).all(|w| w[1] >= w[0]));
+        assert_eq!(mono[128], 0.0);
+        let q = |g: &[f64; LEVELS]| debevec_objective(&z, times.len(), &ln_dt, lambda, g).unwrap();
+        // Between the unconstrained minimum and any other monotonic curve: here the free curve
+        // patched by a running maximum, and by a running minimum from the top.
+        let mut up = free;
+        for k in 1..LEVELS {
+            up[k] = up[k].max(up[k - 1]);
+        }
+        let mut down = free;
+        for k in (0..LEVELS - 1).rev() {
+            down[k] = down[k].min(down[k + 1]);
+        }
+        let (qf, qm) = (q(&free), q(&mono));
+        assert!(qf <= qm + 1e-9 * qm.abs(), "{qf} {qm}");
+        assert!(qm < q(&up) && qm < q(&down), "{qm} {} {}", q(&up), q(&down));
+        // KKT, numerically: no small monotonicity-preserving move lowers the objective.
+        for k in [5usize, 40, 128, 200] {
+            for d in [-1e-4, 1e-4] {
+                let mut t = mono;
+                for v in t.iter_mut().skip(k) {
+                    *v += d; // shifting a whole upper part keeps the curve monotonic
+                }
+                assert!(q(&t) >= qm - 1e-9 * qm.abs(), "k {k} d {d}");
+            }
+        }
+        // On clean data the constraint is inactive: the same curve as unconstrained.
+        let (_, stack) = synthetic();
+        let opts = CalibrateOptions {
+            samples: 600,
+            ..Default::default()
+        };
+        let free_opts = CalibrateOptions {
+            monotonic: false,
+            ..opts.clone()
+        };
+        let a = calibrate_debevec(&stack, &opts).unwrap();
+        let b = calibrate_debevec(&stack, &free_opts).unwrap();
+        if (0..3).all(|c| b.is_monotonic(c, 0, 255)) {
+            for c in 0..3 {
+                for z in 0..LEVELS {
+                    assert!((a.g(c)[z] - b.g(c)[z]).abs() < 1e-9);
+                }
+            }
+        }
     }
 
     #[test]

@@ -355,8 +355,16 @@ fn resolve_listed(dir: &Path, name: &str) -> PathBuf {
 
 /// Reads the stack named by an exposure list file (see [`parse_exposure_list`]); file names are
 /// relative to the list's folder (with the `.ppm` → `.png`/`.jpg` fallback described at
-/// [`resolve_listed`]). Images are decoded in parallel. Returns the stack and the paths read.
+/// `resolve_listed`). Images are decoded in parallel. Returns the stack and the paths read.
 pub fn read_exposure_list(list: &Path) -> Result<(ExposureStack, Vec<PathBuf>), HdrError> {
+    let (paths, times) = exposure_list_files(list)?;
+    let stack = read_exposure_files(&paths, &times)?;
+    Ok((stack, paths))
+}
+
+/// The image paths (resolved as [`read_exposure_list`] does) and times of an exposure list
+/// file, without reading the images — e.g. to declare them as inputs before reading.
+pub fn exposure_list_files(list: &Path) -> Result<(Vec<PathBuf>, Vec<f64>), HdrError> {
     let text = std::fs::read_to_string(list).map_err(|source| HdrError::Io {
         path: list.to_path_buf(),
         source,
@@ -372,8 +380,7 @@ pub fn read_exposure_list(list: &Path) -> Result<(ExposureStack, Vec<PathBuf>), 
         .map(|e| resolve_listed(dir, &e.file))
         .collect();
     let times: Vec<f64> = entries.iter().map(|e| e.seconds).collect();
-    let stack = read_exposure_files(&paths, &times)?;
-    Ok((stack, paths))
+    Ok((paths, times))
 }
 
 /// Reads a stack from explicit image paths and exposure times in seconds (book 10.2), decoding
@@ -394,6 +401,43 @@ pub fn read_exposure_files(paths: &[PathBuf], times: &[f64]) -> Result<ExposureS
         .map(|p| read_codes(p))
         .collect::<Result<Vec<_>, _>>()?;
     ExposureStack::from_code_images(images.into_iter().zip(times.iter().copied()).collect())
+}
+
+/// Reads a stack from image paths alone, taking each exposure from the file's EXIF
+/// (`ExposureTime`, with `FNumber` and ISO when recorded; see [`super::exif::relative_exposures`]:
+/// seconds at the first photograph's aperture and ISO). Each file is read once. Returns the
+/// stack and the times used. Errors name the file without usable EXIF.
+pub fn read_exposure_files_exif(paths: &[PathBuf]) -> Result<(ExposureStack, Vec<f64>), HdrError> {
+    if paths.is_empty() {
+        return Err(HdrError::EmptyStack);
+    }
+    let read = paths
+        .par_iter()
+        .map(|p| {
+            let bytes = std::fs::read(p).map_err(|source| HdrError::Io {
+                path: p.clone(),
+                source,
+            })?;
+            let settings = super::exif::exposure_settings(&bytes, p)?;
+            let codes = decode_codes(&bytes).map_err(|e| match e {
+                HdrError::Image(ie) => HdrError::Image(ImageError::File {
+                    path: p.clone(),
+                    source: Box::new(ie),
+                }),
+                other => other,
+            })?;
+            Ok((codes, settings))
+        })
+        .collect::<Result<Vec<_>, HdrError>>()?;
+    let settings: Vec<_> = read.iter().map(|(_, s)| *s).collect();
+    let times = super::exif::relative_exposures(&settings, paths)?;
+    let stack = ExposureStack::from_code_images(
+        read.into_iter()
+            .map(|(c, _)| c)
+            .zip(times.iter().copied())
+            .collect(),
+    )?;
+    Ok((stack, times))
 }
 
 #[cfg(test)]

@@ -317,7 +317,8 @@ impl Shot {
     }
 
     /// Per frame of the path, the RMS reprojection error (px) and the number of observations,
-    /// over the tracks seen in that frame whose point is in the cloud; `None` without tracks.
+    /// over every track seen in that frame whose point is in the cloud (outliers included);
+    /// `None` without tracks.
     pub fn frame_errors(&self) -> Option<Vec<(f64, usize)>> {
         let (tracks, cloud) = (self.tracks.as_ref()?, self.cloud.as_ref()?);
         let by_id: std::collections::HashMap<u64, usize> = cloud

@@ -74,6 +74,8 @@ pub struct MatchmoveOptions {
     pub global: Option<GlobalOptions>,
     /// Seed of every random choice (RANSAC samples); each fragment derives its own stream.
     pub seed: u64,
+    /// Compute the book-style score of [`score`] into the report.
+    pub score: bool,
 }
 
 impl Default for MatchmoveOptions {
@@ -85,6 +87,7 @@ impl Default for MatchmoveOptions {
             scale: ScaleOptions::default(),
             global: Some(GlobalOptions::default()),
             seed: 0,
+            score: true,
         }
     }
 }
@@ -220,7 +223,22 @@ pub fn matchmove(
             r
         })
         .collect();
-    let solutions: Vec<FragmentSolution> = solutions.into_iter().collect::<Result<_>>()?;
+    // The remainder at the end may be too short to solve on its own: its frames are then
+    // resected from the joined cloud by the extension stage.
+    let mut notes = Vec::new();
+    let mut kept = Vec::new();
+    for (frag, r) in fragments.iter().zip(solutions) {
+        match r {
+            Ok(s) => kept.push(s),
+            Err(e) if frag.is_last && !kept.is_empty() => notes.push(format!(
+                "the last fragment (frames {}..{}) could not be solved on its own ({e}); its \
+                 frames were resected from the reconstructed points",
+                tracks.frames[frag.first], tracks.frames[frag.last]
+            )),
+            Err(e) => return Err(e),
+        }
+    }
+    let solutions = kept;
     stages.push(StageTime::new("fragment calibration", t0));
 
     let t0 = Instant::now();
@@ -247,12 +265,17 @@ pub fn matchmove(
         stages.push(StageTime::new("global bundle adjustment", t0));
     }
 
-    let path = path_from_poses(tracks, k, &poses)?;
-    let cloud = cloud_from_points(tracks, k, &poses, &points);
-    let mut report =
-        report::solve_report(tracks, k, &poses, &points, options.refine.final_tolerance());
-    report.stages = stages;
-    report.fragments = solutions
+    let mut solve = finish_solve(
+        tracks,
+        k,
+        &poses,
+        &points,
+        options.refine.final_tolerance(),
+        stages,
+        options.score,
+    )?;
+    solve.report.notes = notes;
+    solve.report.fragments = solutions
         .iter()
         .zip(&joined.scales)
         .map(|(s, &scale)| {
@@ -261,11 +284,91 @@ pub fn matchmove(
             r
         })
         .collect();
+    Ok(solve)
+}
+
+/// Builds the [`Solve`] of poses and points: the path (with K), the cloud, and the report with
+/// the given stage times and, when `with_score` is set, the book-style score of [`score`].
+pub fn finish_solve(
+    tracks: &Tracks,
+    k: &Intrinsics,
+    poses: &[Option<Pose>],
+    points: &[Option<Vector3<f64>>],
+    inlier_tolerance: f64,
+    stages: Vec<StageTime>,
+    with_score: bool,
+) -> Result<Solve> {
+    let path = path_from_poses(tracks, k, poses)?;
+    let cloud = cloud_from_points(tracks, k, poses, points);
+    let mut report = report::solve_report(tracks, k, poses, points, inlier_tolerance);
+    report.stages = stages;
+    if with_score {
+        let t0 = Instant::now();
+        report.score = Some(score::score_poses(tracks, k, poses));
+        report.stages.push(StageTime::new("scoring", t0));
+    }
     Ok(Solve {
         path,
         cloud,
         report,
     })
+}
+
+/// The book's relaxation (§7.14, [`relax()`]) of a solved path, as a [`Solve`].
+pub fn relax_path(
+    tracks: &Tracks,
+    k: &Intrinsics,
+    path: &CameraPath,
+    options: &RelaxOptions,
+    with_score: bool,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<Solve> {
+    let poses = require_all_frames(tracks, path)?;
+    let t0 = Instant::now();
+    let (poses, points) = relax(tracks, k, &poses, options, progress)?;
+    let stages = vec![StageTime::new("relaxation", t0)];
+    let tol = (options.initial_tolerance - options.tolerance_step * options.rounds as f64)
+        .max(options.tolerance_step.max(0.5));
+    finish_solve(tracks, k, &poses, &points, tol, stages, with_score)
+}
+
+/// A robust global bundle adjustment ([`global_bundle_adjust`]) of a solved path, as a [`Solve`].
+pub fn adjust_path(
+    tracks: &Tracks,
+    k: &Intrinsics,
+    path: &CameraPath,
+    options: &GlobalOptions,
+    with_score: bool,
+) -> Result<Solve> {
+    let poses = require_all_frames(tracks, path)?;
+    let t0 = Instant::now();
+    let (poses, points) = global_bundle_adjust(tracks, k, &poses, options)?;
+    let stages = vec![StageTime::new("global bundle adjustment", t0)];
+    let tol = options
+        .thresholds
+        .last()
+        .copied()
+        .unwrap_or(options.triangulation_tolerance);
+    finish_solve(tracks, k, &poses, &points, tol, stages, with_score)
+}
+
+/// The path's poses by frame index of `tracks`; every frame of the tracks must have one.
+fn require_all_frames(tracks: &Tracks, path: &CameraPath) -> Result<Vec<Option<Pose>>> {
+    let poses = poses_by_index(tracks, path);
+    let missing: Vec<i64> = poses
+        .iter()
+        .zip(&tracks.frames)
+        .filter(|(p, _)| p.is_none())
+        .map(|(_, f)| *f)
+        .collect();
+    if !missing.is_empty() {
+        return Err(VisionError::InvalidInput(format!(
+            "the camera path has no camera for {} frames of the tracks (first: {})",
+            missing.len(),
+            missing[0]
+        )));
+    }
+    Ok(poses)
 }
 
 /// A camera path from per-frame-index poses; every frame must have one.

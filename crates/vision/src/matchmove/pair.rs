@@ -47,6 +47,9 @@ pub struct PairOptions {
     pub max_k_difference: f64,
     /// A pair with fewer inliers than this is not a candidate.
     pub min_inliers: usize,
+    /// A pair whose points' median parallax angle is below this (degrees) has no usable
+    /// baseline: counted with the pure rotations (not in the book, whose footage always moved).
+    pub min_parallax_deg: f64,
 }
 
 impl Default for PairOptions {
@@ -59,6 +62,7 @@ impl Default for PairOptions {
             resection_tolerance: 15.0,
             max_k_difference: 100.0,
             min_inliers: 12,
+            min_parallax_deg: 0.5,
         }
     }
 }
@@ -119,6 +123,9 @@ fn evaluate_pair(
     };
     let rec =
         reconstruct_two_view(&a, &b, k, k, &two_view, &mut rng).map_err(PairFailure::TwoView)?;
+    if !(rec.report.median_parallax_deg >= options.min_parallax_deg) {
+        return Err(PairFailure::TwoView(VisionError::ZeroBaseline));
+    }
     let feats: Vec<usize> = rec.point_indices.clone();
     let p3: Vec<Point3<f64>> = rec.points3d.0.clone();
     if feats.len() < options.min_inliers.max(6) {

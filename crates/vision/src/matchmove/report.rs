@@ -74,6 +74,8 @@ pub struct SolveReport {
     pub fragments: Vec<FragmentReport>,
     /// The book-style score over all tracks (see [`super::score`]), when computed.
     pub score: Option<BookScore>,
+    /// Fallbacks taken and other remarks, for a person to read.
+    pub notes: Vec<String>,
 }
 
 /// Builds the per-frame and per-track figures of a solve.
@@ -149,5 +151,6 @@ pub fn solve_report(
         stages: Vec::new(),
         fragments: Vec::new(),
         score: None,
+        notes: Vec::new(),
     }
 }

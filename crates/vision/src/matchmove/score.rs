@@ -41,6 +41,19 @@ pub struct BookScore {
     pub translation_step_ratio: f64,
 }
 
+/// The distance between the observation and the dehomogenized image of X, whichever side of the
+/// camera X is on (what a scorer that knows only P = K[R|t] measures); infinite only on the
+/// principal plane.
+fn projective_error(k: &Intrinsics, p: &Pose, x: &nalgebra::Vector3<f64>, o: &[f64; 2]) -> f64 {
+    let c = p.r * x + p.t;
+    if c.z.abs() < 1e-12 {
+        return reprojection_error(k, p, x, o);
+    }
+    let (u, v) = (c.x / c.z, c.y / c.z);
+    let q = [k.f1 * u + k.s * v + k.u0, k.f2 * v + k.v0];
+    ((q[0] - o[0]).powi(2) + (q[1] - o[1]).powi(2)).sqrt()
+}
+
 /// Errors of one track's observations (frame index, error), or `None` if it cannot be scored.
 fn track_errors(
     k: &Intrinsics,
@@ -75,7 +88,7 @@ fn track_errors(
     Some(
         views
             .iter()
-            .map(|(f, p, o)| (*f, reprojection_error(k, p, &x.coords, o)))
+            .map(|(f, p, o)| (*f, projective_error(k, p, &x.coords, o)))
             .collect(),
     )
 }

@@ -78,3 +78,94 @@ fn synthetic_shot_is_recovered_within_tolerance() {
     assert!(max_rot < 0.1, "rotation error {max_rot}°");
     assert!(max_c < 0.005, "centre error {} of the path length", max_c);
 }
+
+/// Same seed, same cameras, whatever the thread count (fragments and pairs run in parallel).
+#[test]
+fn solve_is_identical_for_any_thread_count() {
+    let shot = synthetic_shot(&ShotOptions {
+        frames: 70,
+        slots: 80,
+        mean_track_length: 40.0,
+        ..ShotOptions::default()
+    });
+    let options = MatchmoveOptions {
+        fragments: FragmentOptions {
+            min_frames: 30,
+            ..FragmentOptions::default()
+        },
+        ..MatchmoveOptions::default()
+    };
+    let run = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| matchmove(&shot.tracks, &shot.k, &options, &|_, _, _| {}).unwrap())
+    };
+    let (a, b) = (run(1), run(4));
+    assert_eq!(a.path, b.path);
+    assert_eq!(a.cloud, b.cloud);
+}
+
+/// The fragment rule (§7.11): consecutive fragments share exactly one frame, cover the whole
+/// sequence, and each keeps only features tracked through all of its frames.
+#[test]
+fn fragments_share_one_frame_and_keep_features_tracked_throughout() {
+    let shot = synthetic_shot(&ShotOptions::default());
+    let o = FragmentOptions::default();
+    let frags = split_fragments(&shot.tracks, &o).unwrap();
+    assert!(frags.len() >= 2, "{} fragments", frags.len());
+    assert_eq!(frags[0].first, 0);
+    assert_eq!(frags.last().unwrap().last, shot.tracks.frames.len() - 1);
+    for w in frags.windows(2) {
+        assert_eq!(w[0].last, w[1].first);
+    }
+    for f in &frags {
+        if !f.is_last {
+            assert!(f.len() > o.min_frames || f.features.len() < o.min_features + 5);
+        }
+        for &t in &f.features {
+            assert!(through(&shot.tracks.tracks[t], f.first, f.last).is_some());
+        }
+        // Every track seen throughout is kept.
+        let all = shot
+            .tracks
+            .tracks
+            .iter()
+            .filter(|t| through(t, f.first, f.last).is_some())
+            .count();
+        assert_eq!(all, f.features.len());
+    }
+}
+
+const BOOK: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../../../shared/data/book-demo/"
+);
+
+/// The book's own tracks: every one of the 286 frames gets a finite camera, the path is smooth,
+/// and on the 240 frames the book's solution covered, our cameras score better than the book's
+/// (median 2.40 px, 57.5 % above 2 px, measured on the book's refined cameras for issue 6).
+#[test]
+fn book_tracks_every_frame_solved_and_better_than_the_book() {
+    let Ok(text) = std::fs::read_to_string(format!("{BOOK}f.txt")) else {
+        eprintln!("notice: {BOOK}f.txt is absent; skipping the book matchmove test");
+        return;
+    };
+    let tracks = crate::klt::Tracks::parse(&text).unwrap();
+    let k =
+        crate::formats::read_intrinsics(std::path::Path::new(&format!("{BOOK}g7cam.txt"))).unwrap();
+    let solve = matchmove(&tracks, &k, &MatchmoveOptions::default(), &|_, _, _| {}).unwrap();
+    assert_eq!(solve.path.frames.len(), 286);
+    let score = solve.report.score.clone().unwrap();
+    eprintln!("book tracks, all 286 frames: {score:?}");
+    assert_eq!(score.frames_with_camera, 286);
+    assert!(score.max_rotation_step_deg < 3.0, "{score:?}");
+    assert!(score.translation_step_ratio < 10.0, "{score:?}");
+    let mut first = solve.path.clone();
+    first.frames.truncate(240);
+    let s240 = score_cameras(&tracks, &k, &first);
+    eprintln!("first 240 frames: {s240:?}");
+    assert!(s240.median < 2.40, "median {}", s240.median);
+    assert!(s240.above_2px < 0.575, "above 2 px {}", s240.above_2px);
+}
