@@ -42,6 +42,20 @@ pub enum BenchCommand {
         #[arg(long)]
         json: bool,
     },
+    /// Matchmove (book chapter 7) of a tracks file, then the book's relaxation: stage timings, the
+    /// score over all tracks, and the speed-up over the book's programs (issue 6: `calib` used
+    /// more than 24 CPU-minutes on f.txt without finishing, `relax` 386 CPU-seconds).
+    Matchmove {
+        /// Tracks file (the book's f.txt format or native JSON).
+        #[arg(long, default_value = "../shared/data/book-demo/f.txt")]
+        tracks: std::path::PathBuf,
+        /// Intrinsics file (a 3×3 K).
+        #[arg(long, default_value = "../shared/data/book-demo/g7cam.txt")]
+        intrinsics: std::path::PathBuf,
+        /// Print the figures as JSON.
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 pub fn run(cmd: BenchCommand, registry: &Registry) -> Result<u8, String> {
@@ -55,7 +69,114 @@ pub fn run(cmd: BenchCommand, registry: &Registry) -> Result<u8, String> {
             threads,
             json,
         } => bench_ba(&file, &solver, &loss, max_iterations, threads, json),
+        BenchCommand::Matchmove {
+            tracks,
+            intrinsics,
+            json,
+        } => bench_matchmove(&tracks, &intrinsics, json),
     }
+}
+
+/// CPU seconds used by this process so far (user + system, all threads), from /proc.
+fn cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    let after = &stat[stat.rfind(')')? + 2..];
+    let f: Vec<&str> = after.split_whitespace().collect();
+    let ticks: f64 = f.get(11)?.parse::<f64>().ok()? + f.get(12)?.parse::<f64>().ok()?;
+    Some(ticks / 100.0)
+}
+
+fn bench_matchmove(tracks: &Path, intrinsics: &Path, json: bool) -> Result<u8, String> {
+    use vfxgraph_vision::klt::Tracks;
+    use vfxgraph_vision::matchmove::{matchmove, relax_path, MatchmoveOptions, RelaxOptions};
+    const BOOK_CALIB_CPU_S: f64 = 24.0 * 60.0;
+    const BOOK_RELAX_CPU_S: f64 = 386.0;
+    let text = std::fs::read_to_string(tracks).map_err(|e| format!("{}: {e}", tracks.display()))?;
+    let t = Tracks::parse(&text).map_err(|e| format!("{}: {e}", tracks.display()))?;
+    let k = vfxgraph_vision::formats::read_intrinsics(intrinsics)
+        .map_err(|e| format!("{}: {e}", intrinsics.display()))?;
+    let (w0, c0) = (Instant::now(), cpu_seconds().unwrap_or(f64::NAN));
+    let solve = matchmove(&t, &k, &MatchmoveOptions::default(), &|_, _, _| {})
+        .map_err(|e| format!("matchmove: {e}"))?;
+    let (w1, c1) = (
+        w0.elapsed().as_secs_f64(),
+        cpu_seconds().unwrap_or(f64::NAN),
+    );
+    let relaxed = relax_path(
+        &t,
+        &k,
+        &solve.path,
+        &RelaxOptions::default(),
+        true,
+        &|_, _| {},
+    )
+    .map_err(|e| format!("relax: {e}"))?;
+    let (w2, c2) = (
+        w0.elapsed().as_secs_f64() - w1,
+        cpu_seconds().unwrap_or(f64::NAN) - c1,
+    );
+    let (mm_cpu, relax_cpu) = (c1 - c0, c2);
+    let figures = serde_json::json!({
+        "frames": t.frames.len(),
+        "tracks": t.tracks.len(),
+        "matchmove": {"wall_s": w1, "cpu_s": mm_cpu, "stages": solve.report.stages,
+                      "score": solve.report.score, "fragments": solve.report.fragments,
+                      "notes": solve.report.notes},
+        "relax": {"wall_s": w2, "cpu_s": relax_cpu, "score": relaxed.report.score},
+        "speedup_vs_book_calib_cpu_at_least": BOOK_CALIB_CPU_S / mm_cpu,
+        "speedup_vs_book_relax_cpu": BOOK_RELAX_CPU_S / relax_cpu,
+    });
+    if json {
+        println!("{figures}");
+        return Ok(0);
+    }
+    println!(
+        "tracks           {} ({} frames, {} tracks)",
+        tracks.display(),
+        t.frames.len(),
+        t.tracks.len()
+    );
+    println!("matchmove        {w1:.2} s wall, {mm_cpu:.2} CPU-s");
+    for s in &solve.report.stages {
+        println!("  {:<26} {:.3} s", s.stage, s.seconds);
+    }
+    for f in &solve.report.fragments {
+        println!(
+            "  fragment {:>4}..{:<4} {:>3} features, {:>3} kept, pair {:?}, RMS {:.3} px, scale {:.4}",
+            f.frames.0, f.frames.1, f.features, f.inliers, f.pair, f.rms, f.scale
+        );
+    }
+    for n in &solve.report.notes {
+        println!("  note: {n}");
+    }
+    println!("relax            {w2:.2} s wall, {relax_cpu:.2} CPU-s");
+    let show = |name: &str, s: &Option<vfxgraph_vision::matchmove::BookScore>| {
+        if let Some(s) = s {
+            println!(
+                "{name:<16} {}/{} frames; over ALL {} observations: median {:.3} px, mean {:.3} px, \
+                 {:.1} % above 2 px; worst frame {} (RMS {:.2} px); largest rotation step {:.3}°, \
+                 translation steps max/median {:.2}",
+                s.frames_with_camera,
+                s.frames,
+                s.observations,
+                s.median,
+                s.mean,
+                100.0 * s.above_2px,
+                s.worst_frame,
+                s.worst_frame_rms,
+                s.max_rotation_step_deg,
+                s.translation_step_ratio
+            );
+        }
+    };
+    show("score, matchmove", &solve.report.score);
+    show("score, relaxed", &relaxed.report.score);
+    println!(
+        "vs the book      calib > {BOOK_CALIB_CPU_S:.0} CPU-s → ≥ {:.0}× less CPU; relax {BOOK_RELAX_CPU_S:.0} CPU-s → {:.0}× less CPU (the book's figures: issue 6, same machine)",
+        BOOK_CALIB_CPU_S / mm_cpu,
+        BOOK_RELAX_CPU_S / relax_cpu
+    );
+    Ok(0)
 }
 
 fn bench_plan(instances: usize, json: bool, registry: &Registry) -> Result<u8, String> {

@@ -485,6 +485,52 @@ fn track_graph_runs_on_rubberwhale() {
 }
 
 #[test]
+fn read_video_feeds_klt_track_in_a_graph() {
+    // A clip made here: a smooth texture panning (2, −1) px per frame, H.264 in MP4.
+    let tmp = tempfile::tempdir().unwrap();
+    let g = tmp.path();
+    let frames: Vec<vfxgraph_imaging::Image> = (0..6)
+        .map(|k| {
+            vfxgraph_imaging::Image::from_fn(128, 96, 3, |x, y, _| {
+                let (x, y) = (x as f32 - 2.0 * k as f32, y as f32 + k as f32);
+                let v = 0.45
+                    + 0.2 * (0.21 * x + 0.5 * (0.13 * y).sin()).sin()
+                    + 0.15 * (0.17 * y + 0.4 * (0.11 * x).cos()).cos();
+                vfxgraph_imaging::color::srgb_to_linear(v)
+            })
+        })
+        .collect();
+    let color = vfxgraph_video::ColorInfo {
+        matrix: vfxgraph_video::Matrix::Bt601,
+        full_range: false,
+        matrix_from_stream: true,
+    };
+    vfxgraph_video::write_mp4(&g.join("clip.mp4"), &frames, 30, 3, 8, color).unwrap();
+    let yaml = "version: 1\nframes: 0..=5\nnodes:\n  plate:\n    type: read_video\n    \
+                params: {path: clip.mp4}\n  track:\n    type: klt_track\n    \
+                inputs: {frames: plate.sequence}\n    params: {features: 30, min_distance: 8}\n  \
+                book:\n    type: write_tracks\n    inputs: {tracks: track.tracks}\n    \
+                params: {path: out/f.txt, format: book}\n";
+    fs::write(g.join("video.yaml"), yaml).unwrap();
+    let r = run_json(g, &["video.yaml"]);
+    assert!(statuses(&r, "failed").is_empty());
+    assert_eq!(
+        statuses(&r, "ran")
+            .iter()
+            .filter(|s| s.0 == "plate")
+            .count(),
+        6
+    );
+    let f = fs::read_to_string(g.join("out/f.txt")).unwrap();
+    assert!(f.lines().count() > 10, "{f}");
+    // A missing video fails the node with the file's name; exit code 1.
+    let out = vfx(g, &["run", "video.yaml", "--set", "plate.path=gone.mp4"]);
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("gone.mp4"), "{err}");
+}
+
+#[test]
 fn hdr_memorial_graph_runs() {
     let Some((_tmp, g)) = example_with_shared_data("hdr_memorial.yaml") else {
         return;
@@ -551,4 +597,46 @@ fn bench_ba_reads_ladybug_with_the_reference_initial_cost() {
     for k in ["iterations", "seconds"] {
         assert!(v.get(k).is_some());
     }
+}
+
+/// The book's matchmove graph: every frame gets a camera in both formats, the plot is written,
+/// and changing a relaxation param reruns only the relaxation and what reads it.
+#[test]
+fn book_matchmove_graph_runs_and_reruns_only_the_relaxation() {
+    let Some((_tmp, g)) = example_with_shared_data("book_matchmove.yaml") else {
+        return;
+    };
+    let fast = ["--set", "relax.rounds=2", "--set", "relax.cycles=2"];
+    let mut args = vec!["book_matchmove.yaml"];
+    args.extend(fast);
+    let r = run_json(&g, &args);
+    assert!(statuses(&r, "failed").is_empty());
+    let out = g.join("out/book_matchmove");
+    let book = fs::read_to_string(out.join("cameras.txt")).unwrap();
+    assert_eq!(book.lines().filter(|l| l.starts_with("Frame")).count(), 286);
+    let json: Json =
+        serde_json::from_str(&fs::read_to_string(out.join("cameras.json")).unwrap()).unwrap();
+    assert_eq!(json["frames"].as_array().unwrap().len(), 286);
+    assert!(json["intrinsics"]["K"][0][0].as_f64().unwrap() > 1228.0);
+    let svg = fs::read_to_string(out.join("solve_error.svg")).unwrap();
+    assert!(svg.starts_with("<svg"));
+    let report: Json =
+        serde_json::from_str(&fs::read_to_string(out.join("solve_report.json")).unwrap()).unwrap();
+    assert_eq!(report["score"]["frames_with_camera"], 286);
+
+    let args = [
+        "book_matchmove.yaml",
+        "--set",
+        "relax.rounds=1",
+        "--set",
+        "relax.cycles=2",
+    ];
+    let r = run_json(&g, &args);
+    let mut ran: Vec<&str> = statuses(&r, "ran").into_iter().map(|(id, _)| id).collect();
+    ran.sort();
+    assert_eq!(
+        ran,
+        ["relax", "relax_plot", "relax_report", "relaxed_book"],
+        "only the relaxation and its readers rerun"
+    );
 }

@@ -3,7 +3,7 @@
 goodFeaturesToTrack + calcOpticalFlowPyrLK, in one run, on the same frames and corners.
 
     pip install opencv-python-headless numpy
-    python3 scripts/bench/klt_vs_opencv.py [--repeat 7]
+    python3 scripts/bench/klt_vs_opencv.py [--repeat 15] [--rounds 3]
 
 Frames: a real photograph (Oxford VGG Merton College I, ../shared/data) resized to 1280x720
 and 1920x1080, blurred (sigma 1) and warped by a known sub-pixel affine motion (0.37 px,
@@ -18,6 +18,10 @@ column compares that equal work; "seq ms" is ours with one pyramid, our per-fram
 sequence (each frame's pyramid is built once and reused as the next frame's "previous").
 Also: Middlebury RubberWhale, median end-point error against the ground-truth flow on the
 same corners for both trackers.
+
+On a machine shared with other work, times vary from run to run; the best of many repeats
+(15), in rounds (3) that alternate OpenCV and ours, is the figure least disturbed by others,
+for both sides alike.
 """
 import argparse
 import json
@@ -101,14 +105,16 @@ def synthetic(w, h, workdir):
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--repeat", type=int, default=7)
+    ap.add_argument("--repeat", type=int, default=15)
+    ap.add_argument("--rounds", type=int, default=3)
     args = ap.parse_args()
     if not os.path.isdir(DATA):
         print(f"no data at {DATA}; nothing to do")
         return 0
     subprocess.run(["cargo", "build", "--release", "-q", "-p", "vfxgraph-vision", "--example",
                     "klt_bench"], cwd=ROOT, check=True)
-    print(f"OpenCV {cv2.__version__}, {cv2.getNumThreads()} threads; best of {args.repeat}; "
+    print(f"OpenCV {cv2.__version__}, {cv2.getNumThreads()} threads; best of {args.repeat} x "
+          f"{args.rounds} rounds; "
           f"window {WIN}, levels {LEVELS}, iterations {ITERS}, eps {EPS}")
     hdr = ("size", "feat", "corners ms ours/cv", "ratio", "track ms ours/cv", "ratio",
            "seq ms", "us/feat ours/cv", "median EPE ours/cv", "tracked ours/cv")
@@ -120,8 +126,17 @@ def main():
                 tc, corners = best(lambda: cv2.goodFeaturesToTrack(a, n, 0.01, 10, blockSize=3), args.repeat)
                 pts = [tuple(map(float, p)) for p in corners.reshape(-1, 2)]
                 truth = [tuple(m @ np.array([x, y, 1.0])) for x, y in pts]
+                # Rounds alternate the two sides so that a burst of load from other work
+                # hits both alike; each side keeps its best time over all rounds.
                 tt, cv_pts = opencv_track(a, b, pts, args.repeat)
                 r = ours(pa, pb, pts, n, args.repeat)
+                for _ in range(args.rounds - 1):
+                    tc = min(tc, best(lambda: cv2.goodFeaturesToTrack(a, n, 0.01, 10, blockSize=3),
+                                      args.repeat)[0])
+                    tt = min(tt, opencv_track(a, b, pts, args.repeat)[0])
+                    r2 = ours(pa, pb, pts, n, args.repeat)
+                    for k in ("corners_ms", "track_ms", "pyramid_ms"):
+                        r[k] = min(r[k], r2[k])
                 seq_ms = r["track_ms"]  # one pyramid + LK: our per-frame cost in a sequence
                 r["track_ms"] += r["pyramid_ms"]  # + the previous frame's pyramid = OpenCV's work
                 e_cv, f_cv = epe(cv_pts, truth)

@@ -19,6 +19,7 @@ pub mod render;
 #[cfg(test)]
 mod testing;
 pub mod tracking;
+pub mod video;
 
 use vfxgraph_engine::{Context, Node, NodeError, NodeSpec, Registry};
 
@@ -58,5 +59,6 @@ pub fn registry() -> Registry {
     matchmove::register(&mut r);
     hdr::register(&mut r);
     render::register(&mut r);
+    video::register(&mut r);
     r
 }

@@ -88,7 +88,7 @@ fn global_params(spec: NodeSpec) -> NodeSpec {
 
 fn global_options(p: &Params) -> Result<GlobalOptions, NodeError> {
     let thresholds = p.f64s("outlier_thresholds");
-    if thresholds.iter().any(|t| !(*t > 0.0)) {
+    if thresholds.iter().any(|t| t.is_nan() || *t <= 0.0) {
         return Err(NodeError::msg("`outlier_thresholds` must all be positive"));
     }
     Ok(GlobalOptions {
@@ -157,14 +157,14 @@ fn run_matchmove(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     o.pair.resection_tolerance = p.f64("resection_tolerance");
     o.pair.max_k_difference = p.f64("max_k_difference");
     o.refine.tolerances = p.f64s("refine_tolerances");
-    if o.refine.tolerances.iter().any(|t| !(*t > 0.0)) {
+    if o.refine.tolerances.iter().any(|t| t.is_nan() || *t <= 0.0) {
         return Err(NodeError::msg("`refine_tolerances` must all be positive"));
     }
     o.scale.min_scale = p.f64("scale_min");
     o.scale.max_scale = p.f64("scale_max");
     o.scale.step = p.f64("scale_step");
     o.scale.tolerance = p.f64("scale_tolerance");
-    if !(o.scale.min_scale < o.scale.max_scale) {
+    if o.scale.min_scale >= o.scale.max_scale {
         return Err(NodeError::msg("`scale_min` must be below `scale_max`"));
     }
     o.global = if p.bool("global_adjust") {
@@ -593,5 +593,33 @@ mod tests {
             err.contains("parallax") || err.contains("rotation"),
             "{err}"
         );
+    }
+
+    /// Footage with too few tracks for a fragment gives a clear error naming the frames, never
+    /// NaN cameras.
+    #[test]
+    fn too_few_tracks_is_a_clear_error() {
+        let s = synthetic_shot(&ShotOptions {
+            frames: 70,
+            slots: 7,
+            ..ShotOptions::default()
+        });
+        let sp = spec("matchmove");
+        let p = params(&sp, &[("min_frames", ParamValue::Int(30))]);
+        let inputs = [
+            (
+                "tracks",
+                InputValue::One(Value::new(TracksArt(s.tracks.clone()))),
+            ),
+            (
+                "intrinsics",
+                InputValue::One(Value::new(IntrinsicsArt(s.k.clone()))),
+            ),
+        ];
+        let dir = std::env::temp_dir();
+        let mut ctx = Context::for_test(&sp, &p, &dir, None, inputs.into_iter().collect());
+        let err = run_matchmove(&mut ctx).unwrap_err().to_string();
+        assert!(err.contains("frames"), "{err}");
+        assert!(ctx.take_output::<CameraPathArt>("cameras").is_none());
     }
 }

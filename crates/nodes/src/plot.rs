@@ -11,7 +11,7 @@ struct Panel<'a> {
 }
 
 fn nice_max(v: f64) -> f64 {
-    if !(v > 0.0) || !v.is_finite() {
+    if v.is_nan() || v <= 0.0 || !v.is_finite() {
         return 1.0;
     }
     let e = 10f64.powf(v.log10().floor());

@@ -121,9 +121,11 @@ pub(crate) fn reflect101(i: isize, n: usize) -> usize {
     }
 }
 
-/// One level of a [`Pyramid`]: the image and its Scharr gradient, stored with a border of
-/// `pad` pixels on every side (reflect-101) so that a tracking window near the edge reads
-/// defined values without per-pixel bounds checks.
+/// One level of a [`Pyramid`]: the image stored with a border of `pad` pixels on every side
+/// (reflect-101) so that a tracking window near the edge reads defined values without
+/// per-pixel bounds checks. The Scharr gradient is not stored: the tracker takes it from the
+/// bilinearly resampled window (both are convolutions, so they commute), which costs less than
+/// filtering and storing two more image-sized planes per level.
 #[derive(Clone, Debug)]
 pub struct Level {
     /// Width of the level (without the border).
@@ -132,14 +134,10 @@ pub struct Level {
     pub height: usize,
     /// Border width in pixels.
     pub pad: usize,
-    /// Row stride of the padded buffers: `width + 2 * pad`.
+    /// Row stride of the padded buffer: `width + 2 * pad`.
     pub stride: usize,
     /// Padded brightness, `stride * (height + 2 * pad)` values.
     pub img: Vec<f32>,
-    /// Padded ∂I/∂x (Scharr), brightness per pixel.
-    pub gx: Vec<f32>,
-    /// Padded ∂I/∂y (Scharr), brightness per pixel.
-    pub gy: Vec<f32>,
 }
 
 impl Level {
@@ -150,28 +148,25 @@ impl Level {
             pad: 0,
             stride: 0,
             img: Vec::new(),
-            gx: Vec::new(),
-            gy: Vec::new(),
         }
     }
 
-    /// Sets the size, reusing the buffers' memory (fresh pages cost more than the filtering).
+    /// Sets the size, reusing the buffer's memory (fresh pages cost more than the filtering).
     fn resize(&mut self, w: usize, h: usize, pad: usize) {
         self.width = w;
         self.height = h;
         self.pad = pad;
         self.stride = w + 2 * pad;
         let n = self.stride * (h + 2 * pad);
-        for v in [&mut self.img, &mut self.gx, &mut self.gy] {
-            v.resize(n, 0.0);
-        }
+        self.img.resize(n, 0.0);
     }
 
-    /// Fills the border by reflect-101 from the interior, then the Scharr gradient.
+    /// Fills the border by reflect-101 from the interior.
     fn finish(&mut self) {
         let (w, h, pad, stride) = (self.width, self.height, self.pad, self.stride);
         self.img[pad * stride..(pad + h) * stride]
             .par_chunks_mut(stride)
+            .with_min_len(16)
             .for_each(|row| {
                 for px in 0..pad {
                     row[px] = row[pad + reflect101(px as isize - pad as isize, w)];
@@ -183,32 +178,24 @@ impl Level {
             self.img
                 .copy_within(sy * stride..(sy + 1) * stride, py * stride);
         }
-        // Scharr derivative (3, 10, 3) ⊗ (-1, 0, 1) / 32: per pixel, brightness per pixel.
-        let ph = h + 2 * pad;
-        let img = &self.img;
-        self.gx
-            .par_chunks_mut(stride)
-            .zip(self.gy.par_chunks_mut(stride))
-            .enumerate()
-            .for_each(|(y, (ox, oy))| {
-                if y == 0 || y + 1 >= ph || stride < 3 {
-                    return;
-                }
-                let r0 = &img[(y - 1) * stride..y * stride];
-                let r1 = &img[y * stride..(y + 1) * stride];
-                let r2 = &img[(y + 1) * stride..(y + 2) * stride];
-                let n = stride - 2;
-                let (ox, oy) = (&mut ox[1..1 + n], &mut oy[1..1 + n]);
-                let (a0, a1, a2) = (&r0[..n], &r1[..n], &r2[..n]);
-                let (m0, m2) = (&r0[1..1 + n], &r2[1..1 + n]);
-                let (c0, c1, c2) = (&r0[2..2 + n], &r1[2..2 + n], &r2[2..2 + n]);
-                for x in 0..n {
-                    let dx = 3.0 * (c0[x] - a0[x]) + 10.0 * (c1[x] - a1[x]) + 3.0 * (c2[x] - a2[x]);
-                    let dy = 3.0 * (a2[x] - a0[x]) + 10.0 * (m2[x] - m0[x]) + 3.0 * (c2[x] - c0[x]);
-                    ox[x] = dx * (1.0 / 32.0);
-                    oy[x] = dy * (1.0 / 32.0);
-                }
-            });
+    }
+
+    /// Scharr gradient (3, 10, 3) ⊗ (−1, 0, 1) / 32 at pixel (x, y) of the level, brightness
+    /// per pixel, reading the reflect-101 border.
+    pub fn scharr_at(&self, x: usize, y: usize) -> [f32; 2] {
+        let (s, p) = (self.stride, self.pad);
+        let at = |dx: isize, dy: isize| {
+            let xx = (x + p) as isize + dx;
+            let yy = (y + p) as isize + dy;
+            self.img[yy as usize * s + xx as usize]
+        };
+        let dx = 3.0 * (at(1, -1) - at(-1, -1))
+            + 10.0 * (at(1, 0) - at(-1, 0))
+            + 3.0 * (at(1, 1) - at(-1, 1));
+        let dy = 3.0 * (at(-1, 1) - at(-1, -1))
+            + 10.0 * (at(0, 1) - at(0, -1))
+            + 3.0 * (at(1, 1) - at(1, -1));
+        [dx / 32.0, dy / 32.0]
     }
 
     fn set_from_gray(&mut self, src: &GrayImage, pad: usize) {
@@ -217,6 +204,7 @@ impl Level {
         let stride = self.stride;
         self.img[pad * stride..(pad + src.height) * stride]
             .par_chunks_mut(stride)
+            .with_min_len(16)
             .enumerate()
             .for_each(|(y, row)| row[pad..pad + w].copy_from_slice(&src.data[y * w..][..w]));
         self.finish();
@@ -227,23 +215,25 @@ impl Level {
         let (dw, dh) = (src.width.div_ceil(2), src.height.div_ceil(2));
         self.resize(dw, dh, src.pad);
         let (pad, stride, ss, sp) = (self.pad, self.stride, src.stride, src.pad);
+        #[cfg(target_arch = "x86_64")]
+        let avx2 = std::is_x86_feature_detected!("avx2");
         self.img[pad * stride..(pad + dh) * stride]
             .par_chunks_mut(stride)
+            .with_min_len(8)
             .enumerate()
             .for_each_init(
-                || vec![0.0f32; ss],
+                || vec![0.0f32; 2 * ss],
                 |v, (y, row)| {
                     let sy = 2 * y + sp;
-                    let r = |i: usize| &src.img[(sy + i - 2) * ss..][..ss];
-                    let (a, b, m, d, e) = (r(0), r(1), r(2), r(3), r(4));
-                    for x in 0..ss {
-                        v[x] = a[x] + 4.0 * b[x] + 6.0 * m[x] + 4.0 * d[x] + e[x];
+                    let rows = &src.img[(sy - 2) * ss..][..5 * ss];
+                    let out = &mut row[pad..pad + dw];
+                    #[cfg(target_arch = "x86_64")]
+                    if avx2 {
+                        // SAFETY: the CPU reports AVX2.
+                        unsafe { down_row_avx2(rows, ss, sp, v, out) };
+                        return;
                     }
-                    for (x, o) in row[pad..pad + dw].iter_mut().enumerate() {
-                        let c = 2 * x + sp;
-                        *o = (v[c - 2] + 4.0 * v[c - 1] + 6.0 * v[c] + 4.0 * v[c + 1] + v[c + 2])
-                            * (1.0 / 256.0);
-                    }
+                    down_row(rows, ss, sp, v, out);
                 },
             );
         self.finish();
@@ -262,6 +252,43 @@ impl Level {
             data,
         }
     }
+}
+
+/// One output row of `pyrDown` from the five source rows around it (`rows`, each `ss` long,
+/// the centre column of output `x` at `2x + sp`): the vertical 1-4-6-4-1 pass into `v`, then
+/// the horizontal one.
+#[inline(always)]
+fn down_row(rows: &[f32], ss: usize, sp: usize, v: &mut [f32], out: &mut [f32]) {
+    let r = |i: usize| &rows[i * ss..][..ss];
+    let (a, b, m, d, e) = (r(0), r(1), r(2), r(3), r(4));
+    let (v, hbuf) = v.split_at_mut(ss);
+    for x in 0..ss {
+        v[x] = a[x] + 4.0 * b[x] + 6.0 * m[x] + 4.0 * d[x] + e[x];
+    }
+    // The horizontal pass at every column (contiguous, so it vectorises), then every other
+    // column is kept: output x is centred on column 2x + sp.
+    let n = ss - 4;
+    let h = &mut hbuf[..n];
+    let (v0, v1, v2, v3, v4) = (
+        &v[..n],
+        &v[1..1 + n],
+        &v[2..2 + n],
+        &v[3..3 + n],
+        &v[4..4 + n],
+    );
+    for x in 0..n {
+        h[x] = (v0[x] + 4.0 * v1[x] + 6.0 * v2[x] + 4.0 * v3[x] + v4[x]) * (1.0 / 256.0);
+    }
+    for (o, &hv) in out.iter_mut().zip(h[sp - 2..].iter().step_by(2)) {
+        *o = hv;
+    }
+}
+
+/// [`down_row`] compiled for AVX2 (elementwise: the same bits).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn down_row_avx2(rows: &[f32], ss: usize, sp: usize, v: &mut [f32], out: &mut [f32]) {
+    down_row(rows, ss, sp, v, out)
 }
 
 /// Halves an image with OpenCV's `pyrDown`: the 5-tap binomial filter (1 4 6 4 1)/16 in both
@@ -302,7 +329,7 @@ pub fn pyr_down(src: &GrayImage) -> GrayImage {
     }
 }
 
-/// A Gaussian pyramid with Scharr gradients on every level, built once per frame and shared
+/// A Gaussian pyramid (images only; gradients are taken per window), built once per frame and shared
 /// by every feature (Bouguet 2000, section 2.1). Level 0 is the image itself.
 #[derive(Clone, Debug)]
 pub struct Pyramid {
@@ -390,9 +417,9 @@ mod tests {
         let img = GrayImage::from_fn(32, 32, |x, y| 3.0 * x as f32 - 2.0 * y as f32);
         let p = Pyramid::new(&img, 2, 4).unwrap();
         let l = &p.levels[0];
-        let i = (10 + l.pad) * l.stride + 12 + l.pad;
-        assert!((l.gx[i] - 3.0).abs() < 1e-5);
-        assert!((l.gy[i] + 2.0).abs() < 1e-5);
+        let [gx, gy] = l.scharr_at(12, 10);
+        assert!((gx - 3.0).abs() < 1e-5);
+        assert!((gy + 2.0).abs() < 1e-5);
         assert_eq!(l.to_gray(), img);
         assert!(p.levels.len() >= 2);
         // Levels read from the padded buffer equal pyr_down of the unpadded image.

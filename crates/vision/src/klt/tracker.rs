@@ -31,10 +31,11 @@ pub struct TrackerParams {
     /// Refill lost slots with new corners (book 6.5).
     pub replace_lost: bool,
     /// Margin in pixels: corners are not detected closer than this to the image edge, and a
-    /// feature closer than that is lost as having left the image. Near the edge most of
-    /// the window lies in the mirrored border, which moves the wrong way and drags features
-    /// along edges. With the default (10, the half window of the default LK window) every
-    /// window lies wholly inside the image, the book's definition of a window (6.1).
+    /// feature closer than that is lost as having left the image. Near the edge part of the
+    /// window lies outside the image, where LK sees no gradient (as OpenCV), so the feature is
+    /// followed on a partial window. With the default (10, the half window of the default LK
+    /// window) every window lies wholly inside the image, the book's definition of a window
+    /// (6.1).
     pub border: f32,
 }
 

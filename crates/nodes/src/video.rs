@@ -1,0 +1,174 @@
+//! Video file nodes: `read_video` reads H.264 MP4 files (what phones and cameras write; the
+//! book's chapter 6 tracks such footage) frame by frame, through `vfxgraph-video` (OpenH264,
+//! bundled, no system library).
+
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+use std::time::SystemTime;
+
+use vfxgraph_engine::{
+    ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, PathRole, PortSpec,
+    Registry,
+};
+use vfxgraph_video::Video;
+
+use crate::artifacts::ImageArt;
+use crate::FnNode;
+
+/// Registers the nodes of this module.
+pub fn register(r: &mut Registry) {
+    r.register_node(FnNode::new(
+        NodeSpec::new(
+            "read_video",
+            "Reads frame f of the graph's range from an H.264 .mp4 file (frame 0 is the first \
+             picture) as a linear-light RGB image: Y'CbCr converted with the matrix and range \
+             the stream declares (BT.709 for HD, BT.601 below, when it does not), decoded \
+             with the sRGB curve as PNG frames are.",
+        )
+        .mode(Mode::PerFrame)
+        .param(ParamSpec::required(
+            "path",
+            ParamType::Path(PathRole::Input),
+            "the video file, relative to the graph file",
+        ))
+        .output(PortSpec::one(
+            "sequence",
+            ImageArt::NAME,
+            "the frame's image",
+        )),
+        run_read_video,
+    ));
+}
+
+/// The last opened video (the file is parsed once for all the frames of a run); keyed by
+/// path, size and modification time.
+type Opened = Option<(PathBuf, u64, Option<SystemTime>, Arc<Video>)>;
+static OPEN: Mutex<Opened> = Mutex::new(None);
+
+fn open(path: &Path) -> Result<Arc<Video>, NodeError> {
+    let meta = std::fs::metadata(path)
+        .map_err(|e| NodeError::msg(format!("cannot read {}: {e}", path.display())))?;
+    let (len, mtime) = (meta.len(), meta.modified().ok());
+    let mut guard = OPEN.lock().unwrap_or_else(|p| p.into_inner());
+    if let Some((p, l, m, v)) = guard.as_ref() {
+        if p == path && *l == len && *m == mtime {
+            return Ok(v.clone());
+        }
+    }
+    let v = Arc::new(Video::open(path).map_err(|e| NodeError::msg(e.to_string()))?);
+    *guard = Some((path.to_path_buf(), len, mtime, v.clone()));
+    Ok(v)
+}
+
+fn run_read_video(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+    let path = ctx.path("path");
+    let frame = ctx.frame().unwrap_or(0);
+    let video = open(&path)?;
+    let img = video
+        .frame(frame)
+        .map_err(|e| NodeError::msg(e.to_string()))?;
+    ctx.output("sequence", ImageArt(img));
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::testing::{params, spec};
+    use vfxgraph_engine::ParamValue;
+    use vfxgraph_imaging::Image;
+    use vfxgraph_video::{write_mp4, ColorInfo, Matrix};
+    use vfxgraph_vision::klt::{track_sequence, GrayImage, TrackerParams};
+
+    /// A smooth random-ish texture translated by `(dx, dy)` pixels (linear light, gray).
+    fn texture(w: usize, h: usize, dx: f32, dy: f32) -> Image {
+        Image::from_fn(w, h, 3, |x, y, _| {
+            let (x, y) = (x as f32 - dx, y as f32 - dy);
+            let v = 0.45
+                + 0.2 * (0.21 * x + 0.5 * (0.13 * y).sin()).sin()
+                + 0.15 * (0.17 * y + 0.4 * (0.11 * x).cos()).cos()
+                + 0.1 * (0.07 * x * 0.9 + 0.05 * y).sin();
+            vfxgraph_imaging::color::srgb_to_linear(v.clamp(0.0, 1.0))
+        })
+    }
+
+    fn read(dir: &Path, file: &str, frame: i64) -> Result<Image, NodeError> {
+        let s = spec("read_video");
+        let p = params(&s, &[("path", ParamValue::Str(file.into()))]);
+        let mut ctx = Context::for_test(&s, &p, dir, Some(frame), vec![]);
+        run_read_video(&mut ctx)?;
+        Ok(ctx.take_output::<ImageArt>("sequence").unwrap().0)
+    }
+
+    #[test]
+    fn frames_of_a_video_track_its_motion() {
+        let dir = tempfile::tempdir().unwrap();
+        // 8 frames moving (1.5, −0.75) px per frame.
+        let (w, h, n) = (160, 120, 8);
+        let src: Vec<Image> = (0..n)
+            .map(|k| texture(w, h, 1.5 * k as f32, -0.75 * k as f32))
+            .collect();
+        let color = ColorInfo {
+            matrix: Matrix::Bt601,
+            full_range: false,
+            matrix_from_stream: true,
+        };
+        write_mp4(&dir.path().join("clip.mp4"), &src, 25, 4, 6, color).unwrap();
+        let frames: Vec<Image> = (0..n as i64)
+            .map(|f| read(dir.path(), "clip.mp4", f).unwrap())
+            .collect();
+        let grays: Vec<(i64, GrayImage)> = frames
+            .iter()
+            .enumerate()
+            .map(|(f, img)| (f as i64, GrayImage::from_image(img)))
+            .collect();
+        let refs: Vec<(i64, &GrayImage)> = grays.iter().map(|(f, g)| (*f, g)).collect();
+        let mut tp = TrackerParams::default();
+        tp.corners.max_corners = 40;
+        tp.corners.min_distance = 8.0;
+        let tracks = track_sequence(&refs, &tp, |_| {}).unwrap();
+        // Features followed over the whole clip move by the known motion.
+        let mut errs = Vec::new();
+        for t in tracks
+            .tracks
+            .iter()
+            .filter(|t| t.first == 0 && t.points.len() == n)
+        {
+            let (a, b) = (t.points[0], t.points[n - 1]);
+            let want = [1.5 * (n - 1) as f64, -0.75 * (n - 1) as f64];
+            errs.push(((b[0] - a[0] - want[0]).powi(2) + (b[1] - a[1] - want[1]).powi(2)).sqrt());
+        }
+        errs.sort_by(f64::total_cmp);
+        assert!(errs.len() >= 20, "{} full-length tracks", errs.len());
+        let med = errs[errs.len() / 2];
+        eprintln!("{} tracks, median end-point error {med} px", errs.len());
+        assert!(
+            med < 0.1,
+            "median end-point error over {} frames: {med} px",
+            n - 1
+        );
+    }
+
+    #[test]
+    fn bad_files_and_frames_are_errors_naming_the_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let e = read(dir.path(), "nope.mp4", 0).unwrap_err();
+        assert!(e.message.contains("nope.mp4"), "{e}");
+        std::fs::write(dir.path().join("text.mp4"), b"hello, not a video").unwrap();
+        let e = read(dir.path(), "text.mp4", 0).unwrap_err();
+        assert!(e.message.contains("text.mp4"), "{e}");
+        let src: Vec<Image> = (0..3).map(|k| texture(32, 32, k as f32, 0.0)).collect();
+        let color = ColorInfo {
+            matrix: Matrix::Bt709,
+            full_range: false,
+            matrix_from_stream: true,
+        };
+        write_mp4(&dir.path().join("short.mp4"), &src, 25, 0, 10, color).unwrap();
+        assert!(read(dir.path(), "short.mp4", 2).is_ok());
+        let e = read(dir.path(), "short.mp4", 3).unwrap_err();
+        assert!(
+            e.message.contains("short.mp4") && e.message.contains("3 frames"),
+            "{e}"
+        );
+    }
+}
