@@ -9,6 +9,7 @@
 pub mod artifacts;
 pub mod bundle;
 pub mod calibration;
+pub mod export;
 pub mod hdr;
 pub mod image_io;
 pub mod image_ops;
@@ -55,6 +56,7 @@ pub fn registry() -> Registry {
     tracking::register(&mut r);
     // After `tracking`, which registers the `tracks` artifact.
     bundle::register(&mut r);
+    export::register(&mut r);
     matchmove::register(&mut r);
     modeling::register(&mut r);
     hdr::register(&mut r);

@@ -7,6 +7,7 @@
 //! - [`calibration`]: one camera (chapter 4): DLT, factoring, restricted LM, Tsai, resection;
 //! - [`two_view`]: two cameras (chapter 5): F, E, relative pose, triangulation;
 //! - [`formats`]: the book's text files and their JSON forms;
+//! - [`export`]: a solved shot for COLMAP, Blender, USD, Nuke, JSON and PLY (and COLMAP read back);
 //! - [`bundle`]: sparse bundle adjustment (§7.7, Schur-complement Levenberg–Marquardt);
 //! - [`klt`]: KLT feature tracking (chapter 6): Shi–Tomasi corners, pyramidal Lucas–Kanade.
 //!
@@ -21,6 +22,7 @@ pub mod bundle;
 pub mod calibration;
 pub mod camera;
 pub mod error;
+pub mod export;
 pub mod formats;
 pub mod klt;
 pub mod matchmove;

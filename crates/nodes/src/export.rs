@@ -1,0 +1,639 @@
+//! Camera exchange nodes (the solved shot for other programs, book §7.13 and §2.8):
+//! `export_cameras` and `import_cameras`. The formats and their conventions live in
+//! `vfxgraph_vision::export`.
+
+use std::path::{Path, PathBuf};
+
+use serde_json::json;
+use vfxgraph_engine::fsutil::atomic_write;
+use vfxgraph_engine::{
+    ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, ParamValue, PathRole,
+    PortSpec, Registry,
+};
+use vfxgraph_imaging::Image;
+use vfxgraph_vision::export::{
+    blender, colmap, colors, json as json_export, nuke, ply, usd, SceneOptions, Shot, UpAxis,
+};
+use vfxgraph_vision::formats;
+use vfxgraph_vision::points::PointCloud;
+
+use crate::artifacts::{CameraPathArt, ImageArt, IntrinsicsArt, PointCloudArt, ReportArt};
+use crate::tracking::TracksArt;
+use crate::FnNode;
+
+/// The export formats.
+pub const FORMATS: &[&str] = &["colmap", "blender", "usd", "nuke", "json", "ply"];
+/// The up axes a solve can have.
+pub const UP_AXES: &[&str] = &["-y", "+y", "+z", "-z", "+x", "-x"];
+
+/// Registers the nodes of this module.
+pub fn register(r: &mut Registry) {
+    r.register_node(FnNode::new(
+        NodeSpec::new(
+            "export_cameras",
+            "Writes a solved shot (camera path + K, optional points, tracks and plate) for another \
+             program: `colmap` (text model: `path` is its cameras.txt, images.txt and points3D.txt \
+             go beside it), `blender` (a Python script), `usd` (.usda stage), `nuke` (.chan plus a \
+             `<name>_filmback.txt` note), `json` (per frame K, R, t, centre, solve error) or `ply` \
+             (the points, coloured from the plate). COLMAP, JSON and PLY stay in the solve's world; \
+             Blender, USD and Nuke get scale · W · X with W turning `up_axis` into the target's up. \
+             Writes are atomic.",
+        )
+        .mode(Mode::Once)
+        .input(PortSpec::one("cameras", CameraPathArt::NAME, "the solved cameras"))
+        .input(
+            PortSpec::one(
+                "intrinsics",
+                IntrinsicsArt::NAME,
+                "K shared by every frame, when the camera path does not carry it (with the image \
+                 size, or connect the plate or set width/height)",
+            )
+            .optional(),
+        )
+        .input(PortSpec::one("points", PointCloudArt::NAME, "the solved points").optional())
+        .input(
+            PortSpec::one(
+                "tracks",
+                TracksArt::NAME,
+                "the observations: COLMAP 2-D points and tracks, per-frame solve error",
+            )
+            .optional(),
+        )
+        .input(
+            PortSpec::sequence(
+                "plate",
+                ImageArt::NAME,
+                "the plate: image size and point colours",
+            )
+            .optional(),
+        )
+        .param(ParamSpec::required(
+            "format",
+            ParamType::Enum(FORMATS),
+            "colmap, blender, usd, nuke, json or ply",
+        ))
+        .param(ParamSpec::required(
+            "path",
+            ParamType::Path(PathRole::Output),
+            "the file to write (colmap: the model's cameras.txt)",
+        ))
+        .param(ParamSpec::optional(
+            "fps",
+            ParamType::Float { min: 1e-3, max: 1e4 },
+            ParamValue::Float(24.0),
+            "frames per second of the scene",
+        ))
+        .param(ParamSpec::optional(
+            "start_frame",
+            ParamType::Int {
+                min: -1_000_000,
+                max: 1_000_000,
+            },
+            ParamValue::Int(1),
+            "the target's frame number of our frame 0 (target frame = start_frame + frame)",
+        ))
+        .param(ParamSpec::optional(
+            "scale",
+            ParamType::Float { min: 1e-12, max: 1e12 },
+            ParamValue::Float(1.0),
+            "scene units per solve unit (blender, usd, nuke)",
+        ))
+        .param(ParamSpec::optional(
+            "up_axis",
+            ParamType::Enum(UP_AXES),
+            ParamValue::Str("-y".into()),
+            "the solve's world axis that points up (blender, usd, nuke); -y for a level first camera",
+        ))
+        .param(ParamSpec::optional(
+            "width",
+            ParamType::Int { min: 0, max: 1 << 20 },
+            ParamValue::Int(0),
+            "image width when K does not carry it and no plate is connected (0: from K or plate)",
+        ))
+        .param(ParamSpec::optional(
+            "height",
+            ParamType::Int { min: 0, max: 1 << 20 },
+            ParamValue::Int(0),
+            "image height, as `width`",
+        ))
+        .param(ParamSpec::optional(
+            "image_names",
+            ParamType::Str,
+            ParamValue::Str(String::new()),
+            "the plate's file names as a frame pattern relative to the export (e.g. \
+             `plate/frame.%04d.png`); COLMAP image names, Blender's background, JSON",
+        ))
+        .output(PortSpec::one(
+            "report",
+            ReportArt::NAME,
+            "format, files written, frames, points, image size",
+        )),
+        run_export,
+    ));
+    r.register_node(FnNode::new(
+        NodeSpec::new(
+            "import_cameras",
+            "Reads a solve made elsewhere: a COLMAP text model (`path` is its cameras.txt; one \
+             pinhole K for every image; the frame is the last number in each image name) or the \
+             book's cameras file (`Frame i`, R, t; K from the `intrinsics` input).",
+        )
+        .mode(Mode::Once)
+        .input(
+            PortSpec::one(
+                "intrinsics",
+                IntrinsicsArt::NAME,
+                "K of the book's format (ignored for colmap, which carries its own)",
+            )
+            .optional(),
+        )
+        .param(ParamSpec::required(
+            "format",
+            ParamType::Enum(&["colmap", "book"]),
+            "colmap or book",
+        ))
+        .param(ParamSpec::required(
+            "path",
+            ParamType::Path(PathRole::Input),
+            "COLMAP cameras.txt (images.txt and points3D.txt beside it) or the book's cameras file",
+        ))
+        .output(PortSpec::one(
+            "cameras",
+            CameraPathArt::NAME,
+            "one [R|t] per frame",
+        ))
+        .output(PortSpec::one("intrinsics", IntrinsicsArt::NAME, "K"))
+        .output(PortSpec::one(
+            "points",
+            PointCloudArt::NAME,
+            "COLMAP's points (track id = point id), empty for the book's format",
+        )),
+        run_import,
+    ));
+}
+
+fn run_export(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+    let p = ctx.params();
+    let format = p.str("format").to_string();
+    let names = p.str("image_names").to_string();
+    let options = SceneOptions {
+        fps: p.f64("fps"),
+        start_frame: p.i64("start_frame"),
+        scale: p.f64("scale"),
+        up: UpAxis::parse(p.str("up_axis"))
+            .ok_or_else(|| NodeError::msg(format!("unknown up axis `{}`", p.str("up_axis"))))?,
+    };
+    let path = ctx.input::<CameraPathArt>("cameras")?.0.clone();
+    let mut intrinsics = match (
+        ctx.input_opt::<IntrinsicsArt>("intrinsics")?,
+        &path.intrinsics,
+    ) {
+        (Some(k), _) => k.0.clone(),
+        (None, Some(k)) => k.clone(),
+        (None, None) => {
+            return Err(NodeError::msg(
+                "no K: the camera path carries none, so connect `intrinsics`",
+            ))
+        }
+    };
+    let cloud: Option<PointCloud> = ctx
+        .input_opt::<PointCloudArt>("points")?
+        .map(|c| c.0.clone());
+    let tracks = ctx.input_opt::<TracksArt>("tracks")?.map(|t| t.0.clone());
+    // An optional sequence port: `input_opt` is Ok(None) when unconnected, an error when a
+    // sequence is there.
+    let plate: Vec<(i64, &Image)> = match ctx.input_opt::<ImageArt>("plate") {
+        Ok(None) => Vec::new(),
+        Ok(Some(img)) => vec![(0, &img.0)],
+        Err(_) => ctx
+            .sequence::<ImageArt>("plate")?
+            .into_iter()
+            .map(|(f, i)| (f, &i.0))
+            .collect(),
+    };
+    let (pw, ph) = (p.i64("width") as u32, p.i64("height") as u32);
+    let given = if let Some((_, first)) = plate.first() {
+        Some((first.width as u32, first.height as u32, "the plate"))
+    } else if pw > 0 && ph > 0 {
+        Some((pw, ph, "the width/height params"))
+    } else {
+        None
+    };
+    if let Some((w, h, what)) = given {
+        match (intrinsics.width, intrinsics.height) {
+            (None, None) => intrinsics = intrinsics.with_size(w, h),
+            (Some(kw), Some(kh)) if (kw, kh) != (w, h) => {
+                return Err(NodeError::msg(format!(
+                    "K is for {kw}×{kh} images but {what} says {w}×{h}"
+                )))
+            }
+            _ => {}
+        }
+    }
+    let mut shot = Shot::new(intrinsics, path);
+    shot.cloud = cloud;
+    shot.tracks = tracks;
+    if !names.is_empty() {
+        shot.image_pattern = Some(names);
+    }
+    shot.validate()?;
+    if !plate.is_empty() && shot.cloud.is_some() {
+        shot.colors = Some(colors::sample_point_colors(&shot, &plate));
+    }
+    let out = ctx.path("path");
+    let files = export(&format, &out, &shot, &options)?;
+    let report = json!({
+        "format": format,
+        "files": files.iter().map(|f| f.display().to_string()).collect::<Vec<_>>(),
+        "frames": shot.path.frames.len(),
+        "points": shot.cloud.as_ref().map_or(0, |c| c.points.len()),
+        "width": shot.intrinsics.width,
+        "height": shot.intrinsics.height,
+        "coloured": shot.colors.is_some(),
+    });
+    ctx.output("report", ReportArt(report));
+    Ok(())
+}
+
+/// Writes `shot` in `format` at `path` (atomically, each file); returns the files written.
+pub fn export(
+    format: &str,
+    path: &Path,
+    shot: &Shot,
+    options: &SceneOptions,
+) -> Result<Vec<PathBuf>, NodeError> {
+    let write = |p: &Path, text: &str| -> Result<(), NodeError> {
+        atomic_write(p, text.as_bytes())
+            .map_err(|e| NodeError::msg(format!("cannot write {}: {e}", p.display())))
+    };
+    let one = |text: String| -> Result<Vec<PathBuf>, NodeError> {
+        write(path, &text)?;
+        Ok(vec![path.to_path_buf()])
+    };
+    match format {
+        "colmap" => {
+            let model = colmap::format(shot)?;
+            if path.file_name().and_then(|n| n.to_str()) != Some("cameras.txt") {
+                return Err(NodeError::msg(format!(
+                    "format colmap: `path` names the model's cameras.txt (images.txt and \
+                     points3D.txt are written beside it), got {}",
+                    path.display()
+                )));
+            }
+            let files = colmap::model_files(path);
+            write(&files[1], &model.images)?;
+            write(&files[2], &model.points3d)?;
+            write(&files[0], &model.cameras)?;
+            Ok(files.to_vec())
+        }
+        "blender" => one(blender::script(shot, options)?),
+        "usd" => one(usd::stage(shot, options)?),
+        "nuke" => {
+            let chan = nuke::chan(shot, options)?;
+            let note = nuke::filmback_note(shot, options)?;
+            let stem = path
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_else(|| "camera".into());
+            let note_path = path.with_file_name(format!("{stem}_filmback.txt"));
+            write(&note_path, &note)?;
+            write(path, &chan)?;
+            Ok(vec![path.to_path_buf(), note_path])
+        }
+        "json" => one(json_export::format(shot, options.fps)?),
+        "ply" => one(ply::format(shot)?),
+        other => Err(NodeError::msg(format!("unknown export format `{other}`"))),
+    }
+}
+
+fn run_import(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+    let path = ctx.path("path");
+    let (cameras, intrinsics, cloud) = match ctx.params().str("format") {
+        "colmap" => {
+            let m = colmap::read(&path)?;
+            (m.path, m.intrinsics, m.cloud)
+        }
+        _ => {
+            let k = ctx
+                .input_opt::<IntrinsicsArt>("intrinsics")?
+                .ok_or_else(|| {
+                    NodeError::msg(
+                        "format book: connect `intrinsics` (the book's cameras file has no K)",
+                    )
+                })?
+                .0
+                .clone();
+            let mut cams = formats::read_cameras(&path)?;
+            cams.intrinsics = Some(k.clone());
+            (cams, k, PointCloud::default())
+        }
+    };
+    ctx.output("cameras", CameraPathArt(cameras));
+    ctx.output("intrinsics", IntrinsicsArt(intrinsics));
+    ctx.output("points", PointCloudArt(cloud));
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::testing::{params, spec};
+    use nalgebra::Vector3;
+    use vfxgraph_engine::{InputValue, Value};
+    use vfxgraph_vision::camera::Pose;
+    use vfxgraph_vision::formats::{CameraPath, FramePose};
+    use vfxgraph_vision::rotation::axis_angle_to_r;
+    use vfxgraph_vision::Intrinsics;
+
+    fn path() -> CameraPath {
+        CameraPath {
+            frames: (0..6)
+                .map(|i| {
+                    let a = i as f64;
+                    FramePose {
+                        frame: 3 + i,
+                        pose: Pose::new(
+                            axis_angle_to_r(&Vector3::new(0.01 * a, 0.1 - 0.03 * a, 0.2)),
+                            Vector3::new(0.1 * a, -0.2, 4.0 + 0.01 * a),
+                        ),
+                    }
+                })
+                .collect(),
+            intrinsics: None,
+        }
+    }
+
+    fn cloud() -> PointCloud {
+        PointCloud {
+            points: (0..20)
+                .map(|j| {
+                    let b = j as f64;
+                    [
+                        (b * 0.3).sin(),
+                        (b * 0.7).cos() * 0.5,
+                        (b * 1.1).sin() * 0.4,
+                    ]
+                })
+                .collect(),
+            track_ids: (0..20).collect(),
+            errors: vec![0.25; 20],
+        }
+    }
+
+    fn run(
+        name: &str,
+        set: &[(&str, ParamValue)],
+        inputs: Vec<(&'static str, InputValue)>,
+        dir: &Path,
+    ) -> Result<Context<'static>, NodeError> {
+        let s: &'static _ = Box::leak(Box::new(spec(name)));
+        let p: &'static _ = Box::leak(Box::new(params(s, set)));
+        let d: &'static Path = Box::leak(dir.to_path_buf().into_boxed_path());
+        let mut ctx = Context::for_test(s, p, d, None, inputs);
+        crate::registry().node(name).unwrap().run(&mut ctx)?;
+        Ok(ctx)
+    }
+
+    /// Export to COLMAP through the node, import through the node: the same K, path and
+    /// points within 1e-9; every other format writes its files and reports them.
+    #[test]
+    fn export_then_import_round_trips_and_all_formats_write() {
+        let dir = std::env::temp_dir().join(format!("vfxgraph-export-node-{}", std::process::id()));
+        let k = Intrinsics::new(1228.4, 1228.4, 639.5, 359.5).with_size(1280, 720);
+        let inputs = || {
+            vec![
+                (
+                    "cameras",
+                    InputValue::One(Value::new(CameraPathArt(path()))),
+                ),
+                (
+                    "intrinsics",
+                    InputValue::One(Value::new(IntrinsicsArt(k.clone()))),
+                ),
+                (
+                    "points",
+                    InputValue::One(Value::new(PointCloudArt(cloud()))),
+                ),
+            ]
+        };
+        for (fmt, file, n) in [
+            ("colmap", "colmap/cameras.txt", 3),
+            ("blender", "cam.py", 1),
+            ("usd", "cam.usda", 1),
+            ("nuke", "cam.chan", 2),
+            ("json", "cam.json", 1),
+            ("ply", "points.ply", 1),
+        ] {
+            let mut ctx = run(
+                "export_cameras",
+                &[
+                    ("format", ParamValue::Str(fmt.into())),
+                    ("path", ParamValue::Str(file.into())),
+                ],
+                inputs(),
+                &dir,
+            )
+            .unwrap();
+            let rep = ctx.take_output::<ReportArt>("report").unwrap().0;
+            let files = rep["files"].as_array().unwrap();
+            assert_eq!(files.len(), n, "{fmt}: {rep}");
+            for f in files {
+                assert!(Path::new(f.as_str().unwrap()).is_file(), "{f}");
+            }
+        }
+        assert!(dir.join("cam_filmback.txt").is_file());
+        let mut ctx = run(
+            "import_cameras",
+            &[
+                ("format", ParamValue::Str("colmap".into())),
+                ("path", ParamValue::Str("colmap/cameras.txt".into())),
+            ],
+            vec![],
+            &dir,
+        )
+        .unwrap();
+        let back = ctx.take_output::<CameraPathArt>("cameras").unwrap().0;
+        let kb = ctx.take_output::<IntrinsicsArt>("intrinsics").unwrap().0;
+        let pts = ctx.take_output::<PointCloudArt>("points").unwrap().0;
+        assert_eq!(kb, k);
+        let orig = path();
+        assert_eq!(back.frames.len(), orig.frames.len());
+        for (a, b) in orig.frames.iter().zip(&back.frames) {
+            assert_eq!(a.frame, b.frame);
+            assert!((a.pose.r - b.pose.r).abs().max() < 1e-9);
+            assert!((a.pose.t - b.pose.t).abs().max() < 1e-9);
+        }
+        assert_eq!(pts.points, cloud().points);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// A plate sequence gives the image size (K has none) and the points' colours; the book's
+    /// cameras format imports with the K given on the input.
+    #[test]
+    fn plate_colours_points_and_book_format_imports() {
+        let dir =
+            std::env::temp_dir().join(format!("vfxgraph-export-plate-{}", std::process::id()));
+        let k = Intrinsics::new(500.0, 500.0, 319.5, 239.5);
+        let plate: Vec<(i64, Value)> = path()
+            .frames
+            .iter()
+            .map(|f| {
+                let img = Image::from_fn(640, 480, 3, |_, _, c| [0.5, 0.25, 0.0][c]);
+                (f.frame as i64, Value::new(ImageArt(img)))
+            })
+            .collect();
+        let mut ctx = run(
+            "export_cameras",
+            &[
+                ("format", ParamValue::Str("ply".into())),
+                ("path", ParamValue::Str("p.ply".into())),
+            ],
+            vec![
+                (
+                    "cameras",
+                    InputValue::One(Value::new(CameraPathArt(path()))),
+                ),
+                (
+                    "intrinsics",
+                    InputValue::One(Value::new(IntrinsicsArt(k.clone()))),
+                ),
+                (
+                    "points",
+                    InputValue::One(Value::new(PointCloudArt(cloud()))),
+                ),
+                ("plate", InputValue::Sequence(plate)),
+            ],
+            &dir,
+        )
+        .unwrap();
+        let rep = ctx.take_output::<ReportArt>("report").unwrap().0;
+        assert_eq!(
+            (rep["width"].as_u64(), rep["height"].as_u64()),
+            (Some(640), Some(480))
+        );
+        assert_eq!(rep["coloured"], true);
+        let text = std::fs::read_to_string(dir.join("p.ply")).unwrap();
+        let want = format!(
+            " {} {} 0 ",
+            vfxgraph_imaging::color::linear_to_srgb8(0.5),
+            vfxgraph_imaging::color::linear_to_srgb8(0.25)
+        );
+        let body = text.split("end_header\n").nth(1).unwrap();
+        assert_eq!(body.lines().count(), 20);
+        assert!(body.lines().all(|l| l.contains(&want)), "{body}");
+
+        formats::write_cameras(&dir.join("book.txt"), &path()).unwrap();
+        let mut ctx = run(
+            "import_cameras",
+            &[
+                ("format", ParamValue::Str("book".into())),
+                ("path", ParamValue::Str("book.txt".into())),
+            ],
+            vec![(
+                "intrinsics",
+                InputValue::One(Value::new(IntrinsicsArt(k.clone()))),
+            )],
+            &dir,
+        )
+        .unwrap();
+        let back = ctx.take_output::<CameraPathArt>("cameras").unwrap().0;
+        assert_eq!(back.frames, path().frames);
+        assert_eq!(back.intrinsics.as_ref(), Some(&k));
+        assert_eq!(ctx.take_output::<IntrinsicsArt>("intrinsics").unwrap().0, k);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn bad_input_gives_clear_errors() {
+        let dir = std::env::temp_dir().join(format!("vfxgraph-export-bad-{}", std::process::id()));
+        let no_size = Intrinsics::new(1000.0, 1000.0, 320.0, 240.0);
+        let e = run(
+            "export_cameras",
+            &[
+                ("format", ParamValue::Str("usd".into())),
+                ("path", ParamValue::Str("a.usda".into())),
+            ],
+            vec![
+                (
+                    "cameras",
+                    InputValue::One(Value::new(CameraPathArt(path()))),
+                ),
+                (
+                    "intrinsics",
+                    InputValue::One(Value::new(IntrinsicsArt(no_size))),
+                ),
+            ],
+            &dir,
+        )
+        .err()
+        .unwrap();
+        assert!(e.to_string().contains("image size"), "{e}");
+        let e = run(
+            "export_cameras",
+            &[
+                ("format", ParamValue::Str("json".into())),
+                ("path", ParamValue::Str("a.json".into())),
+            ],
+            vec![(
+                "cameras",
+                InputValue::One(Value::new(CameraPathArt(path()))),
+            )],
+            &dir,
+        )
+        .err()
+        .unwrap();
+        assert!(e.to_string().contains("no K"), "{e}");
+        let k = Intrinsics::new(1000.0, 1000.0, 320.0, 240.0).with_size(640, 480);
+        let e = run(
+            "export_cameras",
+            &[
+                ("format", ParamValue::Str("colmap".into())),
+                ("path", ParamValue::Str("model.txt".into())),
+            ],
+            vec![
+                (
+                    "cameras",
+                    InputValue::One(Value::new(CameraPathArt(path()))),
+                ),
+                (
+                    "intrinsics",
+                    InputValue::One(Value::new(IntrinsicsArt(k.clone()))),
+                ),
+            ],
+            &dir,
+        )
+        .err()
+        .unwrap();
+        assert!(e.to_string().contains("cameras.txt"), "{e}");
+        let e = run(
+            "export_cameras",
+            &[
+                ("format", ParamValue::Str("ply".into())),
+                ("path", ParamValue::Str("p.ply".into())),
+            ],
+            vec![
+                (
+                    "cameras",
+                    InputValue::One(Value::new(CameraPathArt(path()))),
+                ),
+                ("intrinsics", InputValue::One(Value::new(IntrinsicsArt(k)))),
+            ],
+            &dir,
+        )
+        .err()
+        .unwrap();
+        assert!(e.to_string().contains("points"), "{e}");
+        let e = run(
+            "import_cameras",
+            &[
+                ("format", ParamValue::Str("book".into())),
+                ("path", ParamValue::Str("nothing.txt".into())),
+            ],
+            vec![],
+            &dir,
+        )
+        .err()
+        .unwrap();
+        assert!(e.to_string().contains("intrinsics"), "{e}");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}

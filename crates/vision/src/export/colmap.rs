@@ -1,0 +1,559 @@
+//! COLMAP's text model (`cameras.txt`, `images.txt`, `points3D.txt`): written from a shot and
+//! read back into a camera path, K and a point cloud.
+//!
+//! Conventions: one `PINHOLE` camera (fx fy cx cy; our K has no distortion, so `OPENCV` would
+//! only add zeros; a skewed K is refused), images with the world→camera rotation as a Hamilton
+//! quaternion `QW QX QY QZ` and t (x_cam = R X + t, as ours), and pixels whose origin is the
+//! top-left *corner* of the image: COLMAP's (cx, cy) and 2-D points are ours + 0.5.
+//! Image ids are 1, 2, … in path order; point ids 1, 2, … in cloud order. Numbers are written
+//! with Rust's shortest round-trip formatting, so a read gives back the same f64s.
+
+use std::collections::{BTreeMap, HashMap};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use nalgebra::Vector3;
+
+use super::{quaternion_wxyz, rotation_from_wxyz, Shot, N};
+use crate::camera::{Intrinsics, Pose};
+use crate::error::{Result, VisionError};
+use crate::formats::{data_lines, number, parse_error, read_text, CameraPath, FramePose};
+use crate::points::PointCloud;
+
+/// Offset from our pixel coordinates (origin at the first pixel's centre) to COLMAP's (origin
+/// at its corner).
+pub const PIXEL_OFFSET: f64 = 0.5;
+
+/// The three files of a text model.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TextModel {
+    /// `cameras.txt`.
+    pub cameras: String,
+    /// `images.txt`.
+    pub images: String,
+    /// `points3D.txt`.
+    pub points3d: String,
+}
+
+/// A model read back.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Model {
+    /// K in our convention, with the image size.
+    pub intrinsics: Intrinsics,
+    /// One pose per image; the frame number is the last run of digits in the image name, or
+    /// the image's position (by id) when a name has none.
+    pub path: CameraPath,
+    /// Image names, in path order.
+    pub names: Vec<String>,
+    /// Points (track id = COLMAP point id; error NaN where COLMAP has −1).
+    pub cloud: PointCloud,
+}
+
+/// Formats the text model of a shot.
+pub fn format(shot: &Shot) -> Result<TextModel> {
+    shot.validate()?;
+    shot.require_no_skew("COLMAP PINHOLE")?;
+    let (w, h) = shot.size()?;
+    let k = &shot.intrinsics;
+    let mut cameras = String::from(
+        "# Camera list with one line of data per camera:\n\
+         #   CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[]\n# Number of cameras: 1\n",
+    );
+    let _ = writeln!(
+        cameras,
+        "1 PINHOLE {w} {h} {} {} {} {}",
+        k.f1,
+        k.f2,
+        k.u0 + PIXEL_OFFSET,
+        k.v0 + PIXEL_OFFSET
+    );
+
+    // Observations per (image, point) from the tracks.
+    let cloud = shot.cloud.as_ref();
+    let point_of: HashMap<u64, usize> = cloud
+        .map(|c| {
+            c.track_ids
+                .iter()
+                .enumerate()
+                .map(|(i, id)| (*id, i))
+                .collect()
+        })
+        .unwrap_or_default();
+    let mut per_image: Vec<Vec<([f64; 2], usize)>> = vec![Vec::new(); shot.path.frames.len()];
+    let mut point_tracks: Vec<Vec<(usize, usize)>> = vec![Vec::new(); point_of.len()];
+    if let (Some(tracks), Some(_)) = (&shot.tracks, cloud) {
+        for (img, f) in shot.path.frames.iter().enumerate() {
+            let Some(fi) = tracks.frames.iter().position(|&n| n == f.frame as i64) else {
+                continue;
+            };
+            for (id, x) in tracks.observations(fi) {
+                if let Some(&j) = point_of.get(&id) {
+                    let idx = per_image[img].len();
+                    per_image[img].push((x, j));
+                    point_tracks[j].push((img + 1, idx));
+                }
+            }
+        }
+    }
+
+    let n_obs: usize = per_image.iter().map(Vec::len).sum();
+    let mut images = String::new();
+    let _ = write!(
+        images,
+        "# Image list with two lines of data per image:\n\
+         #   IMAGE_ID, QW, QX, QY, QZ, TX, TY, TZ, CAMERA_ID, NAME\n\
+         #   POINTS2D[] as (X, Y, POINT3D_ID)\n\
+         # Number of images: {}, mean observations per image: {}\n",
+        shot.path.frames.len(),
+        if shot.path.frames.is_empty() {
+            0.0
+        } else {
+            n_obs as f64 / shot.path.frames.len() as f64
+        }
+    );
+    for (img, f) in shot.path.frames.iter().enumerate() {
+        let q = quaternion_wxyz(&f.pose.r);
+        let t = f.pose.t;
+        let name = shot
+            .image_name(f.frame)
+            .unwrap_or_else(|| format!("frame.{:06}.png", f.frame));
+        if name.chars().any(char::is_whitespace) || name.is_empty() {
+            return Err(VisionError::InvalidInput(format!(
+                "COLMAP image names cannot hold spaces: `{name}`"
+            )));
+        }
+        let _ = writeln!(
+            images,
+            "{} {} {} {} {} {} {} {} 1 {name}",
+            img + 1,
+            N(q[0]),
+            N(q[1]),
+            N(q[2]),
+            N(q[3]),
+            N(t.x),
+            N(t.y),
+            N(t.z)
+        );
+        let obs: Vec<String> = per_image[img]
+            .iter()
+            .map(|(x, j)| format!("{} {} {}", x[0] + PIXEL_OFFSET, x[1] + PIXEL_OFFSET, j + 1))
+            .collect();
+        let _ = writeln!(images, "{}", obs.join(" "));
+    }
+
+    let mut points3d = String::new();
+    let n_points = cloud.map_or(0, |c| c.points.len());
+    let _ = writeln!(
+        points3d,
+        "# 3D point list with one line of data per point:\n\
+         #   POINT3D_ID, X, Y, Z, R, G, B, ERROR, TRACK[] as (IMAGE_ID, POINT2D_IDX)\n\
+         # Number of points: {n_points}"
+    );
+    if let Some(c) = cloud {
+        for (j, p) in c.points.iter().enumerate() {
+            let rgb = shot.colors.as_ref().map_or([128, 128, 128], |col| col[j]);
+            let err = c
+                .errors
+                .get(j)
+                .copied()
+                .filter(|e| e.is_finite())
+                .unwrap_or(-1.0);
+            let _ = write!(
+                points3d,
+                "{} {} {} {} {} {} {} {err}",
+                j + 1,
+                p[0],
+                p[1],
+                p[2],
+                rgb[0],
+                rgb[1],
+                rgb[2]
+            );
+            for (img, idx) in &point_tracks[j] {
+                let _ = write!(points3d, " {img} {idx}");
+            }
+            points3d.push('\n');
+        }
+    }
+    Ok(TextModel {
+        cameras,
+        images,
+        points3d,
+    })
+}
+
+/// The three file paths of a model whose `cameras.txt` is `cameras`.
+pub fn model_files(cameras: &Path) -> [PathBuf; 3] {
+    let dir = cameras.parent().unwrap_or(Path::new("."));
+    [
+        dir.join("cameras.txt"),
+        dir.join("images.txt"),
+        dir.join("points3D.txt"),
+    ]
+}
+
+/// Writes the model beside `cameras` (which must be named `cameras.txt`), each file atomically.
+/// Returns the three paths.
+pub fn write(cameras: &Path, shot: &Shot) -> Result<[PathBuf; 3]> {
+    check_cameras_name(cameras)?;
+    let model = format(shot)?;
+    let files = model_files(cameras);
+    if let Some(dir) = cameras.parent() {
+        if !dir.as_os_str().is_empty() {
+            std::fs::create_dir_all(dir).map_err(|source| VisionError::Io {
+                path: dir.to_path_buf(),
+                source,
+            })?;
+        }
+    }
+    crate::formats::write_text(&files[0], &model.cameras)?;
+    crate::formats::write_text(&files[1], &model.images)?;
+    crate::formats::write_text(&files[2], &model.points3d)?;
+    Ok(files)
+}
+
+fn check_cameras_name(cameras: &Path) -> Result<()> {
+    if cameras.file_name().and_then(|n| n.to_str()) != Some("cameras.txt") {
+        return Err(VisionError::InvalidInput(format!(
+            "a COLMAP text model is named by its cameras.txt (images.txt and points3D.txt sit \
+             beside it), got {}",
+            cameras.display()
+        )));
+    }
+    Ok(())
+}
+
+/// Reads the model whose `cameras.txt` is `cameras`.
+pub fn read(cameras: &Path) -> Result<Model> {
+    check_cameras_name(cameras)?;
+    let [c, i, p] = model_files(cameras);
+    parse(
+        (&read_text(&c)?, &c.display().to_string()),
+        (&read_text(&i)?, &i.display().to_string()),
+        (&read_text(&p)?, &p.display().to_string()),
+    )
+}
+
+/// Parses a text model (text, file name for errors) × 3. Every image must use the same camera
+/// intrinsics (one K per shot); distortion models are accepted only with zero distortion.
+pub fn parse(cameras: (&str, &str), images: (&str, &str), points3d: (&str, &str)) -> Result<Model> {
+    // cameras.txt
+    let (text, file) = cameras;
+    let mut cams: BTreeMap<u64, (usize, Intrinsics)> = BTreeMap::new();
+    for (line, t) in data_lines(text) {
+        if t.len() < 4 {
+            return Err(parse_error(
+                file,
+                line,
+                "expected CAMERA_ID MODEL WIDTH HEIGHT PARAMS…",
+            ));
+        }
+        let id = int(file, line, t[0])?;
+        let w = int(file, line, t[2])? as u32;
+        let h = int(file, line, t[3])? as u32;
+        let v = t[4..]
+            .iter()
+            .map(|s| number(file, line, s))
+            .collect::<Result<Vec<f64>>>()?;
+        let need = |n: usize| -> Result<()> {
+            if v.len() != n {
+                return Err(parse_error(
+                    file,
+                    line,
+                    format!(
+                        "camera model {} takes {n} parameters, found {}",
+                        t[1],
+                        v.len()
+                    ),
+                ));
+            }
+            Ok(())
+        };
+        let zero_tail = |from: usize| -> Result<()> {
+            if v[from..].iter().any(|d| *d != 0.0) {
+                return Err(parse_error(
+                    file,
+                    line,
+                    format!(
+                        "camera model {} with non-zero distortion: our cameras are pinhole",
+                        t[1]
+                    ),
+                ));
+            }
+            Ok(())
+        };
+        let (f1, f2, cx, cy) = match t[1] {
+            "SIMPLE_PINHOLE" => {
+                need(3)?;
+                (v[0], v[0], v[1], v[2])
+            }
+            "PINHOLE" => {
+                need(4)?;
+                (v[0], v[1], v[2], v[3])
+            }
+            "SIMPLE_RADIAL" | "RADIAL" => {
+                need(if t[1] == "RADIAL" { 5 } else { 4 })?;
+                zero_tail(3)?;
+                (v[0], v[0], v[1], v[2])
+            }
+            "OPENCV" | "FULL_OPENCV" => {
+                need(if t[1] == "OPENCV" { 8 } else { 12 })?;
+                zero_tail(4)?;
+                (v[0], v[1], v[2], v[3])
+            }
+            m => {
+                return Err(parse_error(
+                    file,
+                    line,
+                    format!("unsupported camera model `{m}`"),
+                ))
+            }
+        };
+        let k = Intrinsics::new(f1, f2, cx - PIXEL_OFFSET, cy - PIXEL_OFFSET).with_size(w, h);
+        k.validate()
+            .map_err(|e| parse_error(file, line, e.to_string()))?;
+        cams.insert(id, (line, k));
+    }
+
+    // images.txt: pairs of lines; the second (the 2-D points) may be empty.
+    let (text, ifile) = images;
+    let mut rows: Vec<(usize, Vec<&str>)> = Vec::new();
+    let mut expect_header = true;
+    for (i, l) in text.lines().enumerate() {
+        if l.trim_start().starts_with('#') {
+            continue;
+        }
+        let toks: Vec<&str> = l.split_whitespace().collect();
+        if expect_header && toks.is_empty() {
+            continue;
+        }
+        if expect_header {
+            rows.push((i + 1, toks));
+        }
+        expect_header = !expect_header;
+    }
+    let mut k_shot: Option<Intrinsics> = None;
+    let mut entries: Vec<(u64, String, Pose)> = Vec::new();
+    for (line, t) in rows {
+        if t.len() != 10 {
+            return Err(parse_error(
+                ifile,
+                line,
+                format!(
+                    "expected IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME, found {} fields",
+                    t.len()
+                ),
+            ));
+        }
+        let id = int(ifile, line, t[0])?;
+        let mut v = [0.0; 7];
+        for (k, slot) in v.iter_mut().enumerate() {
+            *slot = number(ifile, line, t[1 + k])?;
+        }
+        let r = rotation_from_wxyz([v[0], v[1], v[2], v[3]])
+            .map_err(|e| parse_error(ifile, line, e.to_string()))?;
+        let cam = int(ifile, line, t[8])?;
+        let (_, k) = cams
+            .get(&cam)
+            .ok_or_else(|| parse_error(ifile, line, format!("unknown camera id {cam}")))?;
+        match &k_shot {
+            None => k_shot = Some(k.clone()),
+            Some(k0) if k0 != k => {
+                return Err(parse_error(
+                    ifile,
+                    line,
+                    format!("image {id} uses camera {cam} whose intrinsics differ from the first image's: one K per shot"),
+                ))
+            }
+            _ => {}
+        }
+        entries.push((
+            id,
+            t[9].to_string(),
+            Pose::new(r, Vector3::new(v[4], v[5], v[6])),
+        ));
+    }
+    entries.sort_by_key(|e| e.0);
+    let intrinsics = match k_shot {
+        Some(k) => k,
+        None => match cams.values().next() {
+            Some((_, k)) => k.clone(),
+            None => return Err(parse_error(file, 1, "no camera in the model")),
+        },
+    };
+    let mut frames = Vec::with_capacity(entries.len());
+    let mut names = Vec::with_capacity(entries.len());
+    let mut seen = std::collections::BTreeSet::new();
+    for (pos, (id, name, pose)) in entries.into_iter().enumerate() {
+        let frame = frame_number(&name).unwrap_or(pos);
+        if !seen.insert(frame) {
+            return Err(parse_error(
+                ifile,
+                1,
+                format!("image {id} ({name}) has frame number {frame}, which another image has"),
+            ));
+        }
+        frames.push(FramePose { frame, pose });
+        names.push(name);
+    }
+
+    // points3D.txt
+    let (text, pfile) = points3d;
+    let mut cloud = PointCloud::default();
+    for (line, t) in data_lines(text) {
+        if t.len() < 8 || (t.len() - 8) % 2 != 0 {
+            return Err(parse_error(
+                pfile,
+                line,
+                "expected POINT3D_ID X Y Z R G B ERROR (IMAGE_ID POINT2D_IDX)…",
+            ));
+        }
+        let id = int(pfile, line, t[0])?;
+        let mut p = [0.0; 3];
+        for (k, slot) in p.iter_mut().enumerate() {
+            *slot = number(pfile, line, t[1 + k])?;
+        }
+        let e = number(pfile, line, t[7])?;
+        cloud.points.push(p);
+        cloud.track_ids.push(id);
+        cloud.errors.push(if e < 0.0 { f64::NAN } else { e });
+    }
+    Ok(Model {
+        path: CameraPath {
+            frames,
+            intrinsics: Some(intrinsics.clone()),
+        },
+        intrinsics,
+        names,
+        cloud,
+    })
+}
+
+fn int(file: &str, line: usize, tok: &str) -> Result<u64> {
+    tok.parse().map_err(|_| {
+        parse_error(
+            file,
+            line,
+            format!("expected a non-negative integer, found `{tok}`"),
+        )
+    })
+}
+
+/// The frame number in an image name: the last run of ASCII digits of its file stem.
+pub fn frame_number(name: &str) -> Option<usize> {
+    let base = name.rsplit(['/', '\\']).next().unwrap_or(name);
+    let stem = base.rsplit_once('.').map_or(base, |(s, _)| s);
+    let end = stem.rfind(|c: char| c.is_ascii_digit())? + 1;
+    let start = stem[..end]
+        .rfind(|c: char| !c.is_ascii_digit())
+        .map_or(0, |i| i + 1);
+    stem[start..end].parse().ok()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::test_shot::shot;
+    use super::*;
+    use crate::klt::{Track, Tracks};
+
+    /// import(export(shot)) gives back K, every pose and every point within 1e-9 (in fact to
+    /// the last bit for K, t and the points; R through the quaternion to ~1e-16).
+    #[test]
+    fn round_trip_within_1e9() {
+        let s = shot();
+        let m = format(&s).unwrap();
+        let back = parse(
+            (&m.cameras, "cameras.txt"),
+            (&m.images, "images.txt"),
+            (&m.points3d, "points3D.txt"),
+        )
+        .unwrap();
+        assert_eq!(back.intrinsics, s.intrinsics);
+        assert_eq!(back.path.frames.len(), s.path.frames.len());
+        for (a, b) in s.path.frames.iter().zip(&back.path.frames) {
+            assert_eq!(a.frame, b.frame);
+            assert!((a.pose.r - b.pose.r).abs().max() < 1e-9);
+            assert!((a.pose.t - b.pose.t).abs().max() < 1e-9);
+        }
+        let c = s.cloud.as_ref().unwrap();
+        assert_eq!(back.cloud.points, c.points);
+        assert_eq!(back.names[0], "plate/frame.0010.png");
+        assert!(back.cloud.errors[0] == 0.0 && (back.cloud.errors[5] - 0.05).abs() < 1e-15);
+    }
+
+    /// Tracks become 2-D points (+0.5 px) and point tracks that index them.
+    #[test]
+    fn tracks_become_observations() {
+        let mut s = shot();
+        let frames: Vec<i64> = s.path.frames.iter().map(|f| f.frame as i64).collect();
+        s.tracks = Some(Tracks {
+            frames: frames.clone(),
+            slots: 2,
+            tracks: vec![
+                Track {
+                    id: 501,
+                    slot: 0,
+                    first: 1,
+                    points: vec![[10.0, 20.0], [11.0, 21.0]],
+                    lost: None,
+                },
+                Track {
+                    id: 9999, // no point in the cloud: ignored
+                    slot: 1,
+                    first: 0,
+                    points: vec![[1.0, 2.0]],
+                    lost: None,
+                },
+            ],
+        });
+        let m = format(&s).unwrap();
+        let img: Vec<&str> = m.images.lines().filter(|l| !l.starts_with('#')).collect();
+        assert_eq!(img[1], "");
+        assert_eq!(img[3], "10.5 20.5 2");
+        assert_eq!(img[5], "11.5 21.5 2");
+        let p2 = m.points3d.lines().find(|l| l.starts_with("2 ")).unwrap();
+        assert!(p2.ends_with(" 2 0 3 0"), "{p2}");
+    }
+
+    #[test]
+    fn errors_name_file_and_line() {
+        let s = shot();
+        let m = format(&s).unwrap();
+        let bad = m.images.replacen(" 1 plate", " 7 plate", 1);
+        let e = parse(
+            (&m.cameras, "c.txt"),
+            (&bad, "i.txt"),
+            (&m.points3d, "p.txt"),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.starts_with("i.txt:5:") && e.contains("unknown camera id 7"),
+            "{e}"
+        );
+        let e = parse(
+            ("1 OPENCV 10 10 5 5 4 4 0.1 0 0 0", "c.txt"),
+            ("", "i.txt"),
+            ("", "p.txt"),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("c.txt:1:") && e.contains("distortion"), "{e}");
+        let e = parse(("1 PINHOLE 10 10 5 5 4", "c.txt"), ("", "i"), ("", "p"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("4 parameters"), "{e}");
+        let mut skew = s.clone();
+        skew.intrinsics.s = 1.0;
+        assert!(format(&skew).is_err());
+        assert!(write(Path::new("/tmp/x/model.txt"), &s).is_err());
+    }
+
+    #[test]
+    fn frame_numbers_from_names() {
+        assert_eq!(frame_number("plate/frame.0012.png"), Some(12));
+        assert_eq!(frame_number("cam2/img_0007.jpg"), Some(7));
+        assert_eq!(frame_number("a.png"), None);
+        assert_eq!(frame_number("0042"), Some(42));
+    }
+}
