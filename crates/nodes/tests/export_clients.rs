@@ -309,3 +309,33 @@ fn usd_stage_opens_in_usd_core() {
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }
+
+/// The PLY export loads in a real PLY reader (Blender's importer): every vertex where our point
+/// is, every colour exactly ours.
+#[test]
+fn ply_cloud_imports_in_blender() {
+    if !have("bpy") {
+        return;
+    }
+    let dir = tmp("ply");
+    let mut s = shot(book_k());
+    let n = s.cloud.as_ref().unwrap().points.len();
+    s.colors = Some(
+        (0..n)
+            .map(|j| {
+                [
+                    (j * 37 % 256) as u8,
+                    (j * 91 % 256) as u8,
+                    (255 - j % 256) as u8,
+                ]
+            })
+            .collect(),
+    );
+    let ply = dir.join("cloud.ply");
+    export("ply", &ply, &s, &SceneOptions::default()).unwrap();
+    let t = dir.join("truth.json");
+    let doc = json!({"points": s.cloud.as_ref().unwrap().points, "colors": s.colors});
+    std::fs::write(&t, serde_json::to_string(&doc).unwrap()).unwrap();
+    check("ply_check.py", &ply, &t, &[]);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
