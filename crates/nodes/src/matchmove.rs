@@ -528,11 +528,15 @@ mod tests {
         })
     }
 
-    /// The node solves a synthetic shot: every frame gets a finite camera with K attached, and
-    /// the report's figures are at the noise level.
-    #[test]
-    fn matchmove_node_solves_a_synthetic_shot() {
-        let s = shot();
+    /// Runs `matchmove` (with `min_frames: 30`) on a synthetic shot: the outcome and the
+    /// `cameras` and `report` outputs when it succeeded.
+    fn run_node(
+        s: &vfxgraph_vision::matchmove::synthetic::SyntheticShot,
+    ) -> (
+        Result<(), NodeError>,
+        Option<CameraPathArt>,
+        Option<ReportArt>,
+    ) {
         let sp = spec("matchmove");
         let p = params(&sp, &[("min_frames", ParamValue::Int(30))]);
         let inputs = [
@@ -547,8 +551,20 @@ mod tests {
         ];
         let dir = std::env::temp_dir();
         let mut ctx = Context::for_test(&sp, &p, &dir, None, inputs.into_iter().collect());
-        run_matchmove(&mut ctx).unwrap();
-        let cams = ctx.take_output::<CameraPathArt>("cameras").unwrap().0;
+        let r = run_matchmove(&mut ctx);
+        let cams = ctx.take_output::<CameraPathArt>("cameras");
+        let report = ctx.take_output::<ReportArt>("report");
+        (r, cams, report)
+    }
+
+    /// The node solves a synthetic shot: every frame gets a finite camera with K attached, and
+    /// the report's figures are at the noise level.
+    #[test]
+    fn matchmove_node_solves_a_synthetic_shot() {
+        let s = shot();
+        let (r, cams, report) = run_node(&s);
+        r.unwrap();
+        let cams = cams.unwrap().0;
         assert_eq!(cams.frames.len(), 70);
         assert_eq!(cams.intrinsics.as_ref(), Some(&s.k));
         assert!(cams.frames.iter().all(|f| f
@@ -557,7 +573,7 @@ mod tests {
             .iter()
             .chain(f.pose.t.iter())
             .all(|v| v.is_finite())));
-        let report = ctx.take_output::<ReportArt>("report").unwrap().0;
+        let report = report.unwrap().0;
         let rms = report["overall_rms"].as_f64().unwrap();
         assert!(rms < 1.0, "overall RMS {rms}");
         assert_eq!(report["frames"].as_array().unwrap().len(), 70);
@@ -574,21 +590,7 @@ mod tests {
             outlier_fraction: 0.0,
             ..ShotOptions::default()
         });
-        let sp = spec("matchmove");
-        let p = params(&sp, &[("min_frames", ParamValue::Int(30))]);
-        let inputs = [
-            (
-                "tracks",
-                InputValue::One(Value::new(TracksArt(s.tracks.clone()))),
-            ),
-            (
-                "intrinsics",
-                InputValue::One(Value::new(IntrinsicsArt(s.k.clone()))),
-            ),
-        ];
-        let dir = std::env::temp_dir();
-        let mut ctx = Context::for_test(&sp, &p, &dir, None, inputs.into_iter().collect());
-        let err = run_matchmove(&mut ctx).unwrap_err().to_string();
+        let err = run_node(&s).0.unwrap_err().to_string();
         assert!(
             err.contains("parallax") || err.contains("rotation"),
             "{err}"
@@ -604,22 +606,9 @@ mod tests {
             slots: 7,
             ..ShotOptions::default()
         });
-        let sp = spec("matchmove");
-        let p = params(&sp, &[("min_frames", ParamValue::Int(30))]);
-        let inputs = [
-            (
-                "tracks",
-                InputValue::One(Value::new(TracksArt(s.tracks.clone()))),
-            ),
-            (
-                "intrinsics",
-                InputValue::One(Value::new(IntrinsicsArt(s.k.clone()))),
-            ),
-        ];
-        let dir = std::env::temp_dir();
-        let mut ctx = Context::for_test(&sp, &p, &dir, None, inputs.into_iter().collect());
-        let err = run_matchmove(&mut ctx).unwrap_err().to_string();
+        let (r, cams, _) = run_node(&s);
+        let err = r.unwrap_err().to_string();
         assert!(err.contains("frames"), "{err}");
-        assert!(ctx.take_output::<CameraPathArt>("cameras").is_none());
+        assert!(cams.is_none());
     }
 }

@@ -32,7 +32,7 @@ pub mod synthetic;
 
 use std::time::Instant;
 
-use nalgebra::{Matrix3x4, Point2, Point3, Vector3};
+use nalgebra::{Matrix3x4, Point2, Vector3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -560,11 +560,6 @@ pub(crate) fn bundle_adjust_indexed(
         points[ti] = Some(p.position);
     }
     Ok(report)
-}
-
-#[allow(dead_code)]
-pub(crate) fn to_point3(v: &Vector3<f64>) -> Point3<f64> {
-    Point3::from(*v)
 }
 
 #[cfg(test)]
