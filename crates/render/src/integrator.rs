@@ -108,7 +108,15 @@ impl PathTracer<'_> {
                 break;
             }
             depth += 1;
-            let brdf = world.material(m);
+            // A textured material is modulated at the hit point; others are used in place.
+            let textured;
+            let brdf = match world.texture(m) {
+                None => world.material(m),
+                Some(t) => {
+                    textured = world.material(m).with_diffuse_scaled(t.factor(hit.p));
+                    &textured
+                }
+            };
             // Two-sided surfaces: shade with the normal facing the viewer (book's adjust_normal).
             let n = if hit.ng.dot(ray.d) > 0.0 {
                 -hit.ng

@@ -29,6 +29,7 @@ pub mod scene;
 pub mod scn;
 pub mod shape;
 pub mod spherical_triangle;
+pub mod texture;
 pub mod world;
 pub mod yaml_scene;
 
@@ -40,5 +41,6 @@ pub use math::{Rgb, Vec3};
 pub use render::{render, RenderError, RenderOutput, RenderSettings, RenderStats};
 pub use scene::{AreaLight, DomeSpec, Object, Scene, Shape};
 pub use scn::{parse_scn, ScnError};
+pub use texture::Texture;
 pub use world::World;
 pub use yaml_scene::{parse_yaml_scene, YamlScene, YamlSceneError};

@@ -9,6 +9,7 @@ use crate::brdf::Brdf;
 use crate::camera::Camera;
 use crate::math::{Rgb, Vec3};
 use crate::shape::Sphere;
+use crate::texture::Texture;
 
 /// A shape (S3D `sphere{…}` or `trilist{…}`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -37,6 +38,10 @@ pub struct Object {
     /// keeps the catchers' change (see [`Scene::without_synthetic_objects`]).
     #[serde(default)]
     pub catcher: bool,
+    /// A solid texture modulating the material's diffuse albedo ([`crate::texture`]); `None`
+    /// for a uniform material.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub texture: Option<Texture>,
 }
 
 impl Object {
@@ -46,7 +51,14 @@ impl Object {
             shape,
             material,
             catcher: false,
+            texture: None,
         }
+    }
+
+    /// This object with a solid texture on its diffuse albedo.
+    pub fn with_texture(mut self, texture: Texture) -> Object {
+        self.texture = Some(texture);
+        self
     }
 }
 

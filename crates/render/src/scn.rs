@@ -759,11 +759,9 @@ pub fn parse_scn(text: &str) -> Result<Scene, ScnError> {
                         albedo: Rgb::splat(0.9),
                     }),
                 };
-                scene.objects.push(Object {
-                    shape: shape(f.required("shape")?)?,
-                    material,
-                    catcher: true,
-                });
+                let mut o = Object::new(shape(f.required("shape")?)?, material);
+                o.catcher = true;
+                scene.objects.push(o);
             }
             (Some(k), _) => {
                 let p = it.key.as_ref().map(|x| x.1).unwrap_or(pos);

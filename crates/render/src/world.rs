@@ -7,6 +7,7 @@ use crate::math::{Rgb, Vec3};
 use crate::ray::Ray;
 use crate::scene::{Scene, Shape};
 use crate::shape::Triangle;
+use crate::texture::Texture;
 
 /// What a primitive is made of.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -37,6 +38,8 @@ pub struct World {
     geoms: Vec<Geom>,
     surfaces: Vec<Surface>,
     materials: Vec<Brdf>,
+    /// The solid texture of each material, if any (parallel to `materials`).
+    textures: Vec<Option<Texture>>,
     /// The area lights.
     pub lights: LightSet,
     /// Degenerate or non-finite triangles and spheres that were skipped.
@@ -56,10 +59,14 @@ impl World {
         let mut geoms = Vec::new();
         let mut surfaces = Vec::new();
         let mut materials = Vec::new();
+        let mut textures = Vec::new();
         let mut skipped = 0;
+        // Material m is object m of `scene.objects` (differential rendering tells catchers
+        // from objects by it).
         for obj in &scene.objects {
             let m = materials.len() as u32;
             materials.push(obj.material);
+            textures.push(obj.texture);
             match &obj.shape {
                 Shape::Sphere(s) => {
                     if s.radius > 0.0 && s.radius.is_finite() && s.center.is_finite() {
@@ -104,6 +111,7 @@ impl World {
             geoms,
             surfaces,
             materials,
+            textures,
             lights: LightSet::new(light_items).with_sampling(mode),
             skipped,
         }
@@ -139,6 +147,22 @@ impl World {
     #[inline]
     pub fn material(&self, i: u32) -> &Brdf {
         &self.materials[i as usize]
+    }
+
+    /// The solid texture of material `i`, if any.
+    #[inline]
+    pub fn texture(&self, i: u32) -> Option<&Texture> {
+        self.textures[i as usize].as_ref()
+    }
+
+    /// Material `i` as seen at point `p`: its diffuse albedo modulated by its texture.
+    #[inline]
+    pub fn material_at(&self, i: u32, p: Vec3) -> Brdf {
+        let b = self.materials[i as usize];
+        match &self.textures[i as usize] {
+            None => b,
+            Some(t) => b.with_diffuse_scaled(t.factor(p)),
+        }
     }
 
     /// Radiance of light triangle `i`.

@@ -20,6 +20,7 @@
 //!   - quad: {corner: [-5, 0, -5], edge1: [10, 0, 0], edge2: [0, 0, 10]}
 //!     material: {type: lambert, albedo: [0.5, 0.5, 0.5]}
 //!     catcher: true             # a shadow catcher (S3D plshadow)
+//!     texture: {type: cells, size: 0.2, contrast: 0.8, seed: 1}   # or {type: checker, size, contrast}
 //!   - polygon: [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]   # convex, fanned
 //!   - triangles: [[[0, 0, 0], [1, 0, 0], [0, 1, 0]]]
 //!   - obj: mesh.obj             # relative to the scene file
@@ -34,7 +35,9 @@
 //!   # … or a constant colour: color: [0.5, 0.5, 0.5]
 //! ```
 //!
-//! Meanings: `lambert.albedo` ρ; `mirror.reflectance`; `blinn_phong` is the normalized lobe of
+//! Meanings: `texture` is a solid texture ([`crate::texture`]) multiplying the diffuse albedo by
+//! a factor in [1 − contrast, 1] (`cells`: random per-cell levels on a 3-D grid of side `size`,
+//! grey or per channel with `color: true`; `checker`: two levels); `lambert.albedo` ρ; `mirror.reflectance`; `blinn_phong` is the normalized lobe of
 //! [`crate::brdf::BlinnPhong`] (diffuse and specular albedos, exponent); `plastic` has exactly
 //! the `.scn` meaning ([`crate::scn::plastic`]: ρd = kd·d_col, ρs = ks·s_col, se < 0 a mirror).
 //! Light `radiance` is physical (no π factor, unlike `.scn` polylight colours). Transforms
@@ -54,6 +57,7 @@ use crate::obj::parse_obj;
 use crate::scene::{AreaLight, DomeSpec, Object, Scene, Shape};
 use crate::scn::plastic;
 use crate::shape::Sphere;
+use crate::texture::Texture;
 
 /// A YAML scene error at a 1-based line and column.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -480,6 +484,55 @@ fn material(n: &Node) -> R<Brdf> {
     }
 }
 
+/// A solid texture on the diffuse albedo ([`crate::texture`]).
+fn texture(n: &Node) -> R<Texture> {
+    let Kind::Map(m) = &n.kind else {
+        return err(
+            n,
+            format!("texture: expected a mapping, found {}", n.describe()),
+        );
+    };
+    let ty = m
+        .iter()
+        .find(|(k, _)| matches!(&k.kind, Kind::Scalar(s, _) if s == "type"))
+        .map(|(_, v)| v)
+        .ok_or(YamlSceneError {
+            line: n.line,
+            col: n.col,
+            message: "texture: missing `type` (cells, checker)".into(),
+        })?;
+    let t = match ty.str("type")? {
+        "cells" => {
+            let f = n.fields("cells", &["type", "size", "contrast", "seed", "color"])?;
+            let seed = f.num_or("seed", 0.0)?;
+            if seed < 0.0 || seed.fract() != 0.0 || seed > 9.0e15 {
+                return err(f.req("seed")?, "seed: a whole number ≥ 0");
+            }
+            Texture::Cells {
+                size: f.req("size")?.num("size")?,
+                contrast: f.num_or("contrast", 0.8)?,
+                seed: seed as u64,
+                color: f.get("color").map_or(Ok(false), |c| c.bool("color"))?,
+            }
+        }
+        "checker" => {
+            let f = n.fields("checker", &["type", "size", "contrast"])?;
+            Texture::Checker {
+                size: f.req("size")?.num("size")?,
+                contrast: f.num_or("contrast", 0.8)?,
+            }
+        }
+        other => {
+            return err(
+                ty,
+                format!("unknown texture type `{other}`; expected cells or checker"),
+            )
+        }
+    };
+    t.validate().or_else(|e| err(n, e))?;
+    Ok(t)
+}
+
 /// Scale, then rotations about x, y, z (degrees), then translation.
 struct Transform {
     scale: Vec3,
@@ -746,7 +799,7 @@ pub fn parse_yaml_scene(text: &str, dir: &Path) -> Result<YamlScene, YamlSceneEr
     }
     if let Some(objs) = top.get("objects") {
         for o in objs.list("objects")? {
-            let mut keys = vec!["material", "catcher", "transform"];
+            let mut keys = vec!["material", "catcher", "transform", "texture"];
             keys.extend(SHAPES);
             let f = o.fields("object", &keys)?;
             let material = match f.get("material") {
@@ -773,11 +826,10 @@ pub fn parse_yaml_scene(text: &str, dir: &Path) -> Result<YamlScene, YamlSceneEr
                 Some(m) => material(m)?,
             };
             let catcher = f.get("catcher").map_or(Ok(false), |c| c.bool("catcher"))?;
-            scene.objects.push(Object {
-                shape: shape(&f, o, dir, &mut files, true)?,
-                material,
-                catcher,
-            });
+            let mut object = Object::new(shape(&f, o, dir, &mut files, true)?, material);
+            object.catcher = catcher;
+            object.texture = f.get("texture").map(texture).transpose()?;
+            scene.objects.push(object);
         }
     }
     if let Some(ls) = top.get("lights") {

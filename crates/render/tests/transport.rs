@@ -65,6 +65,7 @@ fn furnace(env: &dyn Environment, l_env: f64) {
                 }),
                 material: lambert(1.0),
                 catcher: false,
+                texture: None,
             },
             Object {
                 shape: Shape::Sphere(Sphere {
@@ -75,6 +76,7 @@ fn furnace(env: &dyn Environment, l_env: f64) {
                     reflectance: Rgb::WHITE,
                 }),
                 catcher: false,
+                texture: None,
             },
             Object {
                 shape: Shape::Triangles {
@@ -86,6 +88,7 @@ fn furnace(env: &dyn Environment, l_env: f64) {
                 },
                 material: lambert(1.0),
                 catcher: false,
+                texture: None,
             },
         ],
         lights: vec![],
@@ -165,6 +168,7 @@ fn irradiance_from_a_polygonal_light_matches_the_closed_form() {
             },
             material: lambert(rho),
             catcher: false,
+            texture: None,
         }],
         lights: vec![AreaLight {
             radiance: Rgb::splat(l),
@@ -241,6 +245,7 @@ fn mis_has_the_mean_of_each_single_strategy() {
                     exponent: 20.0,
                 }),
                 catcher: false,
+                texture: None,
             },
             Object {
                 shape: Shape::Sphere(Sphere {
@@ -249,6 +254,7 @@ fn mis_has_the_mean_of_each_single_strategy() {
                 }),
                 material: lambert(0.7),
                 catcher: false,
+                texture: None,
             },
         ],
         lights: vec![AreaLight {

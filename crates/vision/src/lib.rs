@@ -9,6 +9,7 @@
 //! - [`formats`]: the book's text files and their JSON forms;
 //! - [`export`]: a solved shot for COLMAP, Blender, USD, Nuke, JSON and PLY (and COLMAP read back);
 //! - [`bundle`]: sparse bundle adjustment (§7.7, Schur-complement Levenberg–Marquardt);
+//! - [`camera_path`]: synthetic camera paths (orbit/dolly) and similarity alignment of a solve;
 //! - [`klt`]: KLT feature tracking (chapter 6): Shi–Tomasi corners, pyramidal Lucas–Kanade.
 //!
 //! Conventions: f64; pixels with the origin at the top-left pixel's centre, x right, y down;
@@ -21,6 +22,7 @@
 pub mod bundle;
 pub mod calibration;
 pub mod camera;
+pub mod camera_path;
 pub mod error;
 pub mod export;
 pub mod formats;

@@ -73,6 +73,21 @@ impl Brdf {
             Brdf::BlinnPhong(b) => b.pdf(wo, wi),
         }
     }
+    /// This BRDF with its diffuse albedo multiplied by `factor` (a texture's value at the
+    /// hit point, [`crate::texture`]); a mirror has no diffuse part and is returned unchanged.
+    #[inline]
+    pub fn with_diffuse_scaled(&self, factor: Rgb) -> Brdf {
+        match *self {
+            Brdf::Lambert(b) => Brdf::Lambert(Lambert {
+                albedo: b.albedo * factor,
+            }),
+            Brdf::Mirror(m) => Brdf::Mirror(m),
+            Brdf::BlinnPhong(b) => Brdf::BlinnPhong(BlinnPhong {
+                diffuse: b.diffuse * factor,
+                ..b
+            }),
+        }
+    }
     /// True when the BRDF is a Dirac delta (next-event estimation is pointless).
     #[inline]
     pub fn is_specular(&self) -> bool {

@@ -177,3 +177,47 @@ fn the_example_scene_of_the_repository_reads() {
     assert_eq!(triangles.len(), 12);
     assert!(y.files.iter().all(|f| f.is_file()), "{:?}", y.files);
 }
+
+#[test]
+fn textures_read_and_errors_point_at_them() {
+    let cam = "camera:\n  look_at: {from: [0, 1, 4], at: [0, 0, 0]}\n  size: [8, 8]\n";
+    let dir = with_obj();
+    let text = format!(
+        "{cam}objects:\n  - quad: {{corner: [-5, 0, -5], edge1: [10, 0, 0], edge2: [0, 0, 10]}}\n    texture: {{type: cells, size: 0.2, contrast: 0.8, seed: 1}}\n  - sphere: {{center: [0, 1, 0], radius: 1}}\n    texture: {{type: checker, size: 0.5, contrast: 0.3}}\n  - sphere: {{center: [0, 1, 0], radius: 1}}\n"
+    );
+    let y = parse_yaml_scene(&text, dir.path()).unwrap();
+    assert_eq!(
+        y.scene.objects[0].texture,
+        Some(Texture::Cells {
+            size: 0.2,
+            contrast: 0.8,
+            seed: 1,
+            color: false
+        })
+    );
+    assert_eq!(
+        y.scene.objects[1].texture,
+        Some(Texture::Checker {
+            size: 0.5,
+            contrast: 0.3
+        })
+    );
+    assert_eq!(y.scene.objects[2].texture, None);
+    let sphere = "objects:\n  - sphere: {center: [0, 0, 0], radius: 1}\n    texture: ";
+    for (t, col, what) in [
+        ("{type: wood}", 21, "unknown texture type"),
+        ("{size: 1}", 14, "missing `type`"),
+        ("{type: cells, size: 0}", 14, "size must be > 0"),
+        ("{type: cells, size: 1, contrast: 2}", 14, "contrast"),
+        ("{type: cells, size: 1, seed: 1.5}", 43, "whole number"),
+        (
+            "{type: checker, size: 1, seed: 1}",
+            39,
+            "unknown field `seed`",
+        ),
+    ] {
+        let (l, c, m) = error_at(&format!("{cam}{sphere}{t}\n"));
+        assert_eq!((l, c), (6, col), "{t}: {m}");
+        assert!(m.contains(what), "{m}");
+    }
+}
