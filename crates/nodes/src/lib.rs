@@ -15,6 +15,7 @@ pub mod image_io;
 pub mod image_ops;
 pub mod matchmove;
 pub mod modeling;
+pub mod plate;
 pub mod plot;
 pub mod render;
 #[cfg(test)]
@@ -59,6 +60,7 @@ pub fn registry() -> Registry {
     export::register(&mut r);
     matchmove::register(&mut r);
     modeling::register(&mut r);
+    plate::register(&mut r);
     hdr::register(&mut r);
     render::register(&mut r);
     video::register(&mut r);
