@@ -17,6 +17,7 @@ pub mod matchmove;
 pub mod modeling;
 pub mod plot;
 pub mod render;
+pub mod shot;
 #[cfg(test)]
 mod testing;
 pub mod tracking;
@@ -61,6 +62,7 @@ pub fn registry() -> Registry {
     modeling::register(&mut r);
     hdr::register(&mut r);
     render::register(&mut r);
+    shot::register(&mut r);
     video::register(&mut r);
     r
 }

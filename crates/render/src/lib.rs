@@ -16,6 +16,8 @@
 pub mod brdf;
 pub mod bvh;
 pub mod camera;
+pub mod catcher_fit;
+pub mod differential;
 pub mod dome;
 pub mod environment;
 pub mod integrator;
