@@ -12,7 +12,7 @@ use vfxgraph_engine::{
 use vfxgraph_imaging::io::{encode_exr_layers, ExrOptions, ExrPrecision};
 use vfxgraph_imaging::{read_image, Image};
 use vfxgraph_render::catcher_fit::{fit_catcher, FitOptions};
-use vfxgraph_render::differential::{composite, differential_render, CompositeMode};
+use vfxgraph_render::differential::{composite, differential_render, Adaptive, CompositeMode};
 use vfxgraph_render::{RenderSettings, Strategy};
 
 use crate::artifacts::{CameraPathArt, ImageArt, IntrinsicsArt, ReportArt};
@@ -212,6 +212,26 @@ pub fn register(r: &mut Registry) {
             .mode(Mode::Either)
             .seeded()
             .param(spp_param(64))
+            .param(ParamSpec::optional(
+                "min_spp",
+                ParamType::Int {
+                    min: 0,
+                    max: 1 << 20,
+                },
+                ParamValue::Int(0),
+                "adaptive sampling: every traced pixel gets `min_spp` samples, then more (up to \
+                 `spp`) while its noise is above `noise`; 0 = `spp` everywhere",
+            ))
+            .param(ParamSpec::optional(
+                "noise",
+                ParamType::Float {
+                    min: 0.0,
+                    max: 10.0,
+                },
+                ParamValue::Float(0.01),
+                "adaptive target: the standard error of a pixel's added light relative to the \
+                 frame's mean rendered radiance",
+            ))
             .param(depth_param())
             .param(seed_param())
             .param(ParamSpec::optional(
@@ -264,7 +284,7 @@ pub fn register(r: &mut Registry) {
             "layers",
             LayersArt::NAME,
             "composite, beauty, shadow, shadow_difference, catcher_with, catcher_without, \
-             variance",
+             variance, samples",
         ))
         .output(PortSpec::one(
             "report",
@@ -379,6 +399,13 @@ fn run_differential_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
         None => plate_file.as_ref(),
     };
     let settings = settings(ctx, strategy);
+    let adaptive = match p.i64("min_spp") {
+        0 => None,
+        m => Some(Adaptive {
+            min_spp: m as u32,
+            noise: p.f64("noise"),
+        }),
+    };
     let out = {
         let progress = Mutex::new(|f: f32| ctx.progress(f));
         differential_render(
@@ -386,6 +413,7 @@ fn run_differential_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
             light.env(),
             &camera,
             &settings,
+            adaptive,
             &|f| {
                 if let Ok(cb) = progress.lock() {
                     cb(f)
@@ -417,6 +445,7 @@ fn run_differential_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
         ("catcher_with".to_string(), l.catcher_with.clone()),
         ("catcher_without".to_string(), l.catcher_without.clone()),
         ("variance".to_string(), l.variance.clone()),
+        ("samples".to_string(), l.samples.clone()),
     ];
     let s = out.stats;
     let report = serde_json::json!({
@@ -428,6 +457,7 @@ fn run_differential_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
         "mode": p.str("mode"),
         "plate": plate.is_some(),
         "traced_pixels": s.traced_pixels,
+        "mean_spp_traced": s.samples as f64 / s.traced_pixels.max(1) as f64,
         "pixels": s.pixels,
         "paths_with_objects": s.paths_with,
         "paths_without_objects": s.paths_without,
@@ -662,7 +692,8 @@ mod tests {
                 "shadow_difference",
                 "catcher_with",
                 "catcher_without",
-                "variance"
+                "variance",
+                "samples"
             ]
         );
         run(

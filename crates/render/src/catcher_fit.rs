@@ -147,7 +147,8 @@ pub fn fit_catcher(
     let mut iterations = 0;
     loop {
         iterations += 1;
-        let out = differential_render(&local, environment, camera, settings, &|_| {}, cancel)?;
+        let out =
+            differential_render(&local, environment, camera, settings, None, &|_| {}, cancel)?;
         let layer = &out.layers.catcher_with;
         let mut pixels = Vec::new();
         for y in 0..layer.height {

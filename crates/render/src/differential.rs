@@ -26,7 +26,7 @@
 //! through every pixel's corners and centre and traces a pixel when it or a neighbour saw
 //! geometry; the rest of the frame is the plate, untouched.
 
-use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::time::Instant;
 
 use rayon::prelude::*;
@@ -74,6 +74,8 @@ pub struct DifferentialLayers {
     /// Per-pixel variance of the beauty + (with − without) estimate (the noise of what the
     /// composite adds to the plate), RGB.
     pub variance: Image,
+    /// Samples taken per pixel (0 where nothing was traced), one channel.
+    pub samples: Image,
 }
 
 impl DifferentialLayers {
@@ -113,6 +115,8 @@ pub struct DifferentialStats {
     pub traced_pixels: u64,
     /// Pixels of the frame.
     pub pixels: u64,
+    /// Samples taken over all traced pixels.
+    pub samples: u64,
     /// Camera paths traced in the scene with objects.
     pub paths_with: u64,
     /// Camera paths traced in the local scene without objects.
@@ -132,20 +136,155 @@ pub struct DifferentialOutput {
     pub stats: DifferentialStats,
 }
 
+/// Adaptive sampling: after `min_spp` samples, a pixel keeps sampling (in batches of
+/// `min_spp`, up to the settings' `spp`) while the standard error of what it adds to the plate
+/// (B + W − Wo, largest channel) is above `noise` × the frame's mean rendered radiance. Pixels
+/// whose paths never meet the objects have zero variance and stop at `min_spp`; bright
+/// reflections and soft shadow edges get the samples.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Adaptive {
+    /// Samples every traced pixel gets (and the batch size after that).
+    pub min_spp: u32,
+    /// Target standard error, relative to the frame's mean rendered radiance.
+    pub noise: f64,
+}
+
+/// The R2 low-discrepancy sequence's increments (Roberts 2018: the plastic number's powers),
+/// used with a per-pixel random offset (Cranley–Patterson rotation) for the sub-pixel
+/// positions: well spread for any sample count, so edges and reflections converge faster
+/// than with independent jitter, and unbiased.
+const R2: [f64; 2] = [0.754_877_666_246_692_7, 0.569_840_290_998_053_2];
+
+/// One pixel's running sums.
+struct Acc {
+    s: PixelSampler,
+    offset: [f64; 2],
+    k: u32,
+    beauty: Rgb,
+    with: Rgb,
+    without: Rgb,
+    sum: Rgb,
+    sq: Rgb,
+    n_obj: u32,
+    n_catch: u32,
+    paths: [u64; 2],
+    bad: u64,
+}
+
+impl Acc {
+    fn new(seed: u64, index: u64) -> Acc {
+        let mut s = PixelSampler::new(seed, index);
+        let offset = [s.next(), s.next()];
+        Acc {
+            s,
+            offset,
+            k: 0,
+            beauty: Rgb::BLACK,
+            with: Rgb::BLACK,
+            without: Rgb::BLACK,
+            sum: Rgb::BLACK,
+            sq: Rgb::BLACK,
+            n_obj: 0,
+            n_catch: 0,
+            paths: [0; 2],
+            bad: 0,
+        }
+    }
+
+    /// Variance of the mean of B + (W − Wo), largest channel.
+    fn variance_of_mean(&self) -> Rgb {
+        if self.k < 2 {
+            return Rgb::BLACK;
+        }
+        let n = self.k as f64;
+        let mean = self.sum / n;
+        let v = (self.sq / n - mean * mean) * (1.0 / (n - 1.0));
+        Rgb::new(v.r.max(0.0), v.g.max(0.0), v.b.max(0.0))
+    }
+}
+
+/// The two path tracers and what a sample needs.
+struct Tracers<'a> {
+    with_world: &'a World,
+    with: PathTracer<'a>,
+    without: PathTracer<'a>,
+    is_catcher: &'a [bool],
+    gen: crate::camera::RayGenerator,
+}
+
+impl Tracers<'_> {
+    /// Takes `count` more samples of pixel (x, y).
+    fn sample(&self, acc: &mut Acc, x: usize, y: usize, count: u32) {
+        for _ in 0..count {
+            let i = acc.k as f64;
+            acc.k += 1;
+            let jx = (acc.offset[0] + i * R2[0]).fract();
+            let jy = (acc.offset[1] + i * R2[1]).fract();
+            let ray = self.gen.ray(x as f64 + jx - 0.5, y as f64 + jy - 0.5);
+            let Some(hit) = self.with_world.intersect(&ray, f64::INFINITY) else {
+                continue;
+            };
+            let catcher = match hit.surface {
+                Surface::Material(m) => self.is_catcher[m as usize],
+                Surface::Emitter(_) => false,
+            };
+            // The change this sample adds to the plate.
+            let delta = if catcher {
+                // The same random numbers for both: correlated sampling.
+                let mut s2 = acc.s.clone();
+                let lw = self.with.radiance(ray, &mut acc.s);
+                let lo = self.without.radiance(ray, &mut s2);
+                acc.paths[0] += 1;
+                acc.paths[1] += 1;
+                if !(lw.is_finite() && lo.is_finite()) {
+                    acc.bad += 1;
+                    continue;
+                }
+                acc.with += lw;
+                acc.without += lo;
+                acc.n_catch += 1;
+                lw - lo
+            } else {
+                let l = self.with.radiance(ray, &mut acc.s);
+                acc.paths[0] += 1;
+                if !l.is_finite() {
+                    acc.bad += 1;
+                    continue;
+                }
+                acc.beauty += l;
+                acc.n_obj += 1;
+                l
+            };
+            acc.sum += delta;
+            acc.sq += delta * delta;
+        }
+    }
+}
+
 /// Renders the layers of differential rendering for `scene` (objects + shadow catchers) seen
-/// by `camera` under `environment` (book §10.10). Per-pixel random streams as in
+/// by `camera` under `environment` (book §10.10): `settings.spp` samples per traced pixel, or
+/// with `adaptive`, between its `min_spp` and `settings.spp`. Per-pixel random streams as in
 /// [`crate::render()`]: the result does not depend on the thread count.
 pub fn differential_render(
     scene: &Scene,
     environment: &dyn Environment,
     camera: &Camera,
     settings: &RenderSettings,
+    adaptive: Option<Adaptive>,
     progress: &(dyn Fn(f32) + Sync),
     cancel: Option<&AtomicBool>,
 ) -> Result<DifferentialOutput, RenderError> {
     camera.validate()?;
     if settings.spp == 0 {
         return Err(RenderError::BadSettings("spp must be positive".into()));
+    }
+    if let Some(a) = adaptive {
+        if a.min_spp == 0 || !(a.noise.is_finite() && a.noise >= 0.0) {
+            return Err(RenderError::BadSettings(format!(
+                "adaptive sampling needs min_spp > 0 and a finite noise ≥ 0 (got {} and {})",
+                a.min_spp, a.noise
+            )));
+        }
     }
     let start = Instant::now();
     let with_world = World::new(scene);
@@ -159,138 +298,149 @@ pub fn differential_render(
         rr_depth: settings.rr_depth,
         strategy: settings.strategy,
     };
-    let (t_with, t_without) = (tracer(&with_world), tracer(&without_world));
+    let tracers = Tracers {
+        with_world: &with_world,
+        with: tracer(&with_world),
+        without: tracer(&without_world),
+        is_catcher: &is_catcher,
+        gen: camera.rays(),
+    };
     let (w, h) = (camera.width, camera.height);
-    let gen = camera.rays();
     let traced = trace_mask(&with_world, camera, cancel)?;
-
-    let done = AtomicUsize::new(0);
-    let nonfinite = AtomicU64::new(0);
-    let paths = [AtomicU64::new(0), AtomicU64::new(0)];
+    let cancelled = || cancel.is_some_and(|c| c.load(Ordering::Relaxed));
     let spp = settings.spp;
-    let n = spp as f64;
-    // Per pixel: beauty rgb, a_o, with rgb, a_c, without rgb, variance rgb.
-    type Px = [f32; 15];
-    let rows: Vec<Option<Vec<Px>>> = (0..h)
+    let first = adaptive.map_or(spp, |a| a.min_spp.min(spp));
+    let done = AtomicUsize::new(0);
+    let passes = if adaptive.is_some() { 2 } else { 1 };
+    let tick = || {
+        let d = done.fetch_add(1, Ordering::Relaxed) + 1;
+        progress(d as f32 / (passes * h) as f32);
+    };
+
+    // Pass 1: every traced pixel gets `first` samples.
+    let mut rows: Vec<Vec<Option<Acc>>> = (0..h)
         .into_par_iter()
         .map(|y| {
-            let mut row = vec![[0f32; 15]; w];
-            let (mut p_with, mut p_without, mut bad) = (0u64, 0u64, 0u64);
-            for (x, out) in row.iter_mut().enumerate() {
-                if !traced[y * w + x] {
-                    continue;
-                }
-                if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
-                    return None;
-                }
-                let mut s = PixelSampler::new(settings.seed, (y * w + x) as u64);
-                let (mut beauty, mut with, mut without) = (Rgb::BLACK, Rgb::BLACK, Rgb::BLACK);
-                let (mut sum, mut sq) = (Rgb::BLACK, Rgb::BLACK);
-                let (mut n_obj, mut n_catch) = (0u32, 0u32);
-                for _ in 0..spp {
-                    let (jx, jy) = (s.next(), s.next());
-                    let ray = gen.ray(x as f64 + jx - 0.5, y as f64 + jy - 0.5);
-                    let Some(hit) = with_world.intersect(&ray, f64::INFINITY) else {
-                        continue;
-                    };
-                    let catcher = match hit.surface {
-                        Surface::Material(m) => is_catcher[m as usize],
-                        Surface::Emitter(_) => false,
-                    };
-                    // The change this sample adds to the plate.
-                    let delta = if catcher {
-                        let mut s2 = s.clone();
-                        let lw = t_with.radiance(ray, &mut s);
-                        let lo = t_without.radiance(ray, &mut s2);
-                        p_with += 1;
-                        p_without += 1;
-                        if !(lw.is_finite() && lo.is_finite()) {
-                            bad += 1;
-                            continue;
-                        }
-                        with += lw;
-                        without += lo;
-                        n_catch += 1;
-                        lw - lo
-                    } else {
-                        let l = t_with.radiance(ray, &mut s);
-                        p_with += 1;
-                        if !l.is_finite() {
-                            bad += 1;
-                            continue;
-                        }
-                        beauty += l;
-                        n_obj += 1;
-                        l
-                    };
-                    sum += delta;
-                    sq += delta * delta;
-                }
-                let mean = sum / n;
-                let var = if spp > 1 {
-                    let v = (sq / n - mean * mean) * (1.0 / (n - 1.0));
-                    Rgb::new(v.r.max(0.0), v.g.max(0.0), v.b.max(0.0))
-                } else {
-                    Rgb::BLACK
-                };
-                let (b, wi, wo) = (beauty / n, with / n, without / n);
-                *out = [
-                    b.r as f32,
-                    b.g as f32,
-                    b.b as f32,
-                    (n_obj as f64 / n) as f32,
-                    wi.r as f32,
-                    wi.g as f32,
-                    wi.b as f32,
-                    (n_catch as f64 / n) as f32,
-                    wo.r as f32,
-                    wo.g as f32,
-                    wo.b as f32,
-                    var.r as f32,
-                    var.g as f32,
-                    var.b as f32,
-                    0.0,
-                ];
-            }
-            paths[0].fetch_add(p_with, Ordering::Relaxed);
-            paths[1].fetch_add(p_without, Ordering::Relaxed);
-            nonfinite.fetch_add(bad, Ordering::Relaxed);
-            let d = done.fetch_add(1, Ordering::Relaxed) + 1;
-            progress(d as f32 / h as f32);
-            Some(row)
+            let row = (0..w)
+                .map(|x| {
+                    if !traced[y * w + x] || cancelled() {
+                        return None;
+                    }
+                    let mut acc = Acc::new(settings.seed, (y * w + x) as u64);
+                    tracers.sample(&mut acc, x, y, first);
+                    Some(acc)
+                })
+                .collect();
+            tick();
+            row
         })
         .collect();
+    if cancelled() {
+        return Err(RenderError::Cancelled);
+    }
+
+    // Pass 2: more samples where the pixel is noisier than the target.
+    if let Some(a) = adaptive {
+        let (mut total, mut count) = (0.0, 0usize);
+        for acc in rows.iter().flatten().flatten() {
+            total += ((acc.beauty + acc.with) / acc.k as f64).average();
+            count += 1;
+        }
+        let mean = if count > 0 { total / count as f64 } else { 0.0 };
+        let target = (a.noise * mean).powi(2);
+        // Rounds: a pixel takes another batch while the largest variance in its 3×3
+        // neighbourhood is above the target (shadows and reflections are spatially coherent:
+        // a pixel whose few samples all missed a rare event is kept going by its neighbours).
+        loop {
+            let var: Vec<f64> = rows
+                .par_iter()
+                .flat_map_iter(|row| {
+                    row.iter().map(|a| {
+                        a.as_ref()
+                            .map_or(0.0, |a| a.variance_of_mean().max_component())
+                    })
+                })
+                .collect();
+            let noisy = |x: usize, y: usize| {
+                (y.saturating_sub(1)..(y + 2).min(h)).any(|yy| {
+                    (x.saturating_sub(1)..(x + 2).min(w)).any(|xx| var[yy * w + xx] > target)
+                })
+            };
+            let taken = AtomicUsize::new(0);
+            rows.par_iter_mut().enumerate().for_each(|(y, row)| {
+                for (x, acc) in row.iter_mut().enumerate() {
+                    let Some(acc) = acc else { continue };
+                    if acc.k < spp && !cancelled() && noisy(x, y) {
+                        tracers.sample(acc, x, y, a.min_spp.min(spp - acc.k));
+                        taken.fetch_add(1, Ordering::Relaxed);
+                    }
+                }
+            });
+            if taken.into_inner() == 0 || cancelled() {
+                break;
+            }
+        }
+        (0..h).for_each(|_| tick());
+        if cancelled() {
+            return Err(RenderError::Cancelled);
+        }
+    }
+
     let mut beauty = Image::new(w, h, 4);
     let mut catcher_with = Image::new(w, h, 4);
     let mut catcher_without = Image::new(w, h, 4);
     let mut variance = Image::new(w, h, 3);
-    for (y, row) in rows.into_iter().enumerate() {
-        let row = row.ok_or(RenderError::Cancelled)?;
-        for (x, px) in row.iter().enumerate() {
-            beauty.pixel_mut(x, y).copy_from_slice(&px[0..4]);
-            catcher_with.pixel_mut(x, y).copy_from_slice(&px[4..8]);
-            let wo = catcher_without.pixel_mut(x, y);
-            wo[..3].copy_from_slice(&px[8..11]);
-            wo[3] = px[7];
-            variance.pixel_mut(x, y).copy_from_slice(&px[11..14]);
+    let mut samples = Image::new(w, h, 1);
+    let mut stats = DifferentialStats {
+        pixels: (w * h) as u64,
+        ..Default::default()
+    };
+    for (y, row) in rows.iter().enumerate() {
+        for (x, acc) in row.iter().enumerate() {
+            let Some(acc) = acc else { continue };
+            let n = acc.k as f64;
+            let (b, wi, wo) = (acc.beauty / n, acc.with / n, acc.without / n);
+            let (a_o, a_c) = (
+                (acc.n_obj as f64 / n) as f32,
+                (acc.n_catch as f64 / n) as f32,
+            );
+            let v = acc.variance_of_mean();
+            beauty
+                .pixel_mut(x, y)
+                .copy_from_slice(&[b.r as f32, b.g as f32, b.b as f32, a_o]);
+            catcher_with.pixel_mut(x, y).copy_from_slice(&[
+                wi.r as f32,
+                wi.g as f32,
+                wi.b as f32,
+                a_c,
+            ]);
+            catcher_without.pixel_mut(x, y).copy_from_slice(&[
+                wo.r as f32,
+                wo.g as f32,
+                wo.b as f32,
+                a_c,
+            ]);
+            variance
+                .pixel_mut(x, y)
+                .copy_from_slice(&[v.r as f32, v.g as f32, v.b as f32]);
+            samples.set(x, y, 0, acc.k as f32);
+            stats.traced_pixels += 1;
+            stats.samples += acc.k as u64;
+            stats.paths_with += acc.paths[0];
+            stats.paths_without += acc.paths[1];
+            stats.nonfinite += acc.bad;
         }
     }
-    let [pw, pwo] = paths;
+    stats.seconds = start.elapsed().as_secs_f64();
     Ok(DifferentialOutput {
         layers: DifferentialLayers {
             beauty,
             catcher_with,
             catcher_without,
             variance,
+            samples,
         },
-        stats: DifferentialStats {
-            traced_pixels: traced.iter().filter(|&&t| t).count() as u64,
-            pixels: (w * h) as u64,
-            paths_with: pw.into_inner(),
-            paths_without: pwo.into_inner(),
-            nonfinite: nonfinite.into_inner(),
-            seconds: start.elapsed().as_secs_f64(),
-        },
+        stats,
     })
 }
 

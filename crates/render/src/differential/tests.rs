@@ -91,7 +91,16 @@ fn full_render(s: &Scene, spp: u32, seed: u64) -> crate::render::RenderOutput {
 }
 
 fn diff(s: &Scene, spp: u32, seed: u64) -> DifferentialOutput {
-    differential_render(s, &env(s), &s.camera, &settings(spp, seed), &|_| {}, None).unwrap()
+    differential_render(
+        s,
+        &env(s),
+        &s.camera,
+        &settings(spp, seed),
+        None,
+        &|_| {},
+        None,
+    )
+    .unwrap()
 }
 
 #[test]
@@ -218,4 +227,67 @@ fn a_plate_of_the_wrong_size_is_an_error() {
     let d = diff(&s, 1, 1);
     let e = composite(&d.layers, &Image::new(10, 10, 3), CompositeMode::Additive).unwrap_err();
     assert!(e.contains("10×10") && e.contains("16×12"), "{e}");
+}
+
+/// Adaptive sampling puts the samples where the change is noisy: unchanged catcher pixels stop
+/// at the minimum, and the composite still matches the truth within its (reported) noise.
+#[test]
+fn adaptive_sampling_spends_samples_where_the_noise_is() {
+    let (w, h) = (48, 36);
+    let s = scene(w, h);
+    let truth = full_render(&s, 512, 21);
+    let plate = full_render(&s.without_synthetic_objects(), 512, 22);
+    let a = Adaptive {
+        min_spp: 8,
+        noise: 0.03,
+    };
+    let d = differential_render(
+        &s,
+        &env(&s),
+        &s.camera,
+        &settings(256, 23),
+        Some(a),
+        &|_| {},
+        None,
+    )
+    .unwrap();
+    let spp = &d.layers.samples;
+    let (mut lo, mut hi) = (u32::MAX, 0u32);
+    for y in 0..h {
+        for x in 0..w {
+            let k = spp.get(x, y, 0) as u32;
+            if k > 0 {
+                lo = lo.min(k);
+                hi = hi.max(k);
+            }
+        }
+    }
+    assert_eq!(lo, 8, "some traced pixel needed no more than the minimum");
+    assert!(hi > 64, "the noisiest pixels got many samples: max {hi}");
+    let mean = d.stats.samples as f64 / d.stats.traced_pixels as f64;
+    assert!(mean < 200.0, "mean spp {mean}");
+    let c = composite(&d.layers, &plate.image, CompositeMode::Additive).unwrap();
+    let (mut z2, mut n) = (0.0, 0);
+    for y in 0..h {
+        for x in 0..w {
+            let a_o = d.layers.beauty.get(x, y, 3);
+            let a_c = d.layers.catcher_with.get(x, y, 3);
+            if !(a_o == 1.0 || (a_o == 0.0 && a_c == 1.0)) {
+                continue;
+            }
+            for ch in 0..3 {
+                let e = (c.get(x, y, ch) - truth.image.get(x, y, ch)) as f64;
+                let v = (truth.variance.get(x, y, ch)
+                    + plate.variance.get(x, y, ch)
+                    + d.layers.variance.get(x, y, ch)) as f64;
+                if v > 0.0 {
+                    z2 += e * e / v;
+                    n += 1;
+                }
+            }
+        }
+    }
+    let z2 = z2 / n as f64;
+    eprintln!("adaptive: spp {lo}..{hi}, mean {mean:.1}; mean z² {z2:.3}");
+    assert!(z2 < 2.0, "mean z² {z2}");
 }
