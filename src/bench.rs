@@ -65,10 +65,12 @@ pub enum BenchCommand {
         /// The scene (objects + shadow catcher + dome orientation), in the cameras' frame.
         #[arg(long, default_value = "../shared/data/book-demo/modeling.scn")]
         scene: std::path::PathBuf,
-        /// The dome image (the book's dome.pfm is not available).
+        /// The dome image (the book's dome.pfm is not available), oriented by the scene's
+        /// orig/south with south negated (the book's south points at the floor, Poly Haven
+        /// images have the sky on top), as graphs/book_shot.yaml does.
         #[arg(
             long,
-            default_value = "../shared/data/polyhaven_hdri_1k/studio_small_03_1k.hdr"
+            default_value = "../shared/data/polyhaven_hdri_1k/empty_warehouse_01_1k.hdr"
         )]
         dome: std::path::PathBuf,
         /// Intrinsics K of the frames (1280×720).

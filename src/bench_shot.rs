@@ -131,7 +131,7 @@ pub fn run(a: &Args<'_>) -> Result<u8, String> {
         .ok_or_else(|| format!("{}: the scene has no dome (orig/south)", a.scene.display()))?;
     let img = read_image(a.dome).map_err(|e| format!("{}: {e}", a.dome.display()))?;
     let v = |p: vfxgraph_render::Vec3| Vector3::new(p.x, p.y, p.z);
-    let dome = Dome::new(&img, v(spec.orig), v(spec.south))
+    let dome = Dome::new(&img, v(spec.orig), -v(spec.south))
         .map_err(|e| format!("{}: {e}", a.dome.display()))?;
     let k = vfxgraph_vision::formats::read_intrinsics(a.intrinsics)
         .map_err(|e| format!("{}: {e}", a.intrinsics.display()))?;
