@@ -15,6 +15,7 @@ pub mod image_io;
 pub mod image_ops;
 pub mod matchmove;
 pub mod modeling;
+pub mod placement;
 pub mod plot;
 pub mod render;
 #[cfg(test)]
@@ -61,6 +62,8 @@ pub fn registry() -> Registry {
     modeling::register(&mut r);
     hdr::register(&mut r);
     render::register(&mut r);
+    // After `render`, which registers the `scene` artifact.
+    placement::register(&mut r);
     video::register(&mut r);
     r
 }
