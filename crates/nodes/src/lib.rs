@@ -15,6 +15,7 @@ pub mod image_io;
 pub mod image_ops;
 pub mod matchmove;
 pub mod modeling;
+pub mod placement;
 pub mod plot;
 pub mod render;
 pub mod shot;
@@ -62,7 +63,9 @@ pub fn registry() -> Registry {
     modeling::register(&mut r);
     hdr::register(&mut r);
     render::register(&mut r);
+    // After `render`, which registers the `scene` artifact.
     shot::register(&mut r);
+    placement::register(&mut r);
     video::register(&mut r);
     r
 }

@@ -24,6 +24,7 @@ pub mod integrator;
 pub mod light;
 pub mod math;
 pub mod obj;
+pub mod placement;
 pub mod ray;
 pub mod render;
 pub mod sampling;
