@@ -12,7 +12,9 @@ use vfxgraph_engine::{
 use vfxgraph_imaging::io::{encode_exr_layers, ExrOptions, ExrPrecision};
 use vfxgraph_imaging::{read_image, Image};
 use vfxgraph_render::catcher_fit::{fit_catcher, FitOptions};
-use vfxgraph_render::differential::{composite, differential_render, Adaptive, CompositeMode};
+use vfxgraph_render::differential::{
+    composite, differential_render, Adaptive, CompositeMode, DifferentialLayers,
+};
 use vfxgraph_render::{RenderSettings, Strategy};
 
 use crate::artifacts::{CameraPathArt, ImageArt, IntrinsicsArt, ReportArt};
@@ -295,6 +297,47 @@ pub fn register(r: &mut Registry) {
     ));
     r.register_node(FnNode::new(
         NodeSpec::new(
+            "composite",
+            "Composites the layers of `differential_render` over a plate (book §10.10) without \
+             rendering again: objects → their beauty; catcher → plate + (with − without) \
+             (`additive`) or plate × with / without (`ratio`); elsewhere the plate. The plate: \
+             the `plate` input, else the `plate` file pattern, else a constant grey of \
+             `grey` (a stand-in that shows the objects and their shadows).",
+        )
+        .mode(Mode::Either)
+        .param(ParamSpec::optional(
+            "mode",
+            ParamType::Enum(&["additive", "ratio"]),
+            ParamValue::Str("additive".into()),
+            "`additive` (Debevec 1998, the book) or `ratio` (a multiplicative shadow matte)",
+        ))
+        .param(ParamSpec::optional(
+            "plate",
+            ParamType::Path(PathRole::Input),
+            ParamValue::Str(String::new()),
+            "a plate file pattern, read when the `plate` input is not connected",
+        ))
+        .param(ParamSpec::optional(
+            "grey",
+            ParamType::Float { min: 0.0, max: 1e6 },
+            ParamValue::Float(0.18),
+            "the stand-in plate's radiance when there is no plate",
+        ))
+        .input(PortSpec::one(
+            "layers",
+            LayersArt::NAME,
+            "from differential_render",
+        ))
+        .input(PortSpec::one("plate", ImageArt::NAME, "the frame's plate").optional())
+        .output(PortSpec::one(
+            "image",
+            ImageArt::NAME,
+            "the composite, linear RGB",
+        )),
+        run_composite,
+    ));
+    r.register_node(FnNode::new(
+        NodeSpec::new(
             "write_layers",
             "Writes named layers as one multi-layer OpenEXR file (single part; layer `name` \
              has channels `name.R`, `name.G`, …; the first layer also gets the bare R, G, B \
@@ -388,16 +431,8 @@ fn run_differential_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
         "brdf_only" => Strategy::BrdfOnly,
         _ => Strategy::Mis,
     };
-    let plate_file = if p.str("plate").is_empty() || ctx.input_opt::<ImageArt>("plate")?.is_some() {
-        None
-    } else {
-        let path = ctx.path("plate");
-        Some(read_image(&path).map_err(|e| NodeError::msg(format!("plate: {e}")))?)
-    };
-    let plate = match ctx.input_opt::<ImageArt>("plate")? {
-        Some(p) => Some(&p.0),
-        None => plate_file.as_ref(),
-    };
+    let plate = plate_of(ctx)?;
+    let plate = plate.as_ref();
     let settings = settings(ctx, strategy);
     let adaptive = match p.i64("min_spp") {
         0 => None,
@@ -468,6 +503,60 @@ fn run_differential_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     ctx.output("shadow", ImageArt(shadow));
     ctx.output("layers", LayersArt(layers));
     ctx.output("report", ReportArt(report));
+    Ok(())
+}
+
+/// The plate of this instance: the `plate` input, else the `plate` file pattern, else `None`.
+fn plate_of(ctx: &Context<'_>) -> Result<Option<Image>, NodeError> {
+    if let Some(p) = ctx.input_opt::<ImageArt>("plate")? {
+        return Ok(Some(p.0.clone()));
+    }
+    if ctx.params().str("plate").is_empty() {
+        return Ok(None);
+    }
+    let path = ctx.path("plate");
+    read_image(&path)
+        .map(Some)
+        .map_err(|e| NodeError::msg(format!("plate: {e}")))
+}
+
+fn run_composite(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+    let layers = &ctx.input::<LayersArt>("layers")?.0;
+    let get = |name: &str| {
+        layers
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, i)| i.clone())
+            .ok_or_else(|| {
+                NodeError::msg(format!(
+                    "the layers have no `{name}` (they have: {}): connect differential_render's \
+                     `layers`",
+                    layers
+                        .iter()
+                        .map(|(n, _)| n.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ))
+            })
+    };
+    let beauty = get("beauty")?;
+    let l = DifferentialLayers {
+        catcher_with: get("catcher_with")?,
+        catcher_without: get("catcher_without")?,
+        variance: Image::new(beauty.width, beauty.height, 3),
+        samples: Image::new(beauty.width, beauty.height, 1),
+        beauty,
+    };
+    let plate = match plate_of(ctx)? {
+        Some(p) => p,
+        None => {
+            let g = ctx.params().f64("grey") as f32;
+            Image::from_fn(l.beauty.width, l.beauty.height, 3, |_, _, _| g)
+        }
+    };
+    let mode = CompositeMode::parse(ctx.params().str("mode")).unwrap_or_default();
+    let image = composite(&l, &plate, mode).map_err(NodeError::msg)?;
+    ctx.output("image", ImageArt(image));
     Ok(())
 }
 
@@ -662,7 +751,10 @@ mod tests {
                 ("max_depth", ParamValue::Int(3)),
             ],
             None,
-            vec![("scene", one(&fitted)), ("plate", one(&ImageArt(plate)))],
+            vec![
+                ("scene", one(&fitted)),
+                ("plate", one(&ImageArt(plate.clone()))),
+            ],
             dir.path(),
             run_differential_render,
         )
@@ -714,6 +806,30 @@ mod tests {
         assert_eq!(beauty.channels, 4);
         let main = vfxgraph_imaging::decode(&bytes, vfxgraph_imaging::Format::Exr).unwrap();
         assert_eq!(main.data, comp.data);
+        // `composite` redoes the composite from the layers alone, bit for bit.
+        let again = run(
+            "composite",
+            &[],
+            None,
+            vec![("layers", one(&layers)), ("plate", one(&ImageArt(plate)))],
+            dir.path(),
+            run_composite,
+        )
+        .unwrap()
+        .2
+        .unwrap()
+        .0;
+        assert_eq!(again.data, comp.data);
+        let e = run(
+            "composite",
+            &[],
+            None,
+            vec![("layers", one(&LayersArt(vec![])))],
+            dir.path(),
+            run_composite,
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("no `beauty`"), "{e}");
         // Per frame, the path needs a frame pattern.
         let e = run(
             "write_layers",
