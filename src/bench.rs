@@ -56,6 +56,51 @@ pub enum BenchCommand {
         #[arg(long)]
         json: bool,
     },
+    /// Differential rendering of the book's shot (§10.10; issue 9): time per 1280×720 frame
+    /// and noise against a high-spp reference on three views, beside the book's estimator
+    /// (hemisphere sampling only, 1000 spp, 2 bounces; its noise extrapolated from
+    /// `--book-spp` by the 1/N law of Monte Carlo variance), and the spp and time per frame at
+    /// which ours matches the book's noise.
+    Shot {
+        /// The scene (objects + shadow catcher + dome orientation), in the cameras' frame.
+        #[arg(long, default_value = "../shared/data/book-demo/modeling.scn")]
+        scene: std::path::PathBuf,
+        /// The dome image (the book's dome.pfm is not available), oriented by the scene's
+        /// orig/south with south negated (the book's south points at the floor, Poly Haven
+        /// images have the sky on top), as graphs/book_shot.yaml does.
+        #[arg(
+            long,
+            default_value = "../shared/data/polyhaven_hdri_1k/empty_warehouse_01_1k.hdr"
+        )]
+        dome: std::path::PathBuf,
+        /// Intrinsics K of the frames (1280×720).
+        #[arg(long, default_value = "../shared/data/book-demo/g7cam.txt")]
+        intrinsics: std::path::PathBuf,
+        /// Our samples per pixel (the maximum, with adaptive sampling).
+        #[arg(long, default_value_t = 256)]
+        spp: u32,
+        /// Samples per pixel of the reference.
+        #[arg(long, default_value_t = 1024)]
+        reference_spp: u32,
+        /// Samples per pixel actually rendered with the book's estimator.
+        #[arg(long, default_value_t = 64)]
+        book_spp: u32,
+        /// Scattering vertices per path (the book: 2 bounces).
+        #[arg(long, default_value_t = 2)]
+        max_depth: u32,
+        /// Image width (height 9/16 of it; K scaled): 1280 is the book's.
+        #[arg(long, default_value_t = 1280)]
+        width: usize,
+        /// Adaptive sampling: samples every traced pixel gets (0 = `--spp` everywhere).
+        #[arg(long, default_value_t = 8)]
+        min_spp: u32,
+        /// Adaptive sampling: target standard error relative to the frame's mean radiance.
+        #[arg(long, default_value_t = 0.01)]
+        noise: f64,
+        /// Print the figures as JSON.
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 pub fn run(cmd: BenchCommand, registry: &Registry) -> Result<u8, String> {
@@ -74,6 +119,31 @@ pub fn run(cmd: BenchCommand, registry: &Registry) -> Result<u8, String> {
             intrinsics,
             json,
         } => bench_matchmove(&tracks, &intrinsics, json),
+        BenchCommand::Shot {
+            scene,
+            dome,
+            intrinsics,
+            spp,
+            reference_spp,
+            book_spp,
+            max_depth,
+            width,
+            min_spp,
+            noise,
+            json,
+        } => crate::bench_shot::run(&crate::bench_shot::Args {
+            scene: &scene,
+            dome: &dome,
+            intrinsics: &intrinsics,
+            spp,
+            reference_spp,
+            book_spp,
+            max_depth,
+            width,
+            min_spp,
+            noise,
+            json,
+        }),
     }
 }
 

@@ -2,6 +2,7 @@
 //! nothing algorithmic lives here.
 
 mod bench;
+mod bench_shot;
 mod interrupt;
 mod progress;
 mod report;

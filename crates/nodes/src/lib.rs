@@ -15,9 +15,11 @@ pub mod image_io;
 pub mod image_ops;
 pub mod matchmove;
 pub mod modeling;
+pub mod placement;
 pub mod plate;
 pub mod plot;
 pub mod render;
+pub mod shot;
 #[cfg(test)]
 mod testing;
 pub mod tracking;
@@ -63,6 +65,9 @@ pub fn registry() -> Registry {
     plate::register(&mut r);
     hdr::register(&mut r);
     render::register(&mut r);
+    // After `render`, which registers the `scene` artifact.
+    shot::register(&mut r);
+    placement::register(&mut r);
     video::register(&mut r);
     r
 }

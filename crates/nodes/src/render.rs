@@ -262,7 +262,17 @@ fn run_read_scene(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 
 /// The camera of this instance: the scene's, or frame f's pose of `cameras` with K from
 /// `intrinsics`, the path's own K, or the scene camera (book §2.8), then the size override.
-fn instance_camera(ctx: &Context<'_>, scene: &Scene) -> Result<Camera, NodeError> {
+pub(crate) fn instance_camera(ctx: &Context<'_>, scene: &Scene) -> Result<Camera, NodeError> {
+    camera_for_frame(ctx, scene, ctx.frame())
+}
+
+/// [`instance_camera`] for frame `frame` (`None`: the scene camera unless `cameras` is
+/// connected, which then is an error).
+pub(crate) fn camera_for_frame(
+    ctx: &Context<'_>,
+    scene: &Scene,
+    frame: Option<i64>,
+) -> Result<Camera, NodeError> {
     let mut camera = scene.camera.clone();
     // K: the `intrinsics` input, else the camera path's own K, else the scene camera's.
     let path_k = ctx
@@ -279,7 +289,7 @@ fn instance_camera(ctx: &Context<'_>, scene: &Scene) -> Result<Camera, NodeError
         }
     }
     if let Some(path) = ctx.input_opt::<CameraPathArt>("cameras")? {
-        let Some(f) = ctx.frame() else {
+        let Some(f) = frame else {
             return Err(NodeError::msg(
                 "the `cameras` input renders one frame per instance: set `per_frame: true` on \
                  this render node",
@@ -317,27 +327,44 @@ fn instance_camera(ctx: &Context<'_>, scene: &Scene) -> Result<Camera, NodeError
     Ok(camera)
 }
 
+/// The light of a render: a dome (the `dome` input's or the scene's) or a constant background.
+pub(crate) enum Light<'a> {
+    Dome(&'a Dome),
+    Constant(ConstantEnvironment),
+}
+
+impl Light<'_> {
+    pub(crate) fn env(&self) -> &dyn Environment {
+        match self {
+            Light::Dome(d) => *d,
+            Light::Constant(c) => c,
+        }
+    }
+}
+
+/// The `dome` input if connected, else the scene's loaded dome, else its background colour.
+pub(crate) fn pick_light<'a>(
+    input_dome: Option<&'a Dome>,
+    art: &'a SceneArt,
+) -> Result<Light<'a>, NodeError> {
+    match (input_dome, &art.dome, &art.scene.dome) {
+        (Some(d), _, _) | (None, Some(d), _) => Ok(Light::Dome(d)),
+        (None, None, Some(spec)) => Err(NodeError::msg(format!(
+            "the scene's dome image `{}` was not found when the scene was read: connect a \
+             `dome` input (e.g. read_image → dome)",
+            spec.image
+        ))),
+        (None, None, None) => Ok(Light::Constant(ConstantEnvironment {
+            radiance: art.scene.background,
+        })),
+    }
+}
+
 fn run_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let art = ctx.input::<SceneArt>("scene")?;
     let input_dome = ctx.input_opt::<DomeArt>("dome")?.map(|d| &d.0);
-    let env: &dyn Environment;
-    let constant;
-    match (input_dome, &art.dome, &art.scene.dome) {
-        (Some(d), _, _) | (None, Some(d), _) => env = d,
-        (None, None, Some(spec)) => {
-            return Err(NodeError::msg(format!(
-                "the scene's dome image `{}` was not found when the scene was read: connect a \
-                 `dome` input (e.g. read_image → dome)",
-                spec.image
-            )))
-        }
-        (None, None, None) => {
-            constant = ConstantEnvironment {
-                radiance: art.scene.background,
-            };
-            env = &constant;
-        }
-    }
+    let light = pick_light(input_dome, art)?;
+    let env = light.env();
     let camera = instance_camera(ctx, &art.scene)?;
     let p = ctx.params();
     let settings = RenderSettings {

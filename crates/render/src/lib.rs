@@ -16,12 +16,15 @@
 pub mod brdf;
 pub mod bvh;
 pub mod camera;
+pub mod catcher_fit;
+pub mod differential;
 pub mod dome;
 pub mod environment;
 pub mod integrator;
 pub mod light;
 pub mod math;
 pub mod obj;
+pub mod placement;
 pub mod ray;
 pub mod render;
 pub mod sampling;

@@ -84,6 +84,7 @@ pub struct RenderOutput {
 
 /// The per-pixel random stream: PCG32 (O'Neill 2014) seeded from (seed, pixel); each pixel owns
 /// its stream, so any schedule gives the same numbers.
+#[derive(Clone)]
 pub struct PixelSampler(Pcg32);
 
 impl PixelSampler {

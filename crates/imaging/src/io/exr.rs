@@ -97,6 +97,12 @@ fn map_exr_error(e: exr::error::Error) -> ImageError {
 
 /// Decode OpenEXR bytes (see the module documentation for channel selection and windows).
 pub fn decode(bytes: &[u8]) -> Result<Image, ImageError> {
+    decode_layer(bytes, "")
+}
+
+/// Decode the layer `name` of a multi-layer file (channels `name.R`, `name.G`, `name.B`
+/// [+ `name.A`], or `name.Y` [+ `name.A`]); `""` is the bare-named layer, as [`decode`].
+pub fn decode_layer(bytes: &[u8], name: &str) -> Result<Image, ImageError> {
     if !bytes.starts_with(&[0x76, 0x2F, 0x31, 0x01]) {
         return Err(err("missing the OpenEXR magic number 76 2f 31 01"));
     }
@@ -146,7 +152,7 @@ pub fn decode(bytes: &[u8]) -> Result<Image, ImageError> {
     })?;
     let display = image.attributes.display_window;
     let layers: &[Layer<AnyChannels<FlatSamples>>] = &image.layer_data;
-    let (layer, picked) = pick_channels(layers)?;
+    let (layer, picked) = pick_channels(layers, name)?;
     let channels = picked.len();
     let (dw, dh) = (display.size.0, display.size.1);
     let mut out = Image::try_new(dw, dh, channels)?;
@@ -189,15 +195,21 @@ pub fn decode(bytes: &[u8]) -> Result<Image, ImageError> {
 }
 
 /// Choose the part and the channel indices (R, G, B[, A] / Y[, A] / one channel).
-fn pick_channels(
-    layers: &[Layer<AnyChannels<FlatSamples>>],
-) -> Result<(&Layer<AnyChannels<FlatSamples>>, Vec<usize>), ImageError> {
+fn pick_channels<'a>(
+    layers: &'a [Layer<AnyChannels<FlatSamples>>],
+    prefix: &str,
+) -> Result<(&'a Layer<AnyChannels<FlatSamples>>, Vec<usize>), ImageError> {
     let find = |layer: &Layer<AnyChannels<FlatSamples>>, name: &str| {
+        let full = if prefix.is_empty() {
+            name.to_string()
+        } else {
+            format!("{prefix}.{name}")
+        };
         layer
             .channel_data
             .list
             .iter()
-            .position(|c| c.name.eq(name) && c.sampling == exr::math::Vec2(1, 1))
+            .position(|c| c.name.eq(full.as_str()) && c.sampling == exr::math::Vec2(1, 1))
     };
     for layer in layers {
         if let (Some(r), Some(g), Some(b)) = (find(layer, "R"), find(layer, "G"), find(layer, "B"))
@@ -206,6 +218,29 @@ fn pick_channels(
             v.extend(find(layer, "A"));
             return Ok((layer, v));
         }
+    }
+    if !prefix.is_empty() {
+        for layer in layers {
+            if let Some(y) = find(layer, "Y") {
+                let mut v = vec![y];
+                v.extend(find(layer, "A"));
+                return Ok((layer, v));
+            }
+        }
+        let mut names: Vec<String> = layers
+            .iter()
+            .flat_map(|l| l.channel_data.list.iter().map(|c| c.name.to_string()))
+            .filter_map(|n| n.rsplit_once('.').map(|(l, _)| l.to_string()))
+            .collect();
+        names.dedup();
+        return Err(err(format!(
+            "no layer `{prefix}` (layers: {})",
+            if names.is_empty() {
+                "none".into()
+            } else {
+                names.join(", ")
+            }
+        )));
     }
     let layer = layers.first().ok_or_else(|| err("the file has no parts"))?;
     if let Some(y) = find(layer, "Y") {
@@ -225,26 +260,62 @@ fn pick_channels(
 /// Encode as a single-part scanline OpenEXR file with the given precision and (lossless)
 /// compression. Channel names: `R`, `G`, `B` (+ `A`) for colour, `Y` (+ `A`) for gray.
 pub fn encode_exr(img: &Image, options: &ExrOptions) -> Result<Vec<u8>, ImageError> {
-    check_encodable(img, Format::Exr)?;
-    let names: &[&str] = match img.channels {
-        1 => &["Y"],
-        2 => &["Y", "A"],
-        3 => &["R", "G", "B"],
-        _ => &["R", "G", "B", "A"],
-    };
-    let n = img.pixel_count();
-    let list: SmallVec<[AnyChannel<FlatSamples>; 4]> = names
-        .iter()
-        .enumerate()
-        .map(|(c, name)| {
+    encode_exr_layers(&[("", img)], options)
+}
+
+/// Encode named layers of one size as a single-part multi-layer OpenEXR file (the layout
+/// Nuke, Blender and OpenImageIO read as layers): layer `name`'s channels are `name.R`,
+/// `name.G`, … ; a layer named `""` gets the bare `R`, `G`, `B` (+ `A`) names and is what
+/// single-layer readers (and [`decode`]) show.
+pub fn encode_exr_layers(
+    layers: &[(&str, &Image)],
+    options: &ExrOptions,
+) -> Result<Vec<u8>, ImageError> {
+    let first = layers
+        .first()
+        .ok_or_else(|| ImageError::encode(Format::Exr, "no layers to write"))?
+        .1;
+    let mut list: SmallVec<[AnyChannel<FlatSamples>; 4]> = SmallVec::new();
+    let mut seen = std::collections::HashSet::new();
+    for (layer, img) in layers {
+        check_encodable(img, Format::Exr)?;
+        if (img.width, img.height) != (first.width, first.height) {
+            return Err(ImageError::encode(
+                Format::Exr,
+                format!(
+                    "layer `{layer}` is {}×{} but the first layer is {}×{}",
+                    img.width, img.height, first.width, first.height
+                ),
+            ));
+        }
+        if !seen.insert(*layer) {
+            return Err(ImageError::encode(
+                Format::Exr,
+                format!("layer `{layer}` appears twice"),
+            ));
+        }
+        let names: &[&str] = match img.channels {
+            1 => &["Y"],
+            2 => &["Y", "A"],
+            3 => &["R", "G", "B"],
+            _ => &["R", "G", "B", "A"],
+        };
+        let n = img.pixel_count();
+        for (c, name) in names.iter().enumerate() {
             let plane = (0..n).map(|i| img.data[i * img.channels + c]);
             let samples = match options.precision {
                 ExrPrecision::Float => FlatSamples::F32(plane.collect()),
                 ExrPrecision::Half => FlatSamples::F16(plane.map(f16::from_f32).collect()),
             };
-            AnyChannel::new(*name, samples)
-        })
-        .collect();
+            let full = if layer.is_empty() {
+                name.to_string()
+            } else {
+                format!("{layer}.{name}")
+            };
+            list.push(AnyChannel::new(full.as_str(), samples));
+        }
+    }
+    let img = first;
     let compression = match options.compression {
         ExrCompression::None => Compression::Uncompressed,
         ExrCompression::Zip => Compression::ZIP16,
@@ -741,5 +812,25 @@ mod tests {
         // Not an EXR at all.
         assert!(decode(b"\x76\x2f\x31").is_err());
         assert!(decode(b"PF\n1 1\n-1\n").is_err());
+    }
+
+    #[test]
+    fn multi_layer_files_round_trip_every_layer() {
+        let a = Image::from_fn(5, 4, 3, |x, y, c| (x * 10 + y + c) as f32 * 0.5);
+        let b = Image::from_fn(5, 4, 4, |x, y, c| (x + y * 7) as f32 - c as f32);
+        let g = Image::from_fn(5, 4, 1, |x, y, _| (x * y) as f32);
+        let bytes = encode_exr_layers(
+            &[("", &a), ("beauty", &b), ("shadow", &g)],
+            &ExrOptions::default(),
+        )
+        .unwrap();
+        assert_eq!(decode(&bytes).unwrap().data, a.data);
+        assert_eq!(decode_layer(&bytes, "beauty").unwrap().data, b.data);
+        assert_eq!(decode_layer(&bytes, "shadow").unwrap().data, g.data);
+        let e = decode_layer(&bytes, "nope").unwrap_err().to_string();
+        assert!(e.contains("no layer `nope`") && e.contains("beauty"), "{e}");
+        let wrong = Image::new(3, 3, 3);
+        let e = encode_exr_layers(&[("a", &a), ("b", &wrong)], &ExrOptions::default());
+        assert!(e.unwrap_err().to_string().contains("3×3"));
     }
 }

@@ -22,7 +22,10 @@ use std::path::Path;
 pub use crate::error::ImageError;
 use crate::image::Image;
 
-pub use self::exr::{encode_exr, ExrCompression, ExrOptions, ExrPrecision};
+pub use self::exr::{
+    decode_layer as decode_exr_layer, encode_exr, encode_exr_layers, ExrCompression, ExrOptions,
+    ExrPrecision,
+};
 pub use self::png_jpeg::{encode_jpeg, encode_png16};
 
 /// An image file format this crate reads and writes.

@@ -1,0 +1,878 @@
+//! The shot's nodes (book §10.10–10.14): `fit_catcher` (the "polyshadow colour adjust"
+//! program), `differential_render` (objects and their shadows composited over the plate,
+//! Debevec 1998) and `write_layers` (multi-layer OpenEXR for a compositor).
+
+use std::sync::Mutex;
+
+use vfxgraph_engine::artifact::codec::{put_bytes, put_u64, Reader};
+use vfxgraph_engine::{
+    ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, ParamValue, PathRole,
+    PortSpec, Registry,
+};
+use vfxgraph_imaging::io::{encode_exr_layers, ExrOptions, ExrPrecision};
+use vfxgraph_imaging::{read_image, Image};
+use vfxgraph_render::catcher_fit::{fit_catcher, FitOptions};
+use vfxgraph_render::differential::{
+    composite, differential_render, Adaptive, CompositeMode, DifferentialLayers,
+};
+use vfxgraph_render::{RenderSettings, Strategy};
+
+use crate::artifacts::{CameraPathArt, ImageArt, IntrinsicsArt, ReportArt};
+use crate::hdr::DomeArt;
+use crate::render::{camera_for_frame, instance_camera, pick_light, SceneArt};
+use crate::FnNode;
+
+/// Named images of one size (`layers`): what a compositor reads from a multi-layer EXR.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LayersArt(pub Vec<(String, Image)>);
+
+impl ArtifactType for LayersArt {
+    const NAME: &'static str = "layers";
+    const DOC: &'static str = "Named images of one size (e.g. composite, beauty with alpha, \
+        shadow matte, catcher with and without objects), written as one multi-layer OpenEXR.";
+    fn encode(&self, out: &mut Vec<u8>) {
+        put_u64(out, self.0.len() as u64);
+        for (name, img) in &self.0 {
+            put_bytes(out, name.as_bytes());
+            let mut b = Vec::new();
+            ImageArt(img.clone()).encode(&mut b);
+            put_bytes(out, &b);
+        }
+    }
+    fn decode(bytes: &[u8]) -> Result<Self, String> {
+        let mut r = Reader::new(bytes);
+        let n = r.u64()? as usize;
+        let mut v = Vec::with_capacity(n.min(64));
+        for _ in 0..n {
+            let name = String::from_utf8(r.bytes()?.to_vec()).map_err(|e| e.to_string())?;
+            let img = ImageArt::decode(r.bytes()?)?.0;
+            v.push((name, img));
+        }
+        r.finish()?;
+        Ok(LayersArt(v))
+    }
+}
+
+fn spp_param(default: i64) -> ParamSpec {
+    ParamSpec::optional(
+        "spp",
+        ParamType::Int {
+            min: 1,
+            max: 1 << 20,
+        },
+        ParamValue::Int(default),
+        "samples (paths) per pixel",
+    )
+}
+
+fn depth_param() -> ParamSpec {
+    ParamSpec::optional(
+        "max_depth",
+        ParamType::Int { min: 0, max: 1024 },
+        ParamValue::Int(2),
+        "maximum scattering vertices per path (the book's shot used 2 bounces)",
+    )
+}
+
+fn seed_param() -> ParamSpec {
+    ParamSpec::optional(
+        "seed",
+        ParamType::Int {
+            min: 0,
+            max: i64::MAX,
+        },
+        ParamValue::Int(0),
+        "extra seed mixed into the graph seed",
+    )
+}
+
+fn size_params(spec: NodeSpec) -> NodeSpec {
+    spec.param(ParamSpec::optional(
+        "width",
+        ParamType::Int { min: 0, max: 65536 },
+        ParamValue::Int(0),
+        "image width override (0 = the camera's; K is rescaled)",
+    ))
+    .param(ParamSpec::optional(
+        "height",
+        ParamType::Int { min: 0, max: 65536 },
+        ParamValue::Int(0),
+        "image height override (0 = the camera's)",
+    ))
+}
+
+fn light_and_camera_inputs(spec: NodeSpec) -> NodeSpec {
+    spec.input(PortSpec::one(
+        "scene",
+        SceneArt::NAME,
+        "objects and shadow catchers",
+    ))
+    .input(
+        PortSpec::one(
+            "dome",
+            DomeArt::NAME,
+            "a light dome replacing the scene's dome or background",
+        )
+        .optional(),
+    )
+    .input(
+        PortSpec::one(
+            "cameras",
+            CameraPathArt::NAME,
+            "the solved camera path (K from `intrinsics`, the path, or the scene camera)",
+        )
+        .optional(),
+    )
+    .input(
+        PortSpec::one(
+            "intrinsics",
+            IntrinsicsArt::NAME,
+            "K (and image size) replacing the path's and the scene camera's",
+        )
+        .optional(),
+    )
+}
+
+fn settings(ctx: &Context<'_>, strategy: Strategy) -> RenderSettings {
+    let p = ctx.params();
+    RenderSettings {
+        spp: p.i64("spp") as u32,
+        max_depth: p.i64("max_depth") as u32,
+        seed: ctx.seed() ^ (p.i64("seed") as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15),
+        strategy,
+        ..Default::default()
+    }
+}
+
+/// Registers the artifact and nodes of this module.
+pub fn register(r: &mut Registry) {
+    r.register_artifact::<LayersArt>();
+    r.register_node(FnNode::new(
+        light_and_camera_inputs(size_params(
+            NodeSpec::new(
+                "fit_catcher",
+                "Fits the shadow catchers' diffuse colour to the plate (book §10.10, the \
+                 \"polyshadow colour adjust\" program): renders the local scene (catchers, \
+                 lights, dome; no synthetic objects) with frame `frame`'s camera and scales the \
+                 colour by mean(plate) / mean(render) per channel over the pixels the catchers \
+                 cover entirely, repeating while interreflections make the render not \
+                 proportional. Output: the scene with the fitted colour, and a report (ratio, \
+                 colour before/after, residual).",
+            )
+            .seeded()
+            .param(ParamSpec::required(
+                "frame",
+                ParamType::Int {
+                    min: i64::MIN,
+                    max: i64::MAX,
+                },
+                "the plate frame (and camera) to fit on",
+            ))
+            .param(spp_param(64))
+            .param(depth_param())
+            .param(seed_param())
+            .param(ParamSpec::optional(
+                "iterations",
+                ParamType::Int { min: 1, max: 20 },
+                ParamValue::Int(4),
+                "at most this many renders",
+            ))
+            .param(ParamSpec::optional(
+                "tolerance",
+                ParamType::Float { min: 0.0, max: 1.0 },
+                ParamValue::Float(1e-3),
+                "stop when every channel's correction is within this (relative)",
+            )),
+        ))
+        .input(PortSpec::sequence(
+            "plate",
+            ImageArt::NAME,
+            "the plate frames (linear radiance); frame `frame` is used",
+        ))
+        .output(PortSpec::one(
+            "scene",
+            SceneArt::NAME,
+            "the scene with the fitted catcher colour",
+        ))
+        .output(PortSpec::one("report", ReportArt::NAME, "the fit")),
+        run_fit_catcher,
+    ));
+    r.register_node(FnNode::new(
+        light_and_camera_inputs(size_params(
+            NodeSpec::new(
+                "differential_render",
+                "Differential rendering (book §10.10; Debevec 1998), one frame per instance: \
+                 where a synthetic object is seen, its path-traced radiance; where a shadow \
+                 catcher is seen, the plate plus (catcher with objects − catcher without) \
+                 (`additive`) or the plate × (with / without) (`ratio`); elsewhere the plate, \
+                 untouched (only pixels that see geometry are traced). The two catcher renders \
+                 share their random numbers, so away from shadows and reflections their \
+                 difference is exactly zero. Outputs the composite (without a plate: the CG \
+                 render, objects and catchers with shadows), the beauty with alpha, the shadow \
+                 matte (with / without), all layers for `write_layers`, and a report.",
+            )
+            .mode(Mode::Either)
+            .seeded()
+            .param(spp_param(64))
+            .param(ParamSpec::optional(
+                "min_spp",
+                ParamType::Int {
+                    min: 0,
+                    max: 1 << 20,
+                },
+                ParamValue::Int(0),
+                "adaptive sampling: every traced pixel gets `min_spp` samples, then more (up to \
+                 `spp`) while its noise is above `noise`; 0 = `spp` everywhere",
+            ))
+            .param(ParamSpec::optional(
+                "noise",
+                ParamType::Float {
+                    min: 0.0,
+                    max: 10.0,
+                },
+                ParamValue::Float(0.01),
+                "adaptive target: the standard error of a pixel's added light relative to the \
+                 frame's mean rendered radiance",
+            ))
+            .param(depth_param())
+            .param(seed_param())
+            .param(ParamSpec::optional(
+                "mode",
+                ParamType::Enum(&["additive", "ratio"]),
+                ParamValue::Str("additive".into()),
+                "`additive`: plate + (with − without), Debevec 1998, the book; `ratio`: plate × \
+                 with / without, a multiplicative shadow matte (keeps the plate's texture in \
+                 shadows, never below black)",
+            ))
+            .param(ParamSpec::optional(
+                "strategy",
+                ParamType::Enum(&["mis", "brdf_only"]),
+                ParamValue::Str("mis".into()),
+                "`mis`: light/dome and BRDF sampling combined; `brdf_only`: hemisphere \
+                 sampling only, as the book's program (for noise comparisons)",
+            ))
+            .param(ParamSpec::optional(
+                "plate",
+                ParamType::Path(PathRole::Input),
+                ParamValue::Str(String::new()),
+                "a plate file pattern (e.g. plate/frame.%04d.exr), read when the `plate` input \
+                 is not connected; empty = no plate",
+            )),
+        ))
+        .input(
+            PortSpec::one(
+                "plate",
+                ImageArt::NAME,
+                "this frame's plate (linear radiance)",
+            )
+            .optional(),
+        )
+        .output(PortSpec::one(
+            "image",
+            ImageArt::NAME,
+            "the composite (linear RGB)",
+        ))
+        .output(PortSpec::one(
+            "beauty",
+            ImageArt::NAME,
+            "the synthetic objects, RGBA premultiplied (alpha = coverage)",
+        ))
+        .output(PortSpec::one(
+            "shadow",
+            ImageArt::NAME,
+            "the shadow/light matte: catcher with / without objects (1 = unchanged), RGB",
+        ))
+        .output(PortSpec::one(
+            "layers",
+            LayersArt::NAME,
+            "composite, beauty, shadow, shadow_difference, catcher_with, catcher_without, \
+             variance, samples",
+        ))
+        .output(PortSpec::one(
+            "report",
+            ReportArt::NAME,
+            "counters and time",
+        )),
+        run_differential_render,
+    ));
+    r.register_node(FnNode::new(
+        NodeSpec::new(
+            "composite",
+            "Composites the layers of `differential_render` over a plate (book §10.10) without \
+             rendering again: objects → their beauty; catcher → plate + (with − without) \
+             (`additive`) or plate × with / without (`ratio`); elsewhere the plate. The plate: \
+             the `plate` input, else the `plate` file pattern, else a constant grey of \
+             `grey` (a stand-in that shows the objects and their shadows).",
+        )
+        .mode(Mode::Either)
+        .param(ParamSpec::optional(
+            "mode",
+            ParamType::Enum(&["additive", "ratio"]),
+            ParamValue::Str("additive".into()),
+            "`additive` (Debevec 1998, the book) or `ratio` (a multiplicative shadow matte)",
+        ))
+        .param(ParamSpec::optional(
+            "plate",
+            ParamType::Path(PathRole::Input),
+            ParamValue::Str(String::new()),
+            "a plate file pattern, read when the `plate` input is not connected",
+        ))
+        .param(ParamSpec::optional(
+            "grey",
+            ParamType::Float { min: 0.0, max: 1e6 },
+            ParamValue::Float(0.18),
+            "the stand-in plate's radiance when there is no plate",
+        ))
+        .input(PortSpec::one(
+            "layers",
+            LayersArt::NAME,
+            "from differential_render",
+        ))
+        .input(PortSpec::one("plate", ImageArt::NAME, "the frame's plate").optional())
+        .output(PortSpec::one(
+            "image",
+            ImageArt::NAME,
+            "the composite, linear RGB",
+        )),
+        run_composite,
+    ));
+    r.register_node(FnNode::new(
+        NodeSpec::new(
+            "write_layers",
+            "Writes named layers as one multi-layer OpenEXR file (single part; layer `name` \
+             has channels `name.R`, `name.G`, …; the first layer also gets the bare R, G, B \
+             names so any viewer shows it). Per frame, the path needs a frame pattern.",
+        )
+        .mode(Mode::Either)
+        .param(ParamSpec::required(
+            "path",
+            ParamType::Path(PathRole::Output),
+            "output file, e.g. out/shot.%04d.exr",
+        ))
+        .param(ParamSpec::optional(
+            "precision",
+            ParamType::Enum(&["half", "float"]),
+            ParamValue::Str("half".into()),
+            "sample type",
+        ))
+        .input(PortSpec::one("layers", LayersArt::NAME, "the layers")),
+        run_write_layers,
+    ));
+}
+
+fn run_fit_catcher(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+    let art = ctx.input::<SceneArt>("scene")?;
+    let input_dome = ctx.input_opt::<DomeArt>("dome")?.map(|d| &d.0);
+    let light = pick_light(input_dome, art)?;
+    let frame = ctx.params().i64("frame");
+    let plates = ctx.sequence::<ImageArt>("plate")?;
+    let plate = plates
+        .iter()
+        .find(|(f, _)| *f == frame)
+        .map(|(_, p)| &p.0)
+        .ok_or_else(|| {
+            NodeError::msg(format!(
+                "the plate has no frame {frame} (it has {} frames{})",
+                plates.len(),
+                match (plates.first(), plates.last()) {
+                    (Some(a), Some(b)) => format!(", {}–{}", a.0, b.0),
+                    _ => String::new(),
+                }
+            ))
+        })?;
+    let camera = camera_for_frame(ctx, &art.scene, Some(frame))?;
+    let plate = if (plate.width, plate.height) != (camera.width, camera.height) {
+        return Err(NodeError::msg(format!(
+            "plate frame {frame} is {}×{} but the camera renders {}×{} (set width/height)",
+            plate.width, plate.height, camera.width, camera.height
+        )));
+    } else {
+        plate
+    };
+    let p = ctx.params();
+    let options = FitOptions {
+        settings: settings(ctx, Strategy::Mis),
+        max_iterations: p.i64("iterations") as usize,
+        tolerance: p.f64("tolerance"),
+    };
+    let (scene, fit) = fit_catcher(
+        &art.scene,
+        light.env(),
+        &camera,
+        plate,
+        &options,
+        Some(ctx.cancel_flag()),
+    )
+    .map_err(|e| NodeError::msg(format!("frame {frame}: {e}")))?;
+    let report = serde_json::json!({
+        "frame": frame,
+        "ratio": fit.ratio,
+        "colour_before": fit.before,
+        "colour_after": fit.after,
+        "pixels": fit.pixels,
+        "mean_plate": fit.mean_plate,
+        "relative_residual_rms": fit.residual,
+        "renders": fit.iterations,
+    });
+    let dome = art.dome.clone();
+    ctx.output("scene", SceneArt { scene, dome });
+    ctx.output("report", ReportArt(report));
+    Ok(())
+}
+
+fn run_differential_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+    let art = ctx.input::<SceneArt>("scene")?;
+    let input_dome = ctx.input_opt::<DomeArt>("dome")?.map(|d| &d.0);
+    let light = pick_light(input_dome, art)?;
+    let camera = instance_camera(ctx, &art.scene)?;
+    let p = ctx.params();
+    let mode = CompositeMode::parse(p.str("mode")).unwrap_or_default();
+    let strategy = match p.str("strategy") {
+        "brdf_only" => Strategy::BrdfOnly,
+        _ => Strategy::Mis,
+    };
+    let plate = plate_of(ctx)?;
+    let plate = plate.as_ref();
+    let settings = settings(ctx, strategy);
+    let adaptive = match p.i64("min_spp") {
+        0 => None,
+        m => Some(Adaptive {
+            min_spp: m as u32,
+            noise: p.f64("noise"),
+        }),
+    };
+    let out = {
+        let progress = Mutex::new(|f: f32| ctx.progress(f));
+        differential_render(
+            &art.scene,
+            light.env(),
+            &camera,
+            &settings,
+            adaptive,
+            &|f| {
+                if let Ok(cb) = progress.lock() {
+                    cb(f)
+                }
+            },
+            Some(ctx.cancel_flag()),
+        )
+        .map_err(|e| NodeError::msg(e.to_string()))?
+    };
+    if out.stats.nonfinite > 0 {
+        return Err(NodeError::msg(format!(
+            "{} samples had non-finite radiance (a bug: please report the scene)",
+            out.stats.nonfinite
+        )));
+    }
+    let l = &out.layers;
+    let image = match plate {
+        Some(plate) => composite(l, plate, mode).map_err(NodeError::msg)?,
+        None => Image::from_fn(l.beauty.width, l.beauty.height, 3, |x, y, c| {
+            l.beauty.get(x, y, c) + l.catcher_with.get(x, y, c)
+        }),
+    };
+    let shadow = l.shadow_ratio();
+    let layers = vec![
+        ("composite".to_string(), image.clone()),
+        ("beauty".to_string(), l.beauty.clone()),
+        ("shadow".to_string(), shadow.clone()),
+        ("shadow_difference".to_string(), l.shadow_difference()),
+        ("catcher_with".to_string(), l.catcher_with.clone()),
+        ("catcher_without".to_string(), l.catcher_without.clone()),
+        ("variance".to_string(), l.variance.clone()),
+        ("samples".to_string(), l.samples.clone()),
+    ];
+    let s = out.stats;
+    let report = serde_json::json!({
+        "frame": ctx.frame(),
+        "width": camera.width,
+        "height": camera.height,
+        "spp": settings.spp,
+        "max_depth": settings.max_depth,
+        "mode": p.str("mode"),
+        "plate": plate.is_some(),
+        "traced_pixels": s.traced_pixels,
+        "mean_spp_traced": s.samples as f64 / s.traced_pixels.max(1) as f64,
+        "pixels": s.pixels,
+        "paths_with_objects": s.paths_with,
+        "paths_without_objects": s.paths_without,
+        "seconds": s.seconds,
+    });
+    ctx.output("image", ImageArt(image));
+    ctx.output("beauty", ImageArt(l.beauty.clone()));
+    ctx.output("shadow", ImageArt(shadow));
+    ctx.output("layers", LayersArt(layers));
+    ctx.output("report", ReportArt(report));
+    Ok(())
+}
+
+/// The plate of this instance: the `plate` input, else the `plate` file pattern, else `None`.
+fn plate_of(ctx: &Context<'_>) -> Result<Option<Image>, NodeError> {
+    if let Some(p) = ctx.input_opt::<ImageArt>("plate")? {
+        return Ok(Some(p.0.clone()));
+    }
+    if ctx.params().str("plate").is_empty() {
+        return Ok(None);
+    }
+    let path = ctx.path("plate");
+    read_image(&path)
+        .map(Some)
+        .map_err(|e| NodeError::msg(format!("plate: {e}")))
+}
+
+fn run_composite(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+    let layers = &ctx.input::<LayersArt>("layers")?.0;
+    let get = |name: &str| {
+        layers
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, i)| i.clone())
+            .ok_or_else(|| {
+                NodeError::msg(format!(
+                    "the layers have no `{name}` (they have: {}): connect differential_render's \
+                     `layers`",
+                    layers
+                        .iter()
+                        .map(|(n, _)| n.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ))
+            })
+    };
+    let beauty = get("beauty")?;
+    let l = DifferentialLayers {
+        catcher_with: get("catcher_with")?,
+        catcher_without: get("catcher_without")?,
+        variance: Image::new(beauty.width, beauty.height, 3),
+        samples: Image::new(beauty.width, beauty.height, 1),
+        beauty,
+    };
+    let plate = match plate_of(ctx)? {
+        Some(p) => p,
+        None => {
+            let g = ctx.params().f64("grey") as f32;
+            Image::from_fn(l.beauty.width, l.beauty.height, 3, |_, _, _| g)
+        }
+    };
+    let mode = CompositeMode::parse(ctx.params().str("mode")).unwrap_or_default();
+    let image = composite(&l, &plate, mode).map_err(NodeError::msg)?;
+    ctx.output("image", ImageArt(image));
+    Ok(())
+}
+
+fn run_write_layers(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+    let path_text = ctx.params().str("path").to_string();
+    if ctx.frame().is_some() && !vfxgraph_engine::node::has_frame_pattern(&path_text) {
+        return Err(NodeError::msg(format!(
+            "path `{path_text}` has no frame pattern (`%04d` or `####`): every frame would use one file"
+        )));
+    }
+    let layers = &ctx.input::<LayersArt>("layers")?.0;
+    if layers.is_empty() {
+        return Err(NodeError::msg("no layers to write"));
+    }
+    // The first layer is also written under the bare channel names (what viewers show).
+    let mut named: Vec<(&str, &Image)> = vec![("", &layers[0].1)];
+    named.extend(layers.iter().map(|(n, i)| (n.as_str(), i)));
+    let options = ExrOptions {
+        precision: if ctx.params().str("precision") == "float" {
+            ExrPrecision::Float
+        } else {
+            ExrPrecision::Half
+        },
+        ..Default::default()
+    };
+    let bytes = encode_exr_layers(&named, &options)?;
+    let path = ctx.path("path");
+    if let Some(parent) = path.parent() {
+        std::fs::create_dir_all(parent)
+            .map_err(|e| NodeError::msg(format!("cannot create {}: {e}", parent.display())))?;
+    }
+    vfxgraph_imaging::io::write_atomic(&path, &bytes)?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::testing::{params, spec};
+    use std::path::Path;
+    use vfxgraph_engine::{InputValue, ParamValue, Value};
+    use vfxgraph_render::Brdf;
+
+    /// A grey ground (the catcher, starting colour 0.5) with a red ball on it under a warm
+    /// constant sky.
+    fn scene(catcher_albedo: &str) -> SceneArt {
+        let yaml = format!(
+            "camera:\n  look_at: {{from: [0, -4, 2], at: [0, 0, 0.3], up: [0, 0, 1], fov: 50}}\n  \
+             size: [40, 30]\nobjects:\n  - sphere: {{center: [0, 0, 0.5], radius: 0.5}}\n    \
+             material: {{type: lambert, albedo: [0.8, 0.2, 0.2]}}\n  - quad: {{corner: [-2, -2, 0], \
+             edge1: [4, 0, 0], edge2: [0, 4, 0]}}\n    material: {{type: lambert, albedo: {catcher_albedo}}}\n    \
+             catcher: true\ndome: {{color: [1.0, 0.9, 0.7]}}\n"
+        );
+        let s = vfxgraph_render::parse_yaml_scene(&yaml, Path::new(".")).unwrap();
+        SceneArt {
+            scene: s.scene,
+            dome: None,
+        }
+    }
+
+    type Outputs = (
+        Option<SceneArt>,
+        Option<ReportArt>,
+        Option<ImageArt>,
+        Option<LayersArt>,
+    );
+
+    fn run(
+        name: &str,
+        set: &[(&str, ParamValue)],
+        frame: Option<i64>,
+        inputs: Vec<(&'static str, InputValue)>,
+        dir: &Path,
+        f: fn(&mut Context<'_>) -> Result<(), NodeError>,
+    ) -> Result<Outputs, NodeError> {
+        let sp = spec(name);
+        let ps = params(&sp, set);
+        let mut ctx = Context::for_test(&sp, &ps, dir, frame, inputs);
+        f(&mut ctx)?;
+        let has = |p: &str| sp.outputs.iter().any(|o| o.name == p);
+        Ok((
+            has("scene")
+                .then(|| ctx.take_output::<SceneArt>("scene"))
+                .flatten(),
+            has("report")
+                .then(|| ctx.take_output::<ReportArt>("report"))
+                .flatten(),
+            has("image")
+                .then(|| ctx.take_output::<ImageArt>("image"))
+                .flatten(),
+            has("layers")
+                .then(|| ctx.take_output::<LayersArt>("layers"))
+                .flatten(),
+        ))
+    }
+
+    fn one<T: ArtifactType + Clone>(v: &T) -> InputValue {
+        InputValue::One(Value::new(v.clone()))
+    }
+
+    /// The plate is the "real" ground (true colour) rendered without the ball; the fit finds
+    /// that colour, and the differential render of the fitted scene over the plate adds the
+    /// ball and its shadow: it matches a render of the real ground with the ball.
+    #[test]
+    fn fit_then_differential_render_reproduces_the_real_scene() {
+        let dir = tempfile::tempdir().unwrap();
+        let real = scene("[0.6, 0.5, 0.3]");
+        let plate = vfxgraph_render::render(
+            &vfxgraph_render::World::new(&real.scene.without_synthetic_objects()),
+            &vfxgraph_render::ConstantEnvironment {
+                radiance: real.scene.background,
+            },
+            &real.scene.camera,
+            &RenderSettings {
+                spp: 256,
+                max_depth: 3,
+                seed: 7,
+                ..Default::default()
+            },
+            &|_| {},
+            None,
+        )
+        .unwrap()
+        .image;
+        let start = scene("0.5");
+        let seq = InputValue::Sequence(vec![(5, Value::new(ImageArt(plate.clone())))]);
+        let set = [
+            ("frame", ParamValue::Int(5)),
+            ("spp", ParamValue::Int(64)),
+            ("max_depth", ParamValue::Int(3)),
+        ];
+        let out = run(
+            "fit_catcher",
+            &set,
+            None,
+            vec![("scene", one(&start)), ("plate", seq)],
+            dir.path(),
+            run_fit_catcher,
+        )
+        .unwrap();
+        let fitted = out.0.unwrap();
+        let report = out.1.unwrap().0;
+        let Brdf::Lambert(l) = fitted.scene.objects[1].material else {
+            panic!("catcher material changed kind")
+        };
+        for (got, want) in [(l.albedo.r, 0.6), (l.albedo.g, 0.5), (l.albedo.b, 0.3)] {
+            assert!(
+                (got - want).abs() / want < 0.02,
+                "{got} vs {want}: {report}"
+            );
+        }
+        // The fit frame must exist in the plate.
+        let e = run(
+            "fit_catcher",
+            &[("frame", ParamValue::Int(9))],
+            None,
+            vec![
+                ("scene", one(&start)),
+                (
+                    "plate",
+                    InputValue::Sequence(vec![(5, Value::new(ImageArt(plate.clone())))]),
+                ),
+            ],
+            dir.path(),
+            run_fit_catcher,
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("no frame 9"), "{e}");
+
+        // Differential render over the plate vs the truth (the real ground with the ball).
+        let truth = vfxgraph_render::render(
+            &vfxgraph_render::World::new(&real.scene),
+            &vfxgraph_render::ConstantEnvironment {
+                radiance: real.scene.background,
+            },
+            &real.scene.camera,
+            &RenderSettings {
+                spp: 256,
+                max_depth: 3,
+                seed: 8,
+                ..Default::default()
+            },
+            &|_| {},
+            None,
+        )
+        .unwrap()
+        .image;
+        let out = run(
+            "differential_render",
+            &[
+                ("spp", ParamValue::Int(64)),
+                ("max_depth", ParamValue::Int(3)),
+            ],
+            None,
+            vec![
+                ("scene", one(&fitted)),
+                ("plate", one(&ImageArt(plate.clone()))),
+            ],
+            dir.path(),
+            run_differential_render,
+        )
+        .unwrap();
+        let comp = &out.2.unwrap().0;
+        let diff: f32 = comp
+            .data
+            .iter()
+            .zip(&truth.data)
+            .map(|(a, b)| (a - b).abs())
+            .sum::<f32>()
+            / comp.data.len() as f32;
+        let mean: f32 = truth.data.iter().sum::<f32>() / truth.data.len() as f32;
+        assert!(
+            diff < 0.03 * mean,
+            "mean |composite − truth| {diff} (mean {mean})"
+        );
+        // The layers go to a multi-layer EXR a compositor (and our reader) can pick apart.
+        let layers = out.3.unwrap();
+        let names: Vec<&str> = layers.0.iter().map(|(n, _)| n.as_str()).collect();
+        assert_eq!(
+            names,
+            [
+                "composite",
+                "beauty",
+                "shadow",
+                "shadow_difference",
+                "catcher_with",
+                "catcher_without",
+                "variance",
+                "samples"
+            ]
+        );
+        run(
+            "write_layers",
+            &[
+                ("path", ParamValue::Str("out/shot.%04d.exr".into())),
+                ("precision", ParamValue::Str("float".into())),
+            ],
+            Some(3),
+            vec![("layers", one(&layers))],
+            dir.path(),
+            run_write_layers,
+        )
+        .unwrap();
+        let bytes = std::fs::read(dir.path().join("out/shot.0003.exr")).unwrap();
+        let beauty = vfxgraph_imaging::io::decode_exr_layer(&bytes, "beauty").unwrap();
+        assert_eq!(beauty.data, layers.0[1].1.data);
+        assert_eq!(beauty.channels, 4);
+        let main = vfxgraph_imaging::decode(&bytes, vfxgraph_imaging::Format::Exr).unwrap();
+        assert_eq!(main.data, comp.data);
+        // `composite` redoes the composite from the layers alone, bit for bit.
+        let again = run(
+            "composite",
+            &[],
+            None,
+            vec![("layers", one(&layers)), ("plate", one(&ImageArt(plate)))],
+            dir.path(),
+            run_composite,
+        )
+        .unwrap()
+        .2
+        .unwrap()
+        .0;
+        assert_eq!(again.data, comp.data);
+        let e = run(
+            "composite",
+            &[],
+            None,
+            vec![("layers", one(&LayersArt(vec![])))],
+            dir.path(),
+            run_composite,
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("no `beauty`"), "{e}");
+        // Per frame, the path needs a frame pattern.
+        let e = run(
+            "write_layers",
+            &[("path", ParamValue::Str("out/shot.exr".into()))],
+            Some(3),
+            vec![("layers", one(&layers))],
+            dir.path(),
+            run_write_layers,
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("frame pattern"), "{e}");
+    }
+
+    #[test]
+    fn a_missing_plate_file_is_a_clear_error() {
+        let dir = tempfile::tempdir().unwrap();
+        let e = run(
+            "differential_render",
+            &[
+                ("spp", ParamValue::Int(1)),
+                ("plate", ParamValue::Str("plate.%04d.exr".into())),
+            ],
+            Some(12),
+            vec![("scene", one(&scene("0.5")))],
+            dir.path(),
+            run_differential_render,
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("plate.0012.exr"), "{e}");
+    }
+
+    #[test]
+    fn layers_round_trip_through_the_cache_encoding() {
+        let l = LayersArt(vec![
+            (
+                "a".into(),
+                Image::from_fn(3, 2, 4, |x, y, c| (x + y + c) as f32),
+            ),
+            ("b".into(), Image::new(3, 2, 3)),
+        ]);
+        let mut b = Vec::new();
+        l.encode(&mut b);
+        assert_eq!(LayersArt::decode(&b).unwrap(), l);
+        assert!(LayersArt::decode(&b[..b.len() - 1]).is_err());
+    }
+}
