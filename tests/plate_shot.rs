@@ -50,7 +50,7 @@ fn plate_shot_solves_the_true_cameras_and_measures_the_patch() {
     copy_dir(&Path::new(env!("CARGO_MANIFEST_DIR")).join("graphs"), &g);
     let out = Command::new(env!("CARGO_BIN_EXE_vfxgraph"))
         .current_dir(&g)
-        .args(["run", "--json", "plate_shot.yaml", "--set", "truth.spp=2"])
+        .args(["run", "--json", "plate_shot.yaml"])
         .output()
         .unwrap();
     assert!(
@@ -97,6 +97,119 @@ fn plate_shot_solves_the_true_cameras_and_measures_the_patch() {
         assert!(
             err < 0.06,
             "corner {want:?} measured at {q:?} (error {err})"
+        );
+    }
+    // The fitted catcher colour: within 2 % of the patch colour C the plate was made with.
+    let fit: Json =
+        serde_json::from_str(&std::fs::read_to_string(o.join("fit.json")).unwrap()).unwrap();
+    let c = [0.5, 0.42, 0.34];
+    for (k, want) in c.iter().enumerate() {
+        let got = fit["colour_after"][k].as_f64().unwrap();
+        eprintln!("catcher colour channel {k}: fitted {got:.4}, true {want}");
+        assert!(
+            (got - want).abs() / want < 0.02,
+            "channel {k}: {got} vs {want}"
+        );
+    }
+    // The composite against the truth frames over the regions the CG changed (objects and
+    // their shadows): mean absolute error within 2× the truth render's Monte Carlo noise,
+    // measured as E|X − E X| = √(2/π)·σ from the truth render's per-pixel variance (the
+    // `variance` output of `render`, written to truth_var.FFFF.exr).
+    for f in [1, 20, 40] {
+        let read = |kind: &str| {
+            vfxgraph_imaging::read_image(&o.join(format!("{kind}.{f:04}.exr"))).unwrap()
+        };
+        let (comp, truth, var, plate) = (
+            read("composite"),
+            read("truth"),
+            read("truth_var"),
+            read("plate"),
+        );
+        let mean_plate = plate.data.iter().sum::<f32>() / plate.data.len() as f32;
+        let (mut err, mut noise, mut n) = (0.0f64, 0.0f64, 0usize);
+        for i in 0..comp.data.len() {
+            let px = i / 3 * 3;
+            let changed =
+                (0..3).any(|c| (comp.data[px + c] - plate.data[px + c]).abs() > 0.02 * mean_plate);
+            if !changed {
+                continue;
+            }
+            err += (comp.data[i] - truth.data[i]).abs() as f64;
+            noise += (2.0 / std::f64::consts::PI).sqrt() * (var.data[i] as f64).max(0.0).sqrt();
+            n += 1;
+        }
+        let (err, noise) = (err / n as f64, noise / n as f64);
+        eprintln!("frame {f}: {} changed samples, MAE vs truth {err:.5}, truth noise {noise:.5} (ratio {:.2})", n / 3, err / noise);
+        assert!(n > 3 * 500, "frame {f}: only {} changed pixels", n / 3);
+        assert!(
+            err <= 2.0 * noise,
+            "frame {f}: MAE {err} vs truth noise {noise}"
+        );
+    }
+    // Partial reruns (a second run in the same folder, from the cache).
+    let run = |args: &[&str]| -> Vec<(String, String)> {
+        let out = Command::new(env!("CARGO_BIN_EXE_vfxgraph"))
+            .current_dir(&g)
+            .args(["run", "--json", "plate_shot.yaml"])
+            .args(args)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let j: Json = serde_json::from_slice(&out.stdout).unwrap();
+        j["nodes"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|n| {
+                (
+                    n["id"].as_str().unwrap().to_string(),
+                    n["status"].as_str().unwrap().to_string(),
+                )
+            })
+            .collect()
+    };
+    let ran = |st: &[(String, String)], id: &str| st.iter().any(|(i, s)| i == id && s == "ran");
+    let again = run(&[]);
+    assert!(
+        again.iter().all(|(_, s)| s == "cached"),
+        "second run: {again:?}"
+    );
+    let refit = run(&["--set", "fit.frame=10"]);
+    for id in ["fit", "shot"] {
+        assert!(
+            ran(&refit, id),
+            "{id} should rerun when the fit frame changes"
+        );
+    }
+    for id in ["plate", "track", "solve", "corners", "truth"] {
+        assert!(
+            !ran(&refit, id),
+            "{id} reran when only the fit frame changed"
+        );
+    }
+    let scene = g.join("scenes/plate_cg.yaml");
+    let text = std::fs::read_to_string(&scene).unwrap();
+    let edited = text.replace("albedo: [0.7, 0.25, 0.2]", "albedo: [0.2, 0.3, 0.7]");
+    assert_ne!(
+        edited, text,
+        "the sphere colour to edit is in scenes/plate_cg.yaml"
+    );
+    std::fs::write(&scene, edited).unwrap();
+    let recolour = run(&["--set", "fit.frame=10"]);
+    for id in ["cg", "place", "shot"] {
+        assert!(
+            ran(&recolour, id),
+            "{id} should rerun when a sphere's colour changes"
+        );
+    }
+    for id in ["plate", "track", "solve", "corners", "marks", "truth"] {
+        assert!(
+            !ran(&recolour, id),
+            "{id} reran when only a sphere's colour changed"
         );
     }
     // The plate and truth frames exist for every frame.
