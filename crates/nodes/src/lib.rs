@@ -20,6 +20,8 @@ pub mod render;
 #[cfg(test)]
 mod testing;
 pub mod tracking;
+#[cfg(feature = "opencv")]
+pub mod tracking_opencv;
 pub mod video;
 
 use vfxgraph_engine::{Context, Node, NodeError, NodeSpec, Registry};
@@ -62,5 +64,7 @@ pub fn registry() -> Registry {
     hdr::register(&mut r);
     render::register(&mut r);
     video::register(&mut r);
+    #[cfg(feature = "opencv")]
+    tracking_opencv::register(&mut r);
     r
 }
