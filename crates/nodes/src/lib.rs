@@ -23,6 +23,8 @@ pub mod shot;
 #[cfg(test)]
 mod testing;
 pub mod tracking;
+#[cfg(feature = "opencv")]
+pub mod tracking_opencv;
 pub mod video;
 
 use vfxgraph_engine::{Context, Node, NodeError, NodeSpec, Registry};
@@ -69,5 +71,7 @@ pub fn registry() -> Registry {
     shot::register(&mut r);
     placement::register(&mut r);
     video::register(&mut r);
+    #[cfg(feature = "opencv")]
+    tracking_opencv::register(&mut r);
     r
 }

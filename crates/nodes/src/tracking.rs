@@ -40,16 +40,86 @@ const FORMATS: &[&str] = &["book", "native"];
 /// Registers the artifact and nodes of this module.
 pub fn register(r: &mut Registry) {
     r.register_artifact::<TracksArt>();
-    let pos = |min: f64, max: f64| ParamType::Float { min, max };
     r.register_node(FnNode::new(
-        NodeSpec::new(
+        klt_spec(
             "klt_track",
             "KLT feature tracking (book ch. 6): Shi–Tomasi corners in the first frame, pyramidal \
-             Lucas–Kanade frame to frame, disposal of features that leave the image, become \
-             untrackable or whose window residual exceeds `max_residual` (6.5), and refill of \
-             lost slots with new corners that keep `min_distance` from live features. Tracks \
-             luminance on a 0–255 sRGB-encoded scale.",
+                 Lucas–Kanade frame to frame, disposal of features that leave the image, become \
+                 untrackable or whose window residual exceeds `max_residual` (6.5), and refill of \
+                 lost slots with new corners that keep `min_distance` from live features. Tracks \
+                 luminance on a 0–255 sRGB-encoded scale.",
+        ),
+        run_klt_track,
+    ));
+    r.register_node(FnNode::new(
+        NodeSpec::new(
+            "read_tracks",
+            "Reads tracks: the book's `f.txt` format (`Features per frame = N`, `Frame i`, \
+             `x y status`) or the native JSON format, recognised by content.",
         )
+        .mode(Mode::Once)
+        .param(ParamSpec::required(
+            "path",
+            ParamType::Path(PathRole::Input),
+            "the tracks file",
+        ))
+        .output(PortSpec::one("tracks", TracksArt::NAME, "the tracks")),
+        run_read_tracks,
+    ));
+    r.register_node(FnNode::new(
+        NodeSpec::new(
+            "write_tracks",
+            "Writes tracks atomically: `book` = the book's f.txt (status 0 tracked, -1 lost; \
+             slots reused), `native` = JSON with ids and loss reasons.",
+        )
+        .mode(Mode::Once)
+        .param(ParamSpec::required(
+            "path",
+            ParamType::Path(PathRole::Output),
+            "the file to write",
+        ))
+        .param(ParamSpec::optional(
+            "format",
+            ParamType::Enum(FORMATS),
+            ParamValue::Str("book".into()),
+            "book | native",
+        ))
+        .input(PortSpec::one("tracks", TracksArt::NAME, "the tracks")),
+        run_write_tracks,
+    ));
+    r.register_node(FnNode::new(
+        NodeSpec::new(
+            "draw_tracks",
+            "Draws the tracks over each frame for a person to look at: each live track's path \
+             over the last `trail` frames in a colour of its own, its current position as a \
+             cross, and tracks lost at this frame as red squares.",
+        )
+        .mode(Mode::PerFrame)
+        .param(ParamSpec::optional(
+            "trail",
+            ParamType::Int {
+                min: 0,
+                max: 100_000,
+            },
+            ParamValue::Int(15),
+            "frames of path drawn behind each feature",
+        ))
+        .input(PortSpec::one("frames", ImageArt::NAME, "the frame"))
+        .input(PortSpec::one("tracks", TracksArt::NAME, "the tracks"))
+        .output(PortSpec::one(
+            "image",
+            ImageArt::NAME,
+            "the frame with tracks drawn (RGB)",
+        )),
+        run_draw_tracks,
+    ));
+}
+
+/// The spec shared by `klt_track` and its OpenCV cross-check `klt_track_opencv`: the same
+/// params, defaults and ports.
+pub(crate) fn klt_spec(name: &'static str, doc: &'static str) -> NodeSpec {
+    let pos = |min: f64, max: f64| ParamType::Float { min, max };
+    NodeSpec::new(name, doc)
         .mode(Mode::Once)
         .param(ParamSpec::optional(
             "features",
@@ -126,74 +196,10 @@ pub fn register(r: &mut Registry) {
             ImageArt::NAME,
             "the frames, in order",
         ))
-        .output(PortSpec::one("tracks", TracksArt::NAME, "the tracks")),
-        run_klt_track,
-    ));
-    r.register_node(FnNode::new(
-        NodeSpec::new(
-            "read_tracks",
-            "Reads tracks: the book's `f.txt` format (`Features per frame = N`, `Frame i`, \
-             `x y status`) or the native JSON format, recognised by content.",
-        )
-        .mode(Mode::Once)
-        .param(ParamSpec::required(
-            "path",
-            ParamType::Path(PathRole::Input),
-            "the tracks file",
-        ))
-        .output(PortSpec::one("tracks", TracksArt::NAME, "the tracks")),
-        run_read_tracks,
-    ));
-    r.register_node(FnNode::new(
-        NodeSpec::new(
-            "write_tracks",
-            "Writes tracks atomically: `book` = the book's f.txt (status 0 tracked, -1 lost; \
-             slots reused), `native` = JSON with ids and loss reasons.",
-        )
-        .mode(Mode::Once)
-        .param(ParamSpec::required(
-            "path",
-            ParamType::Path(PathRole::Output),
-            "the file to write",
-        ))
-        .param(ParamSpec::optional(
-            "format",
-            ParamType::Enum(FORMATS),
-            ParamValue::Str("book".into()),
-            "book | native",
-        ))
-        .input(PortSpec::one("tracks", TracksArt::NAME, "the tracks")),
-        run_write_tracks,
-    ));
-    r.register_node(FnNode::new(
-        NodeSpec::new(
-            "draw_tracks",
-            "Draws the tracks over each frame for a person to look at: each live track's path \
-             over the last `trail` frames in a colour of its own, its current position as a \
-             cross, and tracks lost at this frame as red squares.",
-        )
-        .mode(Mode::PerFrame)
-        .param(ParamSpec::optional(
-            "trail",
-            ParamType::Int {
-                min: 0,
-                max: 100_000,
-            },
-            ParamValue::Int(15),
-            "frames of path drawn behind each feature",
-        ))
-        .input(PortSpec::one("frames", ImageArt::NAME, "the frame"))
-        .input(PortSpec::one("tracks", TracksArt::NAME, "the tracks"))
-        .output(PortSpec::one(
-            "image",
-            ImageArt::NAME,
-            "the frame with tracks drawn (RGB)",
-        )),
-        run_draw_tracks,
-    ));
+        .output(PortSpec::one("tracks", TracksArt::NAME, "the tracks"))
 }
 
-fn tracker_params(ctx: &Context<'_>) -> TrackerParams {
+pub(crate) fn tracker_params(ctx: &Context<'_>) -> TrackerParams {
     let p = ctx.params();
     let window = p.i64("window") as usize;
     let fb = p.f64("fb_threshold") as f32;
@@ -218,7 +224,7 @@ fn tracker_params(ctx: &Context<'_>) -> TrackerParams {
     }
 }
 
-fn run_klt_track(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+pub(crate) fn run_klt_track(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let params = tracker_params(ctx);
     let frames = ctx.sequence::<ImageArt>("frames")?;
     let grays: Vec<(i64, GrayImage)> = frames

@@ -11,6 +11,9 @@
 //! group of pictures. Streams whose samples are reordered (B-frames) are reported as
 //! unsupported rather than returned out of order.
 //!
+//! With the `opencv` cargo feature, `capture::Capture` reads any container and codec
+//! OpenCV's `VideoCapture` opens into the same frames.
+//!
 //! [`write_mp4`] encodes frames with OpenH264's encoder and muxes a minimal MP4 (used by the
 //! tests to make their own videos).
 
@@ -22,6 +25,8 @@ use openh264::decoder::Decoder;
 use openh264::formats::YUVSource;
 use vfxgraph_imaging::Image;
 
+#[cfg(feature = "opencv")]
+pub mod capture;
 mod mux;
 pub mod sps;
 pub mod yuv;
@@ -169,8 +174,8 @@ impl Video {
                 return Err(unsupported(
                     path,
                     format!(
-                        "codec `{codec}`: only H.264 (avc1) is decoded in the default build \
-                         (build with the `opencv` feature for other codecs)"
+                        "codec `{codec}`: only H.264 (avc1) is decoded natively (other \
+                         codecs: the OpenCV reader, in a build with the `opencv` feature)"
                     ),
                 ));
             }
@@ -225,8 +230,8 @@ impl Video {
         {
             return Err(unsupported(
                 path,
-                "reordered frames (B-frames); re-encode without B-frames or build with the \
-                 `opencv` feature",
+                "reordered frames (B-frames); re-encode without B-frames or use the OpenCV \
+                 reader (a build with the `opencv` feature)",
             ));
         }
         let duration = track.duration as f64 / track.timescale.max(1) as f64;
@@ -400,6 +405,9 @@ impl Video {
         Ok(out)
     }
 }
+
+#[cfg(feature = "opencv")]
+pub use capture::Capture;
 
 #[cfg(test)]
 mod tests;

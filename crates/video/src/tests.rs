@@ -7,7 +7,7 @@ use super::*;
 
 /// Frame `k` of a moving test pattern (linear light): smooth gradients, a moving disc and
 /// saturated colour patches (red, green, blue, yellow) on the left.
-fn pattern(w: usize, h: usize, k: usize) -> Image {
+pub(crate) fn pattern(w: usize, h: usize, k: usize) -> Image {
     Image::from_fn(w, h, 3, |x, y, c| {
         let (xf, yf) = (x as f32, y as f32);
         let patch = (y * 4) / h;
@@ -33,7 +33,7 @@ fn pattern(w: usize, h: usize, k: usize) -> Image {
 
 /// Mean absolute difference of two images in the gamma-encoded (sRGB) domain, over pixels
 /// where `region(x, y)` holds.
-fn mean_diff(a: &Image, b: &Image, region: impl Fn(usize, usize) -> bool) -> f32 {
+pub(crate) fn mean_diff(a: &Image, b: &Image, region: impl Fn(usize, usize) -> bool) -> f32 {
     let (mut s, mut n) = (0.0f64, 0usize);
     for y in 0..a.height {
         for x in 0..a.width {

@@ -1,10 +1,12 @@
 //! Readers and writers of the book's text formats (see `book/GAPS.md`) and their JSON forms:
 //! intrinsics (`g7cam.txt`), cameras files (`Frame i` / R / t), marked points (`Frame f` /
-//! `Npoints n` / `u v`…), plain point lists, and the Oxford VGG files used by the tests.
+//! `Npoints n` / `u v`…), plain point lists, the Oxford VGG files used by the tests and
+//! Middlebury `.flo` ground-truth flow.
 //!
 //! Parse errors name the file and the 1-based line.
 
 pub mod cameras;
+pub mod flo;
 pub mod intrinsics;
 pub mod marked_points;
 pub mod points;
