@@ -351,33 +351,61 @@ pub fn differential_render(
         // Rounds: a pixel takes another batch while the largest variance in its 3×3
         // neighbourhood is above the target (shadows and reflections are spatially coherent:
         // a pixel whose few samples all missed a rare event is kept going by its neighbours).
+        // Only pixels next to one that sampled in the last round can change their decision,
+        // so each round looks at those candidates only (the decisions, and so the image, are
+        // those of checking every pixel every round).
+        let variance = |a: &Option<Acc>| {
+            a.as_ref()
+                .map_or(0.0, |a| a.variance_of_mean().max_component())
+        };
+        let mut var: Vec<f64> = rows
+            .par_iter()
+            .flat_map_iter(|row| row.iter().map(variance))
+            .collect();
+        let mut candidate = traced.clone();
         loop {
-            let var: Vec<f64> = rows
-                .par_iter()
-                .flat_map_iter(|row| {
-                    row.iter().map(|a| {
-                        a.as_ref()
-                            .map_or(0.0, |a| a.variance_of_mean().max_component())
+            let sample_now: Vec<bool> = (0..h)
+                .into_par_iter()
+                .flat_map_iter(|y| {
+                    let (rows, var, candidate) = (&rows, &var, &candidate);
+                    (0..w).map(move |x| {
+                        candidate[y * w + x]
+                            && rows[y][x].as_ref().is_some_and(|a| a.k < spp)
+                            && (y.saturating_sub(1)..(y + 2).min(h)).any(|yy| {
+                                (x.saturating_sub(1)..(x + 2).min(w))
+                                    .any(|xx| var[yy * w + xx] > target)
+                            })
                     })
                 })
                 .collect();
-            let noisy = |x: usize, y: usize| {
-                (y.saturating_sub(1)..(y + 2).min(h)).any(|yy| {
-                    (x.saturating_sub(1)..(x + 2).min(w)).any(|xx| var[yy * w + xx] > target)
-                })
-            };
-            let taken = AtomicUsize::new(0);
-            rows.par_iter_mut().enumerate().for_each(|(y, row)| {
-                for (x, acc) in row.iter_mut().enumerate() {
-                    let Some(acc) = acc else { continue };
-                    if acc.k < spp && !cancelled() && noisy(x, y) {
-                        tracers.sample(acc, x, y, a.min_spp.min(spp - acc.k));
-                        taken.fetch_add(1, Ordering::Relaxed);
+            if cancelled() || !sample_now.iter().any(|&b| b) {
+                break;
+            }
+            rows.par_iter_mut()
+                .zip(var.par_chunks_mut(w))
+                .enumerate()
+                .for_each(|(y, (row, var_row))| {
+                    for (x, acc) in row.iter_mut().enumerate() {
+                        if !sample_now[y * w + x] {
+                            continue;
+                        }
+                        if let Some(acc) = acc {
+                            tracers.sample(acc, x, y, a.min_spp.min(spp - acc.k));
+                            var_row[x] = acc.variance_of_mean().max_component();
+                        }
+                    }
+                });
+            candidate.iter_mut().for_each(|c| *c = false);
+            for y in 0..h {
+                for x in 0..w {
+                    if sample_now[y * w + x] {
+                        for yy in y.saturating_sub(1)..(y + 2).min(h) {
+                            for xx in x.saturating_sub(1)..(x + 2).min(w) {
+                                candidate[yy * w + xx] = true;
+                            }
+                        }
                     }
                 }
-            });
-            if taken.into_inner() == 0 || cancelled() {
-                break;
             }
         }
         (0..h).for_each(|_| tick());
