@@ -360,6 +360,42 @@ pub(crate) fn pick_light<'a>(
     }
 }
 
+/// Runs `f` with a `Sync` progress callback forwarding to `ctx.progress` (the engine's
+/// callback is not `Sync`; calls are serialized through a mutex).
+pub(crate) fn with_sync_progress<R>(
+    ctx: &Context<'_>,
+    f: impl FnOnce(&(dyn Fn(f32) + Sync)) -> R,
+) -> R {
+    let progress = Mutex::new(|x: f32| ctx.progress(x));
+    f(&|x| {
+        if let Ok(cb) = progress.lock() {
+            cb(x)
+        }
+    })
+}
+
+/// Settings from the `spp`, `max_depth` and `seed` params (the seed mixed into the graph's).
+pub(crate) fn render_settings(ctx: &Context<'_>, strategy: Strategy) -> RenderSettings {
+    let p = ctx.params();
+    RenderSettings {
+        spp: p.i64("spp") as u32,
+        max_depth: p.i64("max_depth") as u32,
+        seed: ctx.seed() ^ (p.i64("seed") as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15),
+        strategy,
+        ..Default::default()
+    }
+}
+
+/// An error when a render dropped non-finite samples (a bug in the tracer, not in the scene).
+pub(crate) fn check_finite(nonfinite: u64) -> Result<(), NodeError> {
+    if nonfinite > 0 {
+        return Err(NodeError::msg(format!(
+            "{nonfinite} samples had non-finite radiance (a bug: please report the scene)"
+        )));
+    }
+    Ok(())
+}
+
 fn run_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let art = ctx.input::<SceneArt>("scene")?;
     let input_dome = ctx.input_opt::<DomeArt>("dome")?.map(|d| &d.0);
@@ -367,13 +403,7 @@ fn run_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let env = light.env();
     let camera = instance_camera(ctx, &art.scene)?;
     let p = ctx.params();
-    let settings = RenderSettings {
-        spp: p.i64("spp") as u32,
-        max_depth: p.i64("max_depth") as u32,
-        seed: ctx.seed() ^ (p.i64("seed") as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15),
-        strategy: Strategy::Mis,
-        ..Default::default()
-    };
+    let settings = render_settings(ctx, Strategy::Mis);
     let sampling = if p.str("light_sampling") == "solid_angle" {
         LightSampling::SolidAngle
     } else {
@@ -384,29 +414,18 @@ fn run_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     } else {
         World::with_light_sampling(&art.scene, sampling)
     };
-    // The engine's progress callback is not `Sync`; serialize calls through a mutex.
-    let out = {
-        let progress = Mutex::new(|f: f32| ctx.progress(f));
+    let out = with_sync_progress(ctx, |progress| {
         render(
             &world,
             env,
             &camera,
             &settings,
-            &|f| {
-                if let Ok(cb) = progress.lock() {
-                    cb(f)
-                }
-            },
+            progress,
             Some(ctx.cancel_flag()),
         )
-        .map_err(|e| NodeError::msg(e.to_string()))?
-    };
-    if out.stats.nonfinite > 0 {
-        return Err(NodeError::msg(format!(
-            "{} samples had non-finite radiance (a bug: please report the scene)",
-            out.stats.nonfinite
-        )));
-    }
+    })
+    .map_err(|e| NodeError::msg(e.to_string()))?;
+    check_finite(out.stats.nonfinite)?;
     ctx.output("image", ImageArt(out.image));
     ctx.output("variance", ImageArt(out.variance));
     Ok(())

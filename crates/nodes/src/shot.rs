@@ -2,8 +2,6 @@
 //! program), `differential_render` (objects and their shadows composited over the plate,
 //! Debevec 1998) and `write_layers` (multi-layer OpenEXR for a compositor).
 
-use std::sync::Mutex;
-
 use vfxgraph_engine::artifact::codec::{put_bytes, put_u64, Reader};
 use vfxgraph_engine::{
     ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, ParamValue, PathRole,
@@ -15,11 +13,14 @@ use vfxgraph_render::catcher_fit::{fit_catcher, FitOptions};
 use vfxgraph_render::differential::{
     composite, differential_render, Adaptive, CompositeMode, DifferentialLayers,
 };
-use vfxgraph_render::{RenderSettings, Strategy};
+use vfxgraph_render::Strategy;
 
 use crate::artifacts::{CameraPathArt, ImageArt, IntrinsicsArt, ReportArt};
 use crate::hdr::DomeArt;
-use crate::render::{camera_for_frame, instance_camera, pick_light, SceneArt};
+use crate::render::{
+    camera_for_frame, check_finite, instance_camera, pick_light, render_settings,
+    with_sync_progress, SceneArt,
+};
 use crate::FnNode;
 
 /// Named images of one size (`layers`): what a compositor reads from a multi-layer EXR.
@@ -131,17 +132,6 @@ fn light_and_camera_inputs(spec: NodeSpec) -> NodeSpec {
         )
         .optional(),
     )
-}
-
-fn settings(ctx: &Context<'_>, strategy: Strategy) -> RenderSettings {
-    let p = ctx.params();
-    RenderSettings {
-        spp: p.i64("spp") as u32,
-        max_depth: p.i64("max_depth") as u32,
-        seed: ctx.seed() ^ (p.i64("seed") as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15),
-        strategy,
-        ..Default::default()
-    }
 }
 
 /// Registers the artifact and nodes of this module.
@@ -391,7 +381,7 @@ fn run_fit_catcher(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     };
     let p = ctx.params();
     let options = FitOptions {
-        settings: settings(ctx, Strategy::Mis),
+        settings: render_settings(ctx, Strategy::Mis),
         max_iterations: p.i64("iterations") as usize,
         tolerance: p.f64("tolerance"),
     };
@@ -433,7 +423,7 @@ fn run_differential_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     };
     let plate = plate_of(ctx)?;
     let plate = plate.as_ref();
-    let settings = settings(ctx, strategy);
+    let settings = render_settings(ctx, strategy);
     let adaptive = match p.i64("min_spp") {
         0 => None,
         m => Some(Adaptive {
@@ -441,29 +431,19 @@ fn run_differential_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
             noise: p.f64("noise"),
         }),
     };
-    let out = {
-        let progress = Mutex::new(|f: f32| ctx.progress(f));
+    let out = with_sync_progress(ctx, |progress| {
         differential_render(
             &art.scene,
             light.env(),
             &camera,
             &settings,
             adaptive,
-            &|f| {
-                if let Ok(cb) = progress.lock() {
-                    cb(f)
-                }
-            },
+            progress,
             Some(ctx.cancel_flag()),
         )
-        .map_err(|e| NodeError::msg(e.to_string()))?
-    };
-    if out.stats.nonfinite > 0 {
-        return Err(NodeError::msg(format!(
-            "{} samples had non-finite radiance (a bug: please report the scene)",
-            out.stats.nonfinite
-        )));
-    }
+    })
+    .map_err(|e| NodeError::msg(e.to_string()))?;
+    check_finite(out.stats.nonfinite)?;
     let l = &out.layers;
     let image = match plate {
         Some(plate) => composite(l, plate, mode).map_err(NodeError::msg)?,
@@ -598,7 +578,7 @@ mod tests {
     use crate::testing::{params, spec};
     use std::path::Path;
     use vfxgraph_engine::{InputValue, ParamValue, Value};
-    use vfxgraph_render::Brdf;
+    use vfxgraph_render::{Brdf, RenderSettings};
 
     /// A grey ground (the catcher, starting colour 0.5) with a red ball on it under a warm
     /// constant sky.
