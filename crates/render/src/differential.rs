@@ -207,7 +207,7 @@ impl Acc {
 struct Tracers<'a> {
     with_world: &'a World,
     with: PathTracer<'a>,
-    without: PathTracer<'a>,
+    without_world: &'a World,
     is_catcher: &'a [bool],
     gen: crate::camera::RayGenerator,
 }
@@ -230,10 +230,15 @@ impl Tracers<'_> {
             };
             // The change this sample adds to the plate.
             let delta = if catcher {
-                // The same random numbers for both: correlated sampling.
-                let mut s2 = acc.s.clone();
-                let lw = self.with.radiance(ray, &mut acc.s);
-                let lo = self.without.radiance(ray, &mut s2);
+                // The same random numbers for both (correlated sampling), one path until it
+                // meets an object.
+                let is_synthetic = |m: u32| !self.is_catcher[m as usize];
+                let (lw, lo) = self.with.radiance_with_and_without(
+                    self.without_world,
+                    &is_synthetic,
+                    ray,
+                    &mut acc.s,
+                );
                 acc.paths[0] += 1;
                 acc.paths[1] += 1;
                 if !(lw.is_finite() && lo.is_finite()) {
@@ -301,7 +306,7 @@ pub fn differential_render(
     let tracers = Tracers {
         with_world: &with_world,
         with: tracer(&with_world),
-        without: tracer(&without_world),
+        without_world: &without_world,
         is_catcher: &is_catcher,
         gen: camera.rays(),
     };

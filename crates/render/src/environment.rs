@@ -28,6 +28,11 @@ pub trait Environment: Send + Sync {
     fn sample(&self, u: [f64; 2]) -> Option<EnvironmentSample>;
     /// The solid-angle density of [`Environment::sample`] at `dir`.
     fn pdf(&self, dir: Vec3) -> f64;
+    /// [`Environment::radiance`] and [`Environment::pdf`] of one direction (an escaped path
+    /// weighed by MIS needs both; an environment can share the work).
+    fn radiance_and_pdf(&self, dir: Vec3) -> (Rgb, f64) {
+        (self.radiance(dir), self.pdf(dir))
+    }
     /// True when the environment is black everywhere (no sampling needed).
     fn is_black(&self) -> bool {
         false

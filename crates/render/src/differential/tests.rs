@@ -291,3 +291,54 @@ fn adaptive_sampling_spends_samples_where_the_noise_is() {
     eprintln!("adaptive: spp {lo}..{hi}, mean {mean:.1}; mean z² {z2:.3}");
     assert!(z2 < 2.0, "mean z² {z2}");
 }
+
+/// The joint tracer of the catcher samples equals two separate path tracers run from clones of
+/// one stream, bit for bit, for every strategy — with a mirror sphere added so paths also part
+/// after a specular bounce and meet objects at later vertices.
+#[test]
+fn joint_with_without_paths_equal_separate_paths() {
+    use crate::brdf::Mirror;
+    use crate::integrator::Strategy;
+    use crate::render::seeded_sampler;
+    let mut s = scene(64, 48);
+    s.objects.push(Object::new(
+        Shape::Sphere(Sphere {
+            center: Vec3::new(1.1, 0.3, 0.4),
+            radius: 0.4,
+        }),
+        Brdf::Mirror(Mirror {
+            reflectance: Rgb::splat(0.9),
+        }),
+    ));
+    let e = env(&s);
+    let with = World::new(&s);
+    let without = World::new(&s.without_synthetic_objects());
+    let is_catcher: Vec<bool> = s.objects.iter().map(|o| o.catcher).collect();
+    let is_synthetic = |m: u32| !is_catcher[m as usize];
+    let gen = s.camera.rays();
+    let mut pick = seeded_sampler(11);
+    let mut parted = 0;
+    for strategy in [Strategy::Mis, Strategy::BrdfOnly, Strategy::LightOnly] {
+        let tracer = |world| PathTracer {
+            world,
+            environment: &e,
+            max_depth: 4,
+            rr_depth: 2,
+            strategy,
+        };
+        for i in 0..3000u64 {
+            let ray = gen.ray(pick.next() * 64.0 - 0.5, pick.next() * 48.0 - 0.5);
+            let mut s0 = seeded_sampler(i);
+            let (mut s1, mut s2) = (s0.clone(), s0.clone());
+            let (lw, lo) =
+                tracer(&with).radiance_with_and_without(&without, &is_synthetic, ray, &mut s0);
+            let want_w = tracer(&with).radiance(ray, &mut s1);
+            let want_o = tracer(&without).radiance(ray, &mut s2);
+            assert_eq!((lw, lo), (want_w, want_o), "ray {i} ({strategy:?})");
+            // The joint stream continues as the with-objects path's stream did.
+            assert_eq!(s0.next(), s1.next());
+            parted += usize::from(lw != lo);
+        }
+    }
+    assert!(parted > 300, "too few paths met an object: {parted}");
+}
