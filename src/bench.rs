@@ -76,9 +76,10 @@ pub enum BenchCommand {
         /// Intrinsics K of the frames (1280×720).
         #[arg(long, default_value = "../shared/data/book-demo/g7cam.txt")]
         intrinsics: std::path::PathBuf,
-        /// Our samples per pixel (the maximum, with adaptive sampling).
-        #[arg(long, default_value_t = 256)]
-        spp: u32,
+        /// Our samples per pixel (the maximum, with adaptive sampling); a comma-separated list
+        /// renders every combination with `--noise` against the same references.
+        #[arg(long, default_value = "512", value_delimiter = ',')]
+        spp: Vec<u32>,
         /// Samples per pixel of the reference.
         #[arg(long, default_value_t = 1024)]
         reference_spp: u32,
@@ -94,9 +95,10 @@ pub enum BenchCommand {
         /// Adaptive sampling: samples every traced pixel gets (0 = `--spp` everywhere).
         #[arg(long, default_value_t = 8)]
         min_spp: u32,
-        /// Adaptive sampling: target standard error relative to the frame's mean radiance.
-        #[arg(long, default_value_t = 0.01)]
-        noise: f64,
+        /// Adaptive sampling: target standard error relative to the frame's mean radiance
+        /// (a comma-separated list: see `--spp`).
+        #[arg(long, default_value = "0.15", value_delimiter = ',')]
+        noise: Vec<f64>,
         /// Print the figures as JSON.
         #[arg(long)]
         json: bool,
@@ -135,13 +137,13 @@ pub fn run(cmd: BenchCommand, registry: &Registry) -> Result<u8, String> {
             scene: &scene,
             dome: &dome,
             intrinsics: &intrinsics,
-            spp,
+            spp: &spp,
             reference_spp,
             book_spp,
             max_depth,
             width,
             min_spp,
-            noise,
+            noise: &noise,
             json,
         }),
     }

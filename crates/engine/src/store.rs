@@ -2,7 +2,8 @@
 //!
 //! ```text
 //! .vfxgraph/
-//!   objects/ab/<digest>   artifact bytes, named by their content digest
+//!   objects/ab/<digest>   artifact bytes (LZ4-compressed when that pays), named by the
+//!                         digest of their uncompressed content
 //!   actions/ab/<key>      JSON: the output digests (and written files) of one node instance
 //!   records/<node>.json   the key components of each node's last run, to explain reruns
 //!   files.json            the (path, size, mtime) → digest memo of input files
@@ -24,7 +25,12 @@ use serde::{Deserialize, Serialize};
 
 use crate::artifact::{content_digest, Digest};
 
+/// An object whose payload is stored as is.
 const OBJECT_MAGIC: &[u8; 5] = b"VFXO1";
+/// An object whose payload is an LZ4 block with its uncompressed size prepended (lz4_flex):
+/// renders are mostly empty outside the traced pixels, and the cache of a shot's layers
+/// shrinks several times over for a few milliseconds a frame.
+const OBJECT_MAGIC_LZ4: &[u8; 5] = b"VFXO2";
 
 /// One output of a cached node instance.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -179,10 +185,16 @@ impl Store {
             return Ok(());
         }
         let name_len = (type_name.len() as u32).to_le_bytes();
-        self.write_atomic(
-            &path,
-            &[OBJECT_MAGIC, &name_len, type_name.as_bytes(), bytes],
-        )
+        // Compress what compresses (large payloads losing at least an eighth); the rest is
+        // stored as is and read without a copy through the decompressor.
+        let packed = (bytes.len() >= 4096)
+            .then(|| lz4_flex::block::compress_prepend_size(bytes))
+            .filter(|p| p.len() < bytes.len() - bytes.len() / 8);
+        let (magic, payload) = match &packed {
+            Some(p) => (OBJECT_MAGIC_LZ4, p.as_slice()),
+            None => (OBJECT_MAGIC, bytes),
+        };
+        self.write_atomic(&path, &[magic, &name_len, type_name.as_bytes(), payload])
     }
 
     /// True if an object file exists (not verified).
@@ -196,11 +208,25 @@ impl Store {
         let path = self.object_path(digest);
         let raw = fs::read(&path).ok()?;
         let parsed = (|| {
-            let rest = raw.strip_prefix(OBJECT_MAGIC)?;
+            let (compressed, rest) = match raw.strip_prefix(OBJECT_MAGIC_LZ4) {
+                Some(rest) => (true, rest),
+                None => (false, raw.strip_prefix(OBJECT_MAGIC)?),
+            };
             let n = u32::from_le_bytes(rest.get(..4)?.try_into().ok()?) as usize;
             let name = std::str::from_utf8(rest.get(4..4 + n)?).ok()?;
-            let payload = rest.get(4 + n..)?;
-            (content_digest(name, payload) == *digest).then(|| (name.to_string(), payload.to_vec()))
+            let stored = rest.get(4 + n..)?;
+            let payload = if compressed {
+                // A corrupt size prefix must not allocate without bound: LZ4 expands at
+                // most 255×.
+                let size = u32::from_le_bytes(stored.get(..4)?.try_into().ok()?) as usize;
+                if size > stored.len().saturating_mul(255) {
+                    return None;
+                }
+                lz4_flex::block::decompress_size_prepended(stored).ok()?
+            } else {
+                stored.to_vec()
+            };
+            (content_digest(name, &payload) == *digest).then(|| (name.to_string(), payload))
         })();
         if parsed.is_none() {
             tracing::warn!("cache object {} is corrupt; removing it", digest.short());
@@ -376,6 +402,49 @@ impl Store {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn large_objects_are_compressed_and_corruption_is_a_miss() {
+        let dir = tempfile::tempdir().unwrap();
+        let s = Store::open(dir.path()).unwrap();
+        // A render: mostly zero, some varied values.
+        let payload: Vec<u8> = (0..1_000_000u32)
+            .flat_map(|i| {
+                let v = if i % 10 == 0 { (i as f32).sin() } else { 0.0 };
+                v.to_le_bytes()
+            })
+            .collect();
+        let d = content_digest("image", &payload);
+        s.put_object(&d, "image", &payload).unwrap();
+        let p = s.object_path(&d);
+        let size = fs::metadata(&p).unwrap().len() as usize;
+        assert!(size < payload.len() / 3, "{size} bytes on disk");
+        assert_eq!(s.get_object(&d), Some(("image".into(), payload.clone())));
+        // Incompressible payloads are stored as they are.
+        let mut noise = vec![0u8; 100_000];
+        blake3::Hasher::new()
+            .update(b"noise")
+            .finalize_xof()
+            .fill(&mut noise);
+        let dn = content_digest("bytes", &noise);
+        s.put_object(&dn, "bytes", &noise).unwrap();
+        assert!(fs::read(s.object_path(&dn)).unwrap().starts_with(OBJECT_MAGIC));
+        assert_eq!(s.get_object(&dn), Some(("bytes".into(), noise)));
+        // A flipped byte inside the compressed stream, a huge size prefix, a truncation: a
+        // miss each time (never a panic), and the object is removed.
+        let raw = fs::read(&p).unwrap();
+        let header = OBJECT_MAGIC_LZ4.len() + 4 + "image".len();
+        let mut flipped = raw.clone();
+        flipped[raw.len() / 2] ^= 0x55;
+        let mut huge = raw.clone();
+        huge[header..header + 4].copy_from_slice(&u32::MAX.to_le_bytes());
+        let truncated = raw[..raw.len() - 7].to_vec();
+        for bad in [flipped, huge, truncated] {
+            fs::write(&p, &bad).unwrap();
+            assert_eq!(s.get_object(&d), None);
+            assert!(!s.has_object(&d));
+        }
+    }
 
     #[test]
     fn objects_round_trip_and_corruption_is_a_miss() {

@@ -211,8 +211,10 @@ pub fn register(r: &mut Registry) {
                     max: 1 << 20,
                 },
                 ParamValue::Int(0),
-                "adaptive sampling: every traced pixel gets `min_spp` samples, then more (up to \
-                 `spp`) while its noise is above `noise`; 0 = `spp` everywhere",
+                "adaptive sampling: every traced pixel gets `min_spp` samples, then batches of \
+                 `min_spp` more (up to `spp`) while its noise is above the `noise` target scaled by \
+                 its samples / `min_spp` (samples in proportion to each pixel's deviation: the \
+                 least total squared error for the samples spent); 0 = `spp` everywhere",
             ))
             .param(ParamSpec::optional(
                 "noise",
@@ -221,8 +223,8 @@ pub fn register(r: &mut Registry) {
                     max: 10.0,
                 },
                 ParamValue::Float(0.01),
-                "adaptive target: the standard error of a pixel's added light relative to the \
-                 frame's mean rendered radiance",
+                "adaptive target: the standard error of a pixel's added light after `min_spp` \
+                 samples, relative to the frame's mean rendered radiance",
             ))
             .param(depth_param())
             .param(seed_param())
