@@ -428,7 +428,9 @@ mod tests {
             .fill(&mut noise);
         let dn = content_digest("bytes", &noise);
         s.put_object(&dn, "bytes", &noise).unwrap();
-        assert!(fs::read(s.object_path(&dn)).unwrap().starts_with(OBJECT_MAGIC));
+        assert!(fs::read(s.object_path(&dn))
+            .unwrap()
+            .starts_with(OBJECT_MAGIC));
         assert_eq!(s.get_object(&dn), Some(("bytes".into(), noise)));
         // A flipped byte inside the compressed stream, a huge size prefix, a truncation: a
         // miss each time (never a panic), and the object is removed.

@@ -324,29 +324,28 @@ pub fn differential_render(
     let cancelled = || cancel.is_some_and(|c| c.load(Ordering::Relaxed));
     let spp = settings.spp;
     let first = adaptive.map_or(spp, |a| a.min_spp.min(spp));
+    // The traced pixels, in scanline order; `accs[i]` is pixel `pixels[i]`'s running sums.
+    let pixels: Vec<usize> = (0..w * h).filter(|&p| traced[p]).collect();
     let done = AtomicUsize::new(0);
     let passes = if adaptive.is_some() { 2 } else { 1 };
+    let step = (pixels.len() / 200).max(1);
     let tick = || {
         let d = done.fetch_add(1, Ordering::Relaxed) + 1;
-        progress(d as f32 / (passes * h) as f32);
+        if d % step == 0 {
+            progress(d as f32 / (passes * pixels.len()).max(1) as f32);
+        }
     };
 
     // Pass 1: every traced pixel gets `first` samples.
-    let mut rows: Vec<Vec<Option<Acc>>> = (0..h)
-        .into_par_iter()
-        .map(|y| {
-            let row = (0..w)
-                .map(|x| {
-                    if !traced[y * w + x] || cancelled() {
-                        return None;
-                    }
-                    let mut acc = Acc::new(settings.seed, (y * w + x) as u64);
-                    tracers.sample(&mut acc, x, y, first);
-                    Some(acc)
-                })
-                .collect();
+    let mut accs: Vec<Acc> = pixels
+        .par_iter()
+        .map(|&p| {
+            let mut acc = Acc::new(settings.seed, p as u64);
+            if !cancelled() {
+                tracers.sample(&mut acc, p % w, p / w, first);
+            }
             tick();
-            row
+            acc
         })
         .collect();
     if cancelled() {
@@ -355,78 +354,87 @@ pub fn differential_render(
 
     // Pass 2: more samples where the pixel is noisier than the target.
     if let Some(a) = adaptive {
-        let (mut total, mut count) = (0.0, 0usize);
-        for acc in rows.iter().flatten().flatten() {
-            total += ((acc.beauty + acc.with) / acc.k as f64).average();
-            count += 1;
-        }
-        let mean = if count > 0 { total / count as f64 } else { 0.0 };
-        let target = (a.noise * mean).powi(2);
-        // Rounds: a pixel with k samples takes another batch while the largest variance in
-        // its 3×3 neighbourhood is above target × k / min_spp (shadows and reflections are spatially coherent:
-        // a pixel whose few samples all missed a rare event is kept going by its neighbours).
-        // Only pixels next to one that sampled in the last round can change their decision,
-        // so each round looks at those candidates only (the decisions, and so the image, are
-        // those of checking every pixel every round).
-        let variance = |a: &Option<Acc>| {
-            a.as_ref()
-                .map_or(0.0, |a| a.variance_of_mean().max_component())
+        let total: f64 = accs
+            .iter()
+            .map(|acc| ((acc.beauty + acc.with) / acc.k as f64).average())
+            .sum();
+        let mean = if accs.is_empty() {
+            0.0
+        } else {
+            total / accs.len() as f64
         };
-        let mut var: Vec<f64> = rows
-            .par_iter()
-            .flat_map_iter(|row| row.iter().map(variance))
-            .collect();
-        let mut candidate = traced.clone();
+        let target = (a.noise * mean).powi(2);
+        // Rounds: a pixel with k samples takes another batch while the largest variance of the
+        // mean in its 3×3 neighbourhood is above target × k / min_spp (shadows and reflections
+        // are spatially coherent: a pixel whose few samples all missed a rare event is kept
+        // going by its neighbours). Only pixels next to one that sampled in the last round can
+        // change their decision, so each round looks at those candidates only and costs what
+        // they cost (the decisions, and so the image, are those of checking every pixel every
+        // round).
+        let mut var = vec![0.0f64; w * h];
+        for (acc, &p) in accs.iter().zip(&pixels) {
+            var[p] = acc.variance_of_mean().max_component();
+        }
+        let mut slot = vec![u32::MAX; w * h];
+        for (i, &p) in pixels.iter().enumerate() {
+            slot[p] = i as u32;
+        }
+        let neighbours = |p: usize| {
+            let (x, y) = (p % w, p / w);
+            (y.saturating_sub(1)..(y + 2).min(h)).flat_map(move |yy| {
+                (x.saturating_sub(1)..(x + 2).min(w)).map(move |xx| yy * w + xx)
+            })
+        };
+        let mut candidates: Vec<u32> = (0..pixels.len() as u32).collect();
+        let mut active = vec![false; pixels.len()];
+        let mut marked = vec![false; pixels.len()];
         loop {
-            let sample_now: Vec<bool> = (0..h)
-                .into_par_iter()
-                .flat_map_iter(|y| {
-                    let (rows, var, candidate) = (&rows, &var, &candidate);
-                    (0..w).map(move |x| {
-                        let k = rows[y][x].as_ref().map_or(spp, |a| a.k);
-                        let t = target * k as f64 / a.min_spp as f64;
-                        candidate[y * w + x]
-                            && k < spp
-                            && (y.saturating_sub(1)..(y + 2).min(h)).any(|yy| {
-                                (x.saturating_sub(1)..(x + 2).min(w)).any(|xx| var[yy * w + xx] > t)
-                            })
-                    })
+            let sample_now: Vec<u32> = candidates
+                .par_iter()
+                .copied()
+                .filter(|&i| {
+                    let k = accs[i as usize].k;
+                    let t = target * k as f64 / a.min_spp as f64;
+                    k < spp && neighbours(pixels[i as usize]).any(|q| var[q] > t)
                 })
                 .collect();
-            if cancelled() || !sample_now.iter().any(|&b| b) {
+            if cancelled() || sample_now.is_empty() {
                 break;
             }
-            rows.par_iter_mut()
-                .zip(var.par_chunks_mut(w))
+            for &i in &sample_now {
+                active[i as usize] = true;
+            }
+            accs.par_iter_mut()
+                .zip(active.par_iter())
                 .enumerate()
-                .for_each(|(y, (row, var_row))| {
-                    for (x, acc) in row.iter_mut().enumerate() {
-                        if !sample_now[y * w + x] {
-                            continue;
-                        }
-                        if let Some(acc) = acc {
-                            tracers.sample(acc, x, y, a.min_spp.min(spp - acc.k));
-                            var_row[x] = acc.variance_of_mean().max_component();
-                        }
-                    }
+                .filter(|(_, (_, &on))| on)
+                .for_each(|(i, (acc, _))| {
+                    let p = pixels[i];
+                    tracers.sample(acc, p % w, p / w, a.min_spp.min(spp - acc.k));
                 });
-            candidate.iter_mut().for_each(|c| *c = false);
-            for y in 0..h {
-                for x in 0..w {
-                    if sample_now[y * w + x] {
-                        for yy in y.saturating_sub(1)..(y + 2).min(h) {
-                            for xx in x.saturating_sub(1)..(x + 2).min(w) {
-                                candidate[yy * w + xx] = true;
-                            }
-                        }
+            // The next candidates: the traced neighbours of every pixel that just sampled.
+            candidates.clear();
+            for &i in &sample_now {
+                active[i as usize] = false;
+                let p = pixels[i as usize];
+                var[p] = accs[i as usize].variance_of_mean().max_component();
+                for q in neighbours(p) {
+                    let j = slot[q];
+                    if j != u32::MAX && !marked[j as usize] {
+                        marked[j as usize] = true;
+                        candidates.push(j);
                     }
                 }
             }
+            for &j in &candidates {
+                marked[j as usize] = false;
+            }
+            candidates.sort_unstable();
         }
-        (0..h).for_each(|_| tick());
         if cancelled() {
             return Err(RenderError::Cancelled);
         }
+        progress(1.0);
     }
 
     let mut beauty = Image::new(w, h, 4);
@@ -438,41 +446,36 @@ pub fn differential_render(
         pixels: (w * h) as u64,
         ..Default::default()
     };
-    for (y, row) in rows.iter().enumerate() {
-        for (x, acc) in row.iter().enumerate() {
-            let Some(acc) = acc else { continue };
-            let n = acc.k as f64;
-            let (b, wi, wo) = (acc.beauty / n, acc.with / n, acc.without / n);
-            let (a_o, a_c) = (
-                (acc.n_obj as f64 / n) as f32,
-                (acc.n_catch as f64 / n) as f32,
-            );
-            let v = acc.variance_of_mean();
-            beauty
-                .pixel_mut(x, y)
-                .copy_from_slice(&[b.r as f32, b.g as f32, b.b as f32, a_o]);
-            catcher_with.pixel_mut(x, y).copy_from_slice(&[
-                wi.r as f32,
-                wi.g as f32,
-                wi.b as f32,
-                a_c,
-            ]);
-            catcher_without.pixel_mut(x, y).copy_from_slice(&[
-                wo.r as f32,
-                wo.g as f32,
-                wo.b as f32,
-                a_c,
-            ]);
-            variance
-                .pixel_mut(x, y)
-                .copy_from_slice(&[v.r as f32, v.g as f32, v.b as f32]);
-            samples.set(x, y, 0, acc.k as f32);
-            stats.traced_pixels += 1;
-            stats.samples += acc.k as u64;
-            stats.paths_with += acc.paths[0];
-            stats.paths_without += acc.paths[1];
-            stats.nonfinite += acc.bad;
-        }
+    for (acc, &p) in accs.iter().zip(&pixels) {
+        let (x, y) = (p % w, p / w);
+        let n = acc.k as f64;
+        let (b, wi, wo) = (acc.beauty / n, acc.with / n, acc.without / n);
+        let (a_o, a_c) = (
+            (acc.n_obj as f64 / n) as f32,
+            (acc.n_catch as f64 / n) as f32,
+        );
+        let v = acc.variance_of_mean();
+        beauty
+            .pixel_mut(x, y)
+            .copy_from_slice(&[b.r as f32, b.g as f32, b.b as f32, a_o]);
+        catcher_with
+            .pixel_mut(x, y)
+            .copy_from_slice(&[wi.r as f32, wi.g as f32, wi.b as f32, a_c]);
+        catcher_without.pixel_mut(x, y).copy_from_slice(&[
+            wo.r as f32,
+            wo.g as f32,
+            wo.b as f32,
+            a_c,
+        ]);
+        variance
+            .pixel_mut(x, y)
+            .copy_from_slice(&[v.r as f32, v.g as f32, v.b as f32]);
+        samples.set(x, y, 0, acc.k as f32);
+        stats.traced_pixels += 1;
+        stats.samples += acc.k as u64;
+        stats.paths_with += acc.paths[0];
+        stats.paths_without += acc.paths[1];
+        stats.nonfinite += acc.bad;
     }
     stats.seconds = start.elapsed().as_secs_f64();
     Ok(DifferentialOutput {
