@@ -331,7 +331,7 @@ pub fn differential_render(
     let step = (pixels.len() / 200).max(1);
     let tick = || {
         let d = done.fetch_add(1, Ordering::Relaxed) + 1;
-        if d % step == 0 {
+        if d.is_multiple_of(step) {
             progress(d as f32 / (passes * pixels.len()).max(1) as f32);
         }
     };
