@@ -61,6 +61,33 @@ pub enum BenchCommand {
     /// (hemisphere sampling only, 1000 spp, 2 bounces; its noise extrapolated from
     /// `--book-spp` by the 1/N law of Monte Carlo variance), and the spp and time per frame at
     /// which ours matches the book's noise.
+    /// The noise of the shot's own frames: multi-layer EXRs written by `graphs/book_shot.yaml`
+    /// (ours), by the same graph at a high fixed spp with two seeds (the references) and with
+    /// `strategy: brdf_only` at `--book-spp` (the book's estimator, scaled to 1000 spp) — see
+    /// README, "The shot".
+    Noise {
+        /// Our renders (`%04d` = frame).
+        #[arg(long, default_value = "graphs/out/book_shot/shot.%04d.exr")]
+        ours: String,
+        /// The first reference.
+        #[arg(long, default_value = "graphs/out/book_shot_noise/reference1.%04d.exr")]
+        reference: String,
+        /// The second reference (another seed).
+        #[arg(long, default_value = "graphs/out/book_shot_noise/reference2.%04d.exr")]
+        reference2: String,
+        /// The book's estimator.
+        #[arg(long, default_value = "graphs/out/book_shot_noise/book.%04d.exr")]
+        book: String,
+        /// Samples per pixel of the book-estimator renders.
+        #[arg(long, default_value_t = 64)]
+        book_spp: u32,
+        /// The frames to compare.
+        #[arg(long, default_value = "40,140,239", value_delimiter = ',')]
+        frames: Vec<i64>,
+        /// Print the figures as JSON.
+        #[arg(long)]
+        json: bool,
+    },
     Shot {
         /// The scene (objects + shadow catcher + dome orientation), in the cameras' frame.
         #[arg(long, default_value = "../shared/data/book-demo/modeling.scn")]
@@ -121,6 +148,23 @@ pub fn run(cmd: BenchCommand, registry: &Registry) -> Result<u8, String> {
             intrinsics,
             json,
         } => bench_matchmove(&tracks, &intrinsics, json),
+        BenchCommand::Noise {
+            ours,
+            reference,
+            reference2,
+            book,
+            book_spp,
+            frames,
+            json,
+        } => crate::bench_shot::run_noise(&crate::bench_shot::NoiseArgs {
+            ours: &ours,
+            reference: &reference,
+            reference2: &reference2,
+            book: &book,
+            book_spp,
+            frames: &frames,
+            json,
+        }),
         BenchCommand::Shot {
             scene,
             dome,

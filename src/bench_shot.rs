@@ -14,7 +14,8 @@ use std::path::Path;
 use std::time::Instant;
 
 use nalgebra::Vector3;
-use vfxgraph_imaging::read_image;
+use vfxgraph_imaging::io::decode_exr_layer;
+use vfxgraph_imaging::{read_image, Image};
 use vfxgraph_render::differential::{differential_render, Adaptive, DifferentialLayers};
 use vfxgraph_render::dome::Dome;
 use vfxgraph_render::{parse_scn, parse_yaml_scene, Camera, RenderSettings, Scene, Strategy};
@@ -254,21 +255,14 @@ pub fn run(a: &Args<'_>) -> Result<u8, String> {
         "ours rmse: all/object/catcher/edge",
         "book @1000 spp: all/object/catcher/edge"
     );
-    let f = |v: &serde_json::Value| {
-        v.as_array()
-            .into_iter()
-            .flatten()
-            .map(|x| format!("{:.4}", x.as_f64().unwrap_or(f64::NAN)))
-            .collect::<Vec<_>>()
-            .join(" ")
-    };
+    let f = numbers;
     for r in summary["views"].as_array().into_iter().flatten() {
         println!(
             "{:>10} {:>4} {:>5} {:>8} {:>9.1} {:>7.2}  {:<35} {:<35}",
             r["view"].as_str().unwrap_or(""),
-            r["spp"],
-            r["noise"],
-            r["traced_pixels"],
+            r["spp"].to_string(),
+            r["noise"].to_string(),
+            r["traced_pixels"].to_string(),
             r["ours_mean_spp"].as_f64().unwrap_or(f64::NAN),
             r["ours_seconds"].as_f64().unwrap_or(f64::NAN),
             f(&r["ours_rmse_all_object_catcher_edge"]),
@@ -288,4 +282,113 @@ pub fn run(a: &Args<'_>) -> Result<u8, String> {
         );
     }
     Ok(0)
+}
+
+/// What `vfxgraph bench noise` compares: multi-layer EXRs of the same frames written by
+/// `differential_render` + `write_layers` (`%04d` patterns).
+pub struct NoiseArgs<'a> {
+    pub ours: &'a str,
+    pub reference: &'a str,
+    pub reference2: &'a str,
+    pub book: &'a str,
+    pub book_spp: u32,
+    pub frames: &'a [i64],
+    pub json: bool,
+}
+
+/// The layers of frame `frame` of the EXR pattern `pattern`.
+fn read_layers(pattern: &str, frame: i64) -> Result<DifferentialLayers, String> {
+    let path = pattern.replace("%04d", &format!("{frame:04}"));
+    let bytes = std::fs::read(&path).map_err(|e| format!("{path}: {e}"))?;
+    let layer = |name: &str| {
+        decode_exr_layer(&bytes, name).map_err(|e| format!("{path}: layer {name}: {e}"))
+    };
+    let beauty = layer("beauty")?;
+    let (w, h) = (beauty.width, beauty.height);
+    Ok(DifferentialLayers {
+        catcher_with: layer("catcher_with")?,
+        catcher_without: layer("catcher_without")?,
+        beauty,
+        variance: Image::new(w, h, 3),
+        samples: Image::new(w, h, 1),
+    })
+}
+
+/// `vfxgraph bench noise`: the noise of the shot's own frames (the renders of
+/// `graphs/book_shot.yaml`) against two high-spp references of them, beside the book's
+/// estimator — the figures of [`run`] on real frames of the solved path instead of views of
+/// the book's reference camera.
+pub fn run_noise(a: &NoiseArgs<'_>) -> Result<u8, String> {
+    let scale = a.book_spp as f64 / BOOK_SPP;
+    let rmse = |n: [f64; 4], k: f64| n.map(|v| (v * k).sqrt());
+    let mut rows = Vec::new();
+    for &frame in a.frames {
+        let reference = read_layers(a.reference, frame)?;
+        let reference2 = read_layers(a.reference2, frame)?;
+        let ours = read_layers(a.ours, frame)?;
+        let book = read_layers(a.book, frame)?;
+        let size = |l: &DifferentialLayers| (l.beauty.width, l.beauty.height);
+        if [&reference2, &ours, &book]
+            .iter()
+            .any(|l| size(l) != size(&reference))
+        {
+            return Err(format!("frame {frame}: the four renders differ in size"));
+        }
+        let n_ours = rmse(noise(&ours, &reference, &reference2), 1.0);
+        let n_book = rmse(noise(&book, &reference, &reference2), scale);
+        rows.push(serde_json::json!({
+            "frame": frame,
+            "ours_rmse_all_object_catcher_edge": n_ours,
+            "book_rmse_at_1000spp_all_object_catcher_edge": n_book,
+            "reference_rmse_all_object_catcher_edge": mse(&reference2, &reference).map(|v| (v / 2.0).sqrt()),
+            "ours_over_book": n_ours[0] / n_book[0],
+        }));
+    }
+    let worst = rows
+        .iter()
+        .map(|r| r["ours_over_book"].as_f64().unwrap_or(f64::NAN))
+        .fold(0.0, f64::max);
+    if a.json {
+        println!(
+            "{:#}",
+            serde_json::json!({"frames": rows, "worst_ours_over_book": worst})
+        );
+        return Ok(0);
+    }
+    let f = numbers;
+    println!(
+        "{:>6}  {:<35} {:<35} {:<35}",
+        "frame",
+        "ours rmse: all/object/catcher/edge",
+        "book @1000 spp: all/object/catcher/edge",
+        "references' own rmse"
+    );
+    for r in &rows {
+        println!(
+            "{:>6}  {:<35} {:<35} {:<35}",
+            r["frame"].to_string(),
+            f(&r["ours_rmse_all_object_catcher_edge"]),
+            f(&r["book_rmse_at_1000spp_all_object_catcher_edge"]),
+            f(&r["reference_rmse_all_object_catcher_edge"]),
+        );
+    }
+    println!(
+        "worst ours/book noise {worst:.2} ({})",
+        if worst <= 1.0 {
+            "at or below the book's"
+        } else {
+            "above the book's"
+        }
+    );
+    Ok(0)
+}
+
+/// A JSON array of numbers as "0.1234 0.5678 …".
+fn numbers(v: &serde_json::Value) -> String {
+    v.as_array()
+        .into_iter()
+        .flatten()
+        .map(|x| format!("{:.4}", x.as_f64().unwrap_or(f64::NAN)))
+        .collect::<Vec<_>>()
+        .join(" ")
 }
