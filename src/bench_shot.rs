@@ -392,3 +392,72 @@ fn numbers(v: &serde_json::Value) -> String {
         .collect::<Vec<_>>()
         .join(" ")
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Layers whose beauty covers the left half and the catcher the right half of a 64×32
+    /// frame, with values `truth + sigma · n` (n standard normal, from `stream`).
+    fn layers(sigma: f32, stream: u64) -> DifferentialLayers {
+        let mut state = stream.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+        let mut uniform = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+        };
+        let mut normal = move || {
+            let (u, v) = (uniform(), uniform());
+            ((-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()) as f32
+        };
+        let (w, h) = (64, 32);
+        let truth = |x: usize, y: usize, c: usize| 0.2 + 0.01 * (x + 2 * y + c) as f32;
+        let mut beauty = Image::new(w, h, 4);
+        let mut with = Image::new(w, h, 4);
+        let mut without = Image::new(w, h, 4);
+        for y in 0..h {
+            for x in 0..w {
+                for c in 0..3 {
+                    if x < w / 2 {
+                        beauty.set(x, y, c, truth(x, y, c) + sigma * normal());
+                    } else {
+                        with.set(x, y, c, truth(x, y, c) + sigma * normal());
+                        without.set(x, y, c, 0.1);
+                    }
+                }
+                if x < w / 2 {
+                    beauty.set(x, y, 3, 1.0);
+                } else {
+                    with.set(x, y, 3, 1.0);
+                    without.set(x, y, 3, 1.0);
+                }
+            }
+        }
+        DifferentialLayers {
+            beauty,
+            catcher_with: with,
+            catcher_without: without,
+            variance: Image::new(w, h, 3),
+            samples: Image::new(w, h, 1),
+        }
+    }
+
+    /// The noise figure is the estimate's own error: with references that are themselves
+    /// noisy (σ = 0.05), an estimate of σ = 0.03 measures ≈ 0.03 (not √(0.03² + 0.05²)), per
+    /// pixel class too.
+    #[test]
+    fn noise_removes_the_references_own_error() {
+        let (r1, r2) = (layers(0.05, 1), layers(0.05, 2));
+        let ours = layers(0.03, 3);
+        let n = noise(&ours, &r1, &r2).map(f64::sqrt);
+        for (k, v) in n.iter().enumerate().take(3) {
+            assert!((v - 0.03).abs() < 0.004, "class {k}: {v}");
+        }
+        let raw = mse(&ours, &r1)[0].sqrt();
+        assert!(
+            (raw - (0.03f64.powi(2) + 0.05f64.powi(2)).sqrt()).abs() < 0.004,
+            "{raw}"
+        );
+    }
+}
