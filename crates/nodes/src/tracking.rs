@@ -191,6 +191,14 @@ pub(crate) fn klt_spec(name: &'static str, doc: &'static str) -> NodeSpec {
             ParamValue::Float(10.0),
             "no corners closer than this to the edge; features closer are lost",
         ))
+        .param(ParamSpec::optional(
+            "drift_correction",
+            pos(0.0, 1e3),
+            ParamValue::Float(0.0),
+            "re-align each step to the feature's first window and keep that position when it \
+             moves less than this many pixels (no drift along long tracks); 0 = off, the \
+             book's frame-to-frame tracker",
+        ))
         .input(PortSpec::sequence(
             "frames",
             ImageArt::NAME,
@@ -221,6 +229,7 @@ pub(crate) fn tracker_params(ctx: &Context<'_>) -> TrackerParams {
         fb_threshold: (fb > 0.0).then_some(fb),
         replace_lost: p.bool("replace_lost"),
         border: p.f64("border") as f32,
+        drift_correction: Some(p.f64("drift_correction") as f32).filter(|&d| d > 0.0),
     }
 }
 

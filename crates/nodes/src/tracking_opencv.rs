@@ -60,6 +60,12 @@ pub fn register(r: &mut Registry) {
 
 fn run_klt_track_opencv(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let params = tracker_params(ctx);
+    if params.drift_correction.is_some() {
+        return Err(NodeError::msg(
+            "klt_track_opencv: drift_correction is only implemented by klt_track (OpenCV's \
+             tracker has no first-window monitoring); set it to 0 or use klt_track",
+        ));
+    }
     let frames = ctx.sequence::<ImageArt>("frames")?;
     let grays: Vec<(i64, GrayImage)> = frames
         .iter()

@@ -1,12 +1,14 @@
 //! KLT feature tracking (book chapter 6): Shi–Tomasi corners ([`corners`], 6.4), image
 //! pyramids ([`pyramid`]), pyramidal Lucas–Kanade ([`lucas_kanade`], 6.2–6.3), the tracks
 //! model with the book's `f.txt` format ([`tracks`]) and the sequence tracker with disposal
-//! and replacement of windows ([`tracker`], 6.5).
+//! and replacement of windows ([`tracker`], 6.5), optionally drift-corrected against each
+//! feature's first window ([`drift`]).
 //!
 //! Brightness is on a 0–255 perceptual scale ([`GrayImage::from_image`]); pixel centres are
 //! at integer coordinates, (0, 0) the top-left pixel's centre, x right, y down.
 
 pub mod corners;
+pub mod drift;
 pub mod lucas_kanade;
 pub mod pyramid;
 pub mod tracker;

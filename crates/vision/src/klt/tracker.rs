@@ -8,10 +8,12 @@
 //! does not depend on the number of threads.
 
 use super::corners::{good_features_to_track, CornerParams};
+use super::drift::Template;
 use super::lucas_kanade::{track_points, LkParams};
 use super::pyramid::{GrayImage, Pyramid};
 use super::tracks::{Loss, LostReason, Track, Tracks};
 use super::KltError;
+use rayon::prelude::*;
 
 /// Parameters of the sequence tracker (book 6.4–6.5). Defaults: the book's 150 features,
 /// minimum distance 10, quality 1e-5, OpenCV's LK defaults, a residual threshold of 12 gray
@@ -37,6 +39,10 @@ pub struct TrackerParams {
     /// window) every window lies wholly inside the image, the book's definition of a window
     /// (6.1).
     pub border: f32,
+    /// Drift correction ([`super::drift`]): each step's position is re-aligned to the
+    /// feature's first window and moved when that moves it less than this many pixels
+    /// (`None`: frame-to-frame only, the book's tracker).
+    pub drift_correction: Option<f32>,
 }
 
 impl Default for TrackerParams {
@@ -48,6 +54,7 @@ impl Default for TrackerParams {
             fb_threshold: None,
             replace_lost: true,
             border: 10.0,
+            drift_correction: None,
         }
     }
 }
@@ -61,6 +68,8 @@ pub struct Tracker {
     tracks: Tracks,
     /// Per slot, the index into `tracks.tracks` of its live track.
     live: Vec<Option<usize>>,
+    /// Per track, its first window (with drift correction).
+    templates: Vec<Option<Template>>,
 }
 
 impl Tracker {
@@ -70,6 +79,9 @@ impl Tracker {
         if params.max_residual.is_nan()
             || params.fb_threshold.is_some_and(|t| t.is_nan() || t < 0.0)
             || !(params.border >= 0.0 && params.border < 1e6)
+            || params
+                .drift_correction
+                .is_some_and(|d| !(d > 0.0 && d.is_finite()))
         {
             return Err(KltError::BadParam(
                 "max_residual, fb_threshold and border must be numbers ≥ 0".into(),
@@ -86,6 +98,7 @@ impl Tracker {
                 tracks: Vec::new(),
             },
             live: vec![None; slots],
+            templates: Vec::new(),
         })
     }
 
@@ -132,6 +145,11 @@ impl Tracker {
         let corners = good_features_to_track(img, &cp, mask.as_deref(), &existing)?;
         for (slot, c) in free.into_iter().zip(corners) {
             let id = self.tracks.tracks.len() as u64;
+            self.templates.push(
+                self.params
+                    .drift_correction
+                    .and_then(|_| Template::capture(img, [c.x, c.y], self.params.lk.half_window())),
+            );
             self.live[slot] = Some(self.tracks.tracks.len());
             self.tracks.tracks.push(Track {
                 id,
@@ -185,6 +203,33 @@ impl Tracker {
                         if b.lost.is_some() || d.is_nan() || d > fb {
                             r.lost = Some(LostReason::ForwardBackward);
                         }
+                    }
+                }
+            }
+            if let Some(bound) = self.params.drift_correction {
+                let ks: Vec<Option<usize>> = slots.iter().map(|&s| self.live[s]).collect();
+                let templates = &self.templates;
+                let max_residual = self.params.max_residual;
+                let accepted: Vec<Option<(usize, nalgebra::Matrix3<f64>)>> = res
+                    .par_iter_mut()
+                    .zip(&ks)
+                    .map(|(r, k)| {
+                        let k = (*k)?;
+                        let t = templates[k].as_ref()?;
+                        if r.lost.is_some() {
+                            return None;
+                        }
+                        let (q, residual, warp) = t.align(img, r.pos, 20)?;
+                        let moved = (q[0] - r.pos[0]).hypot(q[1] - r.pos[1]);
+                        (moved < bound && residual <= max_residual).then(|| {
+                            r.pos = q;
+                            (k, warp)
+                        })
+                    })
+                    .collect();
+                for (k, warp) in accepted.into_iter().flatten() {
+                    if let Some(t) = self.templates[k].as_mut() {
+                        t.accept(warp);
                     }
                 }
             }
