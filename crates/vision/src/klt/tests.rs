@@ -318,11 +318,7 @@ fn features_leaving_the_frame_or_occluded_are_lost_not_dragged() {
         },
         ..TrackerParams::default()
     };
-    let seq: Vec<(i64, &GrayImage)> = frames
-        .iter()
-        .enumerate()
-        .map(|(k, f)| (k as i64, f))
-        .collect();
+    let seq = numbered(&frames);
     let tracks = track_sequence(&seq, &params, |_| {}).unwrap();
     tracks.validate().unwrap();
     let (mut left, mut occluded, mut dragged) = (0, 0, 0);
@@ -394,11 +390,7 @@ fn identical_tracks_with_one_and_many_threads() {
             })
         })
         .collect();
-    let seq: Vec<(i64, &GrayImage)> = frames
-        .iter()
-        .enumerate()
-        .map(|(k, f)| (k as i64, f))
-        .collect();
+    let seq = numbered(&frames);
     let params = TrackerParams {
         fb_threshold: Some(1.0),
         ..TrackerParams::default()
@@ -488,11 +480,7 @@ fn drift_correction_keeps_long_tracks_on_their_points() {
             GrayImage::new(w, h, data).unwrap()
         })
         .collect();
-    let seq: Vec<(i64, &GrayImage)> = frames
-        .iter()
-        .enumerate()
-        .map(|(k, f)| (k as i64, f))
-        .collect();
+    let seq = numbered(&frames);
     let end_error = |drift: Option<f32>| {
         let params = TrackerParams {
             corners: CornerParams {
@@ -529,4 +517,13 @@ fn drift_correction_keeps_long_tracks_on_their_points() {
     eprintln!("mean end-point error after {n} frames: frame to frame {plain:.4} px, drift-corrected {corrected:.4} px");
     assert!(corrected < 0.1, "{corrected}");
     assert!(corrected < plain, "{corrected} vs {plain}");
+}
+
+/// Frames numbered 0, 1, … for [`track_sequence`].
+fn numbered(frames: &[GrayImage]) -> Vec<(i64, &GrayImage)> {
+    frames
+        .iter()
+        .enumerate()
+        .map(|(k, f)| (k as i64, f))
+        .collect()
 }
