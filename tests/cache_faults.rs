@@ -3,7 +3,8 @@
 //!
 //! The full disk is a small tmpfs mounted for the test (root only: CI runs as root; under
 //! `CI=true` a failed mount fails the test, elsewhere it prints a notice and passes). The graph
-//! is `graphs/tonemap_hdri.yaml` (its embedded dome: every image is 6.3 MB).
+//! is `graphs/tonemap_hdri.yaml` on its embedded dome: cache objects of 3.1 (the dome), 3.0
+//! (exposed), 5.3 and 2.8 MB (tone-mapped); output files of 2.2 MB (EXR) and 0.5 MB (each PNG).
 
 use std::collections::BTreeMap;
 use std::fs;
@@ -37,9 +38,16 @@ fn vfx(dir: &Path, args: &[&str]) -> Output {
         .unwrap()
 }
 
-/// `vfxgraph run --json GRAPH --cache CACHE` in the graph's folder: exit code, node statuses by
-/// id, stderr.
-fn run(graph: &Path, cache: &Path) -> (Option<i32>, BTreeMap<String, String>, String) {
+/// What `vfxgraph run --json` said: exit code, each node's status and reason, stderr.
+struct Run {
+    code: Option<i32>,
+    status: BTreeMap<String, String>,
+    reason: BTreeMap<String, String>,
+    stderr: String,
+}
+
+/// `vfxgraph run --json GRAPH --cache CACHE` in the graph's folder.
+fn run(graph: &Path, cache: &Path) -> Run {
     let out = Command::new(env!("CARGO_BIN_EXE_vfxgraph"))
         .current_dir(graph.parent().unwrap())
         .arg("run")
@@ -52,18 +60,24 @@ fn run(graph: &Path, cache: &Path) -> (Option<i32>, BTreeMap<String, String>, St
     let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
     let v: Json = serde_json::from_slice(&out.stdout)
         .unwrap_or_else(|e| panic!("no JSON on stdout ({e}); stderr: {stderr}"));
-    let statuses = v["nodes"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|n| {
-            (
-                n["id"].as_str().unwrap().to_string(),
-                n["status"].as_str().unwrap().to_string(),
-            )
-        })
-        .collect();
-    (out.status.code(), statuses, stderr)
+    let nodes = v["nodes"].as_array().unwrap();
+    let field = |k: &str| {
+        nodes
+            .iter()
+            .map(|n| {
+                (
+                    n["id"].as_str().unwrap().to_string(),
+                    n[k].as_str().unwrap().to_string(),
+                )
+            })
+            .collect()
+    };
+    Run {
+        code: out.status.code(),
+        status: field("status"),
+        reason: field("reason"),
+        stderr,
+    }
 }
 
 /// The output files of the graph (`out/` beside it), by name.
@@ -156,33 +170,45 @@ fn a_full_disk_fails_clearly_and_leaves_the_cache_readable() {
     let tmp = tempfile::tempdir().unwrap();
     // Reference: the whole graph with a cache on the ordinary disk.
     let reference = tonemap_graph(&tmp.path().join("reference"));
-    let (code, st, err) = run(&reference, &tmp.path().join("reference_cache"));
+    let Run {
+        code,
+        status: st,
+        stderr: err,
+        ..
+    } = run(&reference, &tmp.path().join("reference_cache"));
     assert_eq!(code, Some(0), "{err}");
     assert!(st.values().all(|s| s == "ran"), "{st:?}");
     let want = outputs(&reference);
     assert_eq!(want.len(), 3);
     let want_digests = cache_digests(&tmp.path().join("reference_cache"));
 
-    // The cache on 8 MB: the dome's image (6.3 MB) fits, the exposed image does not.
+    // The cache on 4 MB: the dome's image fits, the exposed image after it does not.
     let mnt = tmp.path().join("small");
     fs::create_dir_all(&mnt).unwrap();
-    let Some(fs_small) = Tmpfs::mount(&mnt, "8m") else {
+    let Some(fs_small) = Tmpfs::mount(&mnt, "4m") else {
         return;
     };
     let cache = mnt.join("cache");
     let graph = tonemap_graph(&tmp.path().join("full_cache"));
-    let (code, st, err) = run(&graph, &cache);
-    assert_eq!(code, Some(1), "{st:?}\n{err}");
+    let Run {
+        code,
+        status: st,
+        reason,
+        ..
+    } = run(&graph, &cache);
+    assert_eq!(code, Some(1), "{st:?}");
     assert_eq!(st["dome"], "ran", "{st:?}");
-    assert_eq!(st["expose"], "failed", "{st:?}\n{err}");
+    assert_eq!(st["expose"], "failed", "{st:?}");
     for id in ["reinhard", "clip", "exr", "png_reinhard", "png_clip"] {
         assert_eq!(st[id], "skipped", "{id}: {st:?}");
     }
+    // The reason is the node's error (`run` without --json prints it naming the node).
+    let why = &reason["expose"];
     assert!(
-        err.contains("expose")
-            && err.contains("No space left on device")
-            && err.contains(&cache.join("").display().to_string()),
-        "the error names the node, the cause and the cache file:\n{err}"
+        why.contains("could not be cached")
+            && why.contains("No space left on device")
+            && why.contains(&cache.join("objects").display().to_string()),
+        "the error names the cause and the cache file: {why}"
     );
     // Readable: `cache ls` lists exactly the stored entry; no temporary is left behind.
     let ls = vfx(
@@ -207,7 +233,12 @@ fn a_full_disk_fails_clearly_and_leaves_the_cache_readable() {
 
     // Space again: the rerun serves the stored entry (verified) and runs the rest.
     fs_small.resize("64m");
-    let (code, st, err) = run(&graph, &cache);
+    let Run {
+        code,
+        status: st,
+        stderr: err,
+        ..
+    } = run(&graph, &cache);
     assert_eq!(code, Some(0), "{err}");
     assert_eq!(st["dome"], "cached", "{st:?}");
     assert!(
@@ -220,26 +251,37 @@ fn a_full_disk_fails_clearly_and_leaves_the_cache_readable() {
     );
     assert_eq!(outputs(&graph), want);
     assert_eq!(cache_digests(&cache), want_digests);
-    let (code, st, _) = run(&graph, &cache);
+    let Run {
+        code, status: st, ..
+    } = run(&graph, &cache);
     assert_eq!(code, Some(0));
     assert!(st.values().all(|s| s == "cached"), "{st:?}");
 
     // The graph's own output files on a full disk (the cache elsewhere): the writer fails
     // naming its file, nothing is left under that name or as a temporary beside it, and the
     // cache keeps everything the other nodes stored.
-    fs_small.resize("4m");
+    // 3 MB (emptied first: a tmpfs cannot shrink below what it holds): the graph's copy of the
+    // dome (1.7 MB) and both PNGs fit, the EXR does not.
+    fs::remove_dir_all(&cache).unwrap();
+    fs_small.resize("3m");
     let out_graph = tonemap_graph(&mnt.join("graph"));
     let other_cache = tmp.path().join("other_cache");
-    let (code, st, err) = run(&out_graph, &other_cache);
-    assert_eq!(code, Some(1), "{st:?}\n{err}");
-    assert_eq!(st["exr"], "failed", "{st:?}\n{err}");
+    let Run {
+        code,
+        status: st,
+        reason,
+        ..
+    } = run(&out_graph, &other_cache);
+    assert_eq!(code, Some(1), "{st:?}");
+    assert_eq!(st["exr"], "failed", "{st:?}");
     let exr = out_graph
         .parent()
         .unwrap()
         .join("out/studio_small_03_exposed.exr");
+    let why = &reason["exr"];
     assert!(
-        err.contains("exr") && err.contains(&exr.display().to_string()),
-        "the error names the node and the file:\n{err}"
+        why.contains("No space left on device") && why.contains(&exr.display().to_string()),
+        "the error names the cause and the file: {why}"
     );
     let left: Vec<_> = fs::read_dir(exr.parent().unwrap())
         .unwrap()
@@ -255,7 +297,12 @@ fn a_full_disk_fails_clearly_and_leaves_the_cache_readable() {
         assert_eq!(st[id], "ran", "{id}: {st:?}");
     }
     fs_small.resize("64m");
-    let (code, st, err) = run(&out_graph, &other_cache);
+    let Run {
+        code,
+        status: st,
+        stderr: err,
+        ..
+    } = run(&out_graph, &other_cache);
     assert_eq!(code, Some(0), "{err}");
     assert_eq!(st["exr"], "ran", "{st:?}");
     assert_eq!(st["expose"], "cached", "{st:?}");
@@ -270,7 +317,9 @@ fn concurrent_runs_on_one_cache_agree() {
     let tmp = tempfile::tempdir().unwrap();
     let reference = tonemap_graph(&tmp.path().join("reference"));
     let ref_cache = tmp.path().join("reference_cache");
-    let (code, _, err) = run(&reference, &ref_cache);
+    let Run {
+        code, stderr: err, ..
+    } = run(&reference, &ref_cache);
     assert_eq!(code, Some(0), "{err}");
     let want = outputs(&reference);
     let want_digests = cache_digests(&ref_cache);
@@ -314,7 +363,12 @@ fn concurrent_runs_on_one_cache_agree() {
         assert_eq!(cache_digests(&cache), want_digests, "round {round}");
         assert_eq!(fs::read_dir(cache.join("tmp")).unwrap().count(), 0);
         // And the cache they made serves a later run whole.
-        let (code, st, err) = run(&graph, &cache);
+        let Run {
+            code,
+            status: st,
+            stderr: err,
+            ..
+        } = run(&graph, &cache);
         assert_eq!(code, Some(0), "{err}");
         assert!(st.values().all(|s| s == "cached"), "round {round}: {st:?}");
     }

@@ -120,9 +120,11 @@ fn plate_shot_solves_the_true_cameras_and_measures_the_patch() {
     // measured as E|X − E X| = √(2/π)·σ from the truth render's per-pixel variance (the
     // `variance` output of `render`, written to truth_var.FFFF.exr). The region is the union of
     // where the composite differs from the plate and where the truth does: the truth and the
-    // plate are independent noisy renders, so the truth's region is where the 3×3 mean of
-    // truth − plate exceeds both 2 % of the plate's mean and 4σ of that mean (σ from both
-    // renders' variances, plate_var.FFFF.exr).
+    // plate are independent noisy renders (at 16 spp they differ by more than 2 % of the mean
+    // on two thirds of the pixels), so the truth's region is where the 5×5 mean of truth −
+    // plate exceeds both 2 % of the plate's mean and 3σ of that mean (σ from both renders'
+    // variances, plate_var.FFFF.exr). A composite with its shadows removed passes the
+    // composite-only measure (1.76, 1.45, 1.39× on these frames) and fails this one (3.1–3.3×).
     for f in [1, 20, 40] {
         let read = |kind: &str| {
             vfxgraph_imaging::read_image(&o.join(format!("{kind}.{f:04}.exr"))).unwrap()
@@ -144,16 +146,16 @@ fn plate_shot_solves_the_true_cameras_and_measures_the_patch() {
             let (x, y) = (px % w, px / w);
             (0..3).any(|c| {
                 let (mut d, mut v) = (0.0f32, 0.0f32);
-                for yy in y.saturating_sub(1)..(y + 2).min(h) {
-                    for xx in x.saturating_sub(1)..(x + 2).min(w) {
+                for yy in y.saturating_sub(2)..(y + 3).min(h) {
+                    for xx in x.saturating_sub(2)..(x + 3).min(w) {
                         let i = 3 * (yy * w + xx) + c;
                         d += truth.data[i] - plate.data[i];
                         v += var.data[i].max(0.0) + plate_var.data[i].max(0.0);
                     }
                 }
-                // Mean of 9 (fewer at the border, counted as 9: a stricter test there).
-                let (d, sigma) = (d / 9.0, v.sqrt() / 9.0);
-                d.abs() > level.max(4.0 * sigma)
+                // Mean of 25 (fewer at the border, counted as 25: a stricter test there).
+                let (d, sigma) = (d / 25.0, v.sqrt() / 25.0);
+                d.abs() > level.max(3.0 * sigma)
             })
         };
         let (mut err, mut noise, mut n) = (0.0f64, 0.0f64, 0usize);
