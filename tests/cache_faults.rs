@@ -80,6 +80,27 @@ fn run(graph: &Path, cache: &Path) -> Run {
     }
 }
 
+/// [`run`] that must succeed without meeting a corrupt object: the node statuses.
+fn run_ok(graph: &Path, cache: &Path) -> BTreeMap<String, String> {
+    let r = run(graph, cache);
+    assert_eq!(r.code, Some(0), "{}", r.stderr);
+    assert!(
+        !r.stderr.contains("corrupt") && !r.stderr.contains("recomputing"),
+        "{}",
+        r.stderr
+    );
+    r.status
+}
+
+/// [`run`] that must fail (exit code 1) at node `id`: the node statuses and `id`'s error.
+fn run_failing(graph: &Path, cache: &Path, id: &str) -> (BTreeMap<String, String>, String) {
+    let mut r = run(graph, cache);
+    assert_eq!(r.code, Some(1), "{:?}\n{}", r.status, r.stderr);
+    assert_eq!(r.status[id], "failed", "{:?}", r.status);
+    let why = r.reason.remove(id).unwrap();
+    (r.status, why)
+}
+
 /// The output files of the graph (`out/` beside it), by name.
 fn outputs(graph: &Path) -> BTreeMap<String, Vec<u8>> {
     let dir = graph.parent().unwrap().join("out");
@@ -170,13 +191,7 @@ fn a_full_disk_fails_clearly_and_leaves_the_cache_readable() {
     let tmp = tempfile::tempdir().unwrap();
     // Reference: the whole graph with a cache on the ordinary disk.
     let reference = tonemap_graph(&tmp.path().join("reference"));
-    let Run {
-        code,
-        status: st,
-        stderr: err,
-        ..
-    } = run(&reference, &tmp.path().join("reference_cache"));
-    assert_eq!(code, Some(0), "{err}");
+    let st = run_ok(&reference, &tmp.path().join("reference_cache"));
     assert!(st.values().all(|s| s == "ran"), "{st:?}");
     let want = outputs(&reference);
     assert_eq!(want.len(), 3);
@@ -190,20 +205,12 @@ fn a_full_disk_fails_clearly_and_leaves_the_cache_readable() {
     };
     let cache = mnt.join("cache");
     let graph = tonemap_graph(&tmp.path().join("full_cache"));
-    let Run {
-        code,
-        status: st,
-        reason,
-        ..
-    } = run(&graph, &cache);
-    assert_eq!(code, Some(1), "{st:?}");
+    let (st, why) = run_failing(&graph, &cache, "expose");
     assert_eq!(st["dome"], "ran", "{st:?}");
-    assert_eq!(st["expose"], "failed", "{st:?}");
     for id in ["reinhard", "clip", "exr", "png_reinhard", "png_clip"] {
         assert_eq!(st[id], "skipped", "{id}: {st:?}");
     }
     // The reason is the node's error (`run` without --json prints it naming the node).
-    let why = &reason["expose"];
     assert!(
         why.contains("could not be cached")
             && why.contains("No space left on device")
@@ -233,28 +240,15 @@ fn a_full_disk_fails_clearly_and_leaves_the_cache_readable() {
 
     // Space again: the rerun serves the stored entry (verified) and runs the rest.
     fs_small.resize("64m");
-    let Run {
-        code,
-        status: st,
-        stderr: err,
-        ..
-    } = run(&graph, &cache);
-    assert_eq!(code, Some(0), "{err}");
+    let st = run_ok(&graph, &cache);
     assert_eq!(st["dome"], "cached", "{st:?}");
     assert!(
         st.iter().all(|(id, s)| id == "dome" || s == "ran"),
         "{st:?}"
     );
-    assert!(
-        !err.contains("corrupt") && !err.contains("recomputing"),
-        "{err}"
-    );
     assert_eq!(outputs(&graph), want);
     assert_eq!(cache_digests(&cache), want_digests);
-    let Run {
-        code, status: st, ..
-    } = run(&graph, &cache);
-    assert_eq!(code, Some(0));
+    let st = run_ok(&graph, &cache);
     assert!(st.values().all(|s| s == "cached"), "{st:?}");
 
     // The graph's own output files on a full disk (the cache elsewhere): the writer fails
@@ -266,19 +260,11 @@ fn a_full_disk_fails_clearly_and_leaves_the_cache_readable() {
     fs_small.resize("3m");
     let out_graph = tonemap_graph(&mnt.join("graph"));
     let other_cache = tmp.path().join("other_cache");
-    let Run {
-        code,
-        status: st,
-        reason,
-        ..
-    } = run(&out_graph, &other_cache);
-    assert_eq!(code, Some(1), "{st:?}");
-    assert_eq!(st["exr"], "failed", "{st:?}");
+    let (st, why) = run_failing(&out_graph, &other_cache, "exr");
     let exr = out_graph
         .parent()
         .unwrap()
         .join("out/studio_small_03_exposed.exr");
-    let why = &reason["exr"];
     assert!(
         why.contains("No space left on device") && why.contains(&exr.display().to_string()),
         "the error names the cause and the file: {why}"
@@ -297,13 +283,7 @@ fn a_full_disk_fails_clearly_and_leaves_the_cache_readable() {
         assert_eq!(st[id], "ran", "{id}: {st:?}");
     }
     fs_small.resize("64m");
-    let Run {
-        code,
-        status: st,
-        stderr: err,
-        ..
-    } = run(&out_graph, &other_cache);
-    assert_eq!(code, Some(0), "{err}");
+    let st = run_ok(&out_graph, &other_cache);
     assert_eq!(st["exr"], "ran", "{st:?}");
     assert_eq!(st["expose"], "cached", "{st:?}");
     assert_eq!(outputs(&out_graph), want);
@@ -317,10 +297,7 @@ fn concurrent_runs_on_one_cache_agree() {
     let tmp = tempfile::tempdir().unwrap();
     let reference = tonemap_graph(&tmp.path().join("reference"));
     let ref_cache = tmp.path().join("reference_cache");
-    let Run {
-        code, stderr: err, ..
-    } = run(&reference, &ref_cache);
-    assert_eq!(code, Some(0), "{err}");
+    run_ok(&reference, &ref_cache);
     let want = outputs(&reference);
     let want_digests = cache_digests(&ref_cache);
     for round in 0..3 {
@@ -363,13 +340,7 @@ fn concurrent_runs_on_one_cache_agree() {
         assert_eq!(cache_digests(&cache), want_digests, "round {round}");
         assert_eq!(fs::read_dir(cache.join("tmp")).unwrap().count(), 0);
         // And the cache they made serves a later run whole.
-        let Run {
-            code,
-            status: st,
-            stderr: err,
-            ..
-        } = run(&graph, &cache);
-        assert_eq!(code, Some(0), "{err}");
+        let st = run_ok(&graph, &cache);
         assert!(st.values().all(|s| s == "cached"), "round {round}: {st:?}");
     }
 }
