@@ -269,16 +269,18 @@ fn dispatch(cli: Cli, registry: &Registry) -> Result<u8, String> {
             let bars = progress::Bars::new(&g, quiet || json);
             let rep = exec::run(&g, registry, &opts, &bars).map_err(|e| e.to_string())?;
             bars.finish();
-            if interrupted.load(std::sync::atomic::Ordering::SeqCst) {
-                eprintln!("interrupted: finished nodes are cached, the rest will run next time");
-                return Ok(EXIT_INTERRUPTED);
-            }
             if json {
+                // Also when interrupted: the cancelled instances show as failed or skipped.
                 println!(
                     "{}",
                     serde_json::to_string_pretty(&rep).map_err(|e| e.to_string())?
                 );
-            } else {
+            }
+            if interrupted.load(std::sync::atomic::Ordering::SeqCst) {
+                eprintln!("interrupted: finished nodes are cached, the rest will run next time");
+                return Ok(EXIT_INTERRUPTED);
+            }
+            if !json {
                 report::print_failures(&rep);
                 if !quiet {
                     report::print_table(&rep);

@@ -400,11 +400,10 @@ fn describe_nodes_dot_and_cache_commands() {
 /// six marked points from a known camera at known depths: the graph must give that camera back.
 #[test]
 fn calibrate_hdr_camera_graph_recovers_a_known_camera() {
-    let data = repo().join("../shared/data/book-demo/calib_projs.txt");
-    if !data.is_file() {
-        eprintln!("skipping: {} is absent", data.display());
+    let Some((tmp, g)) = example_with_shared_data("calibrate_hdr_camera.yaml") else {
         return;
-    }
+    };
+    let data = vfxgraph_testdata::require("book-demo/calib_projs.txt");
     let projs = vfxgraph_vision::formats::read_points2d(&data).unwrap().0;
     let k = vfxgraph_vision::Intrinsics::new(3100.0, 3100.0, 2000.0, 1500.0);
     let r = vfxgraph_vision::rotation::axis_angle_to_r(&nalgebra::Vector3::new(0.1, -0.4, 0.05));
@@ -416,16 +415,6 @@ fn calibrate_hdr_camera_graph_recovers_a_known_camera() {
         let p = inv.transform(&nalgebra::Point3::from(k.unproject(x) * d));
         text.push_str(&format!("{} {} {}\n", p.x, p.y, p.z));
     }
-    let tmp = tempfile::tempdir().unwrap();
-    let g = tmp.path().join("graphs");
-    fs::create_dir_all(g.join("data")).unwrap();
-    let yaml = fs::read_to_string(repo().join("graphs/calibrate_hdr_camera.yaml"))
-        .unwrap()
-        .replace(
-            "../../shared/data",
-            &repo().join("../shared/data").display().to_string(),
-        );
-    fs::write(g.join("calibrate_hdr_camera.yaml"), yaml).unwrap();
     let pts = tmp.path().join("points3d.txt");
     fs::write(&pts, text).unwrap();
     let set = format!("world.path={}", pts.display());
@@ -452,22 +441,13 @@ fn calibrate_hdr_camera_graph_recovers_a_known_camera() {
     assert_eq!(rep["errors"].as_array().unwrap().len(), 6);
 }
 
-/// Copies an example graph into a scratch folder with its `../../shared/data` paths made
-/// absolute; `None` (and a notice) when the shared data is absent.
+/// Copies an example graph into a scratch folder with its `../../shared/data` paths pointing at
+/// the tests' data folder; `None` (a notice, or a failure under CI=true) when data it names is
+/// absent.
 fn example_with_shared_data(name: &str) -> Option<(tempfile::TempDir, PathBuf)> {
-    let shared = repo().join("../shared/data");
-    if !shared.is_dir() {
-        eprintln!("skipping: {} is absent", shared.display());
-        return None;
-    }
     let tmp = tempfile::tempdir().unwrap();
     let g = tmp.path().join("graphs");
-    fs::create_dir_all(&g).unwrap();
-    let shared = fs::canonicalize(shared).unwrap();
-    let yaml = fs::read_to_string(repo().join("graphs").join(name))
-        .unwrap()
-        .replace("../../shared/data", &shared.display().to_string());
-    fs::write(g.join(name), yaml).unwrap();
+    vfxgraph_testdata::graph_with_data(&repo().join("graphs").join(name), &g)?;
     Some((tmp, g))
 }
 
@@ -574,11 +554,9 @@ fn cornell_graph_renders_small() {
 
 #[test]
 fn bench_ba_reads_ladybug_with_the_reference_initial_cost() {
-    let file = repo().join("../shared/data/bal_ladybug_49/problem-49-7776-pre.txt");
-    if !file.is_file() {
-        eprintln!("skipping: {} is absent", file.display());
+    let Some(file) = vfxgraph_testdata::path("bal_ladybug_49/problem-49-7776-pre.txt") else {
         return;
-    }
+    };
     let out = bin()
         .args(["bench", "ba", "--json", "--max-iterations", "1"])
         .arg(&file)

@@ -55,21 +55,11 @@ fn check(script: &str, export: &Path, truth: &Path) {
 
 #[test]
 fn book_export_graph_writes_every_format_and_the_clients_agree() {
-    let shared = repo().join("../shared/data");
-    if !shared.is_dir() {
-        eprintln!("skipping: {} is absent", shared.display());
-        return;
-    }
     let tmp = tempfile::tempdir().unwrap();
     let g = tmp.path().join("graphs");
-    fs::create_dir_all(&g).unwrap();
-    let yaml = fs::read_to_string(repo().join("graphs/book_export.yaml"))
-        .unwrap()
-        .replace(
-            "../../shared/data",
-            &fs::canonicalize(&shared).unwrap().display().to_string(),
-        );
-    fs::write(g.join("book_export.yaml"), yaml).unwrap();
+    if vfxgraph_testdata::graph_with_data(&repo().join("graphs/book_export.yaml"), &g).is_none() {
+        return;
+    }
     let out = Command::new(env!("CARGO_BIN_EXE_vfxgraph"))
         .current_dir(&g)
         .args(["run", "--json", "book_export.yaml"])
@@ -98,9 +88,11 @@ fn book_export_graph_writes_every_format_and_the_clients_agree() {
     // The COLMAP model and the JSON export hold the same solve: K, every pose within 1e-9
     // (R through COLMAP's quaternion), the tracks' 2-D points, and the book's K from g7cam.txt.
     let ours = colmap::read(&o.join("colmap/cameras.txt")).unwrap();
-    let k = vfxgraph_vision::formats::read_intrinsics(&shared.join("book-demo/g7cam.txt"))
-        .unwrap()
-        .with_size(1280, 720);
+    let k = vfxgraph_vision::formats::read_intrinsics(&vfxgraph_testdata::require(
+        "book-demo/g7cam.txt",
+    ))
+    .unwrap()
+    .with_size(1280, 720);
     assert_eq!(ours.intrinsics, k);
     let doc: serde_json::Value =
         serde_json::from_str(&fs::read_to_string(o.join("book_cameras.json")).unwrap()).unwrap();

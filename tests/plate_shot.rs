@@ -2,11 +2,12 @@
 //! our path tracer along a known camera path, tracks it with our KLT, solves it with our
 //! matchmove (K known) and measures the uniform patch's corners from simulated clicks. Checked
 //! against the truth after the similarity that best aligns the solved cameras with the true
-//! ones (a solve is defined up to a similarity): every camera's rotation error < 0.1° (measured:
-//! 0.096° — a thin margin; the errors are smooth along the path, largest at its ends, so they are
-//! systematic rather than render noise: 48 spp gave 0.22°), and every measured corner within 2 %
-//! of the patch side (6 cm of 3 m; measured 4.7 cm) of the true corner. The truth frames are
-//! rendered at 2 spp here (this test does not compare them yet).
+//! ones (a solve is defined up to a similarity). The bounds are within 2× of the README's
+//! figures: every camera's rotation error < 0.1° (README 0.081°), every measured corner within
+//! 5 cm of the true one (README 2.8 cm of the 3 m patch side), the fitted catcher colour within
+//! 0.4 % (README 0.2 %), and the composite's error against the truth frames within 2× the truth
+//! render's Monte Carlo noise (README 1.5–1.8×) over the pixels where the composite or the truth
+//! differs from the plate — the union, so a shadow or object the composite misses counts.
 //!
 //! Needs nothing from ../shared/data: the dome is the embedded graphs/data HDR.
 
@@ -95,51 +96,99 @@ fn plate_shot_solves_the_true_cameras_and_measures_the_patch() {
         let err = (q - Point3::from(want)).norm();
         eprintln!("corner {want:?}: measured {q:?}, error {err:.4}");
         assert!(
-            err < 0.06,
+            err < 0.05,
             "corner {want:?} measured at {q:?} (error {err})"
         );
     }
-    // The fitted catcher colour: within 2 % of the patch colour C the plate was made with.
+    // The fitted catcher colour: within 0.4 % of the patch colour C the plate was made with.
     let fit: Json =
         serde_json::from_str(&std::fs::read_to_string(o.join("fit.json")).unwrap()).unwrap();
     let c = [0.5, 0.42, 0.34];
     for (k, want) in c.iter().enumerate() {
         let got = fit["colour_after"][k].as_f64().unwrap();
-        eprintln!("catcher colour channel {k}: fitted {got:.4}, true {want}");
+        eprintln!(
+            "catcher colour channel {k}: fitted {got:.4}, true {want} ({:.3} %)",
+            100.0 * (got - want).abs() / want
+        );
         assert!(
-            (got - want).abs() / want < 0.02,
+            (got - want).abs() / want < 0.004,
             "channel {k}: {got} vs {want}"
         );
     }
     // The composite against the truth frames over the regions the CG changed (objects and
     // their shadows): mean absolute error within 2× the truth render's Monte Carlo noise,
     // measured as E|X − E X| = √(2/π)·σ from the truth render's per-pixel variance (the
-    // `variance` output of `render`, written to truth_var.FFFF.exr).
+    // `variance` output of `render`, written to truth_var.FFFF.exr). The region is the union of
+    // where the composite differs from the plate and where the truth does: the truth and the
+    // plate are independent noisy renders (at 16 spp they differ by more than 2 % of the mean
+    // on two thirds of the pixels), so the truth's region is where the 5×5 mean of truth −
+    // plate exceeds both 2 % of the plate's mean and 3σ of that mean (σ from both renders'
+    // variances, plate_var.FFFF.exr). A composite with its shadows removed passes the
+    // composite-only measure (1.76, 1.45, 1.39× on these frames) and fails this one (3.1–3.3×).
     for f in [1, 20, 40] {
         let read = |kind: &str| {
             vfxgraph_imaging::read_image(&o.join(format!("{kind}.{f:04}.exr"))).unwrap()
         };
-        let (comp, truth, var, plate) = (
+        let (comp, truth, var, plate, plate_var) = (
             read("composite"),
             read("truth"),
             read("truth_var"),
             read("plate"),
+            read("plate_var"),
         );
+        let (w, h) = (plate.width, plate.height);
         let mean_plate = plate.data.iter().sum::<f32>() / plate.data.len() as f32;
+        let level = 0.02 * mean_plate;
+        let comp_differs = |px: usize| {
+            (0..3).any(|c| (comp.data[3 * px + c] - plate.data[3 * px + c]).abs() > level)
+        };
+        let truth_differs = |px: usize| {
+            let (x, y) = (px % w, px / w);
+            (0..3).any(|c| {
+                let (mut d, mut v) = (0.0f32, 0.0f32);
+                for yy in y.saturating_sub(2)..(y + 3).min(h) {
+                    for xx in x.saturating_sub(2)..(x + 3).min(w) {
+                        let i = 3 * (yy * w + xx) + c;
+                        d += truth.data[i] - plate.data[i];
+                        v += var.data[i].max(0.0) + plate_var.data[i].max(0.0);
+                    }
+                }
+                // Mean of 25 (fewer at the border, counted as 25: a stricter test there).
+                let (d, sigma) = (d / 25.0, v.sqrt() / 25.0);
+                d.abs() > level.max(3.0 * sigma)
+            })
+        };
         let (mut err, mut noise, mut n) = (0.0f64, 0.0f64, 0usize);
-        for i in 0..comp.data.len() {
-            let px = i / 3 * 3;
-            let changed =
-                (0..3).any(|c| (comp.data[px + c] - plate.data[px + c]).abs() > 0.02 * mean_plate);
-            if !changed {
+        let (mut only_truth, mut only_truth_err, mut only_truth_noise) = (0usize, 0.0f64, 0.0f64);
+        for px in 0..w * h {
+            let (in_comp, in_truth) = (comp_differs(px), truth_differs(px));
+            if !in_comp && !in_truth {
                 continue;
             }
-            err += (comp.data[i] - truth.data[i]).abs() as f64;
-            noise += (2.0 / std::f64::consts::PI).sqrt() * (var.data[i] as f64).max(0.0).sqrt();
-            n += 1;
+            for c in 0..3 {
+                let i = 3 * px + c;
+                let e = (comp.data[i] - truth.data[i]).abs() as f64;
+                let s = (2.0 / std::f64::consts::PI).sqrt() * (var.data[i] as f64).max(0.0).sqrt();
+                err += e;
+                noise += s;
+                if !in_comp {
+                    only_truth_err += e;
+                    only_truth_noise += s;
+                }
+            }
+            n += 3;
+            only_truth += usize::from(!in_comp);
         }
         let (err, noise) = (err / n as f64, noise / n as f64);
-        eprintln!("frame {f}: {} changed samples, MAE vs truth {err:.5}, truth noise {noise:.5} (ratio {:.2})", n / 3, err / noise);
+        eprintln!(
+            "frame {f}: {} pixels where the composite or the truth differs from the plate \
+             ({only_truth} only in the truth: MAE {:.5}, noise {:.5}), MAE vs truth {err:.5}, \
+             truth noise {noise:.5} (ratio {:.2})",
+            n / 3,
+            only_truth_err / (3 * only_truth.max(1)) as f64,
+            only_truth_noise / (3 * only_truth.max(1)) as f64,
+            err / noise
+        );
         assert!(n > 3 * 500, "frame {f}: only {} changed pixels", n / 3);
         assert!(
             err <= 2.0 * noise,

@@ -10,24 +10,16 @@ use serde_json::Value as Json;
 #[test]
 fn track_opencv_graph_runs_both_trackers() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let data = root.join("../shared/data/middlebury_flow_RubberWhale");
-    if !data.join("frame10.png").exists() {
-        eprintln!("skipping: {} absent", data.display());
-        return;
-    }
-    let yaml = std::fs::read_to_string(root.join("graphs/track_opencv.yaml")).unwrap();
-    let rel = "../../shared/data/middlebury_flow_RubberWhale";
-    assert!(yaml.contains(rel));
     let tmp = tempfile::tempdir().unwrap();
-    let abs = data.canonicalize().unwrap();
-    std::fs::write(
-        tmp.path().join("g.yaml"),
-        yaml.replace(rel, &abs.display().to_string()),
-    )
-    .unwrap();
+    let graph = root.join("graphs/track_opencv.yaml");
+    let Some(g) = vfxgraph_testdata::graph_with_data(&graph, tmp.path()) else {
+        return;
+    };
     let out = Command::new(env!("CARGO_BIN_EXE_vfxgraph"))
         .current_dir(tmp.path())
-        .args(["run", "--json", "g.yaml"])
+        .arg("run")
+        .arg("--json")
+        .arg(&g)
         .output()
         .unwrap();
     assert!(

@@ -871,7 +871,20 @@ impl<'a> Runner<'a> {
                     .iter()
                     .map(|(k, (v, _))| (*k, v.digest()))
                     .collect();
-                self.store_outputs(i, &parts.key, &computed, seconds);
+                if let Err(e) = self.store_outputs(i, &parts.key, &computed, seconds) {
+                    // The cache stays as it was (writes are atomic; an entry is written after
+                    // its objects), and the run says so: exit code 1, not a silent miss.
+                    self.finish(
+                        i,
+                        Done {
+                            status: Status::Failed,
+                            reason: format!("ran, but its result could not be cached: {e}"),
+                            seconds,
+                            digests: BTreeMap::new(),
+                        },
+                    );
+                    return;
+                }
                 let outputs = computed.outputs;
                 {
                     let mut vals = self.state[i].values.lock().expect("values lock");
@@ -969,54 +982,58 @@ impl<'a> Runner<'a> {
         Ok(out)
     }
 
-    fn store_outputs(&self, i: usize, key: &Digest, computed: &Computed, seconds: f64) {
-        let Some(store) = &self.c.store else { return };
+    /// Stores a computed instance: its objects, then its action entry. An error (e.g. a full
+    /// disk) names the file it could not write.
+    fn store_outputs(
+        &self,
+        i: usize,
+        key: &Digest,
+        computed: &Computed,
+        seconds: f64,
+    ) -> std::io::Result<()> {
+        let Some(store) = &self.c.store else {
+            return Ok(());
+        };
         let inst = &self.c.insts[i];
         let gn = &self.c.graph.nodes[inst.node];
-        let result: std::io::Result<()> = (|| {
-            let mut outs = Vec::new();
-            for (port, (v, bytes)) in &computed.outputs {
-                store.put_object(&v.digest(), v.type_name(), bytes)?;
-                outs.push(ActionOutput {
-                    port: port.to_string(),
-                    ty: v.type_name().to_string(),
-                    digest: v.digest().to_hex(),
-                });
-            }
-            let mut files = Vec::new();
-            for path in self.c.output_files(i) {
-                let d = self.c.hasher.hash(&path)?;
-                files.push(WrittenFile {
-                    path,
-                    digest: d.to_hex(),
-                });
-            }
-            store.put_action(
-                key,
-                &ActionEntry {
-                    node_type: gn.spec().name.to_string(),
-                    node_id: gn.id.clone(),
-                    frame: inst.frame,
-                    outputs: outs,
-                    files,
-                    read_files: computed
-                        .read_files
-                        .iter()
-                        .map(|(path, d)| WrittenFile {
-                            path: path.clone(),
-                            digest: d.to_hex(),
-                        })
-                        .collect(),
-                    seconds,
-                },
-            )
-        })();
-        if let Err(e) = result {
-            tracing::warn!(
-                "node `{}`: result not cached ({e}); it will run again next time",
-                gn.id
-            );
+        let mut outs = Vec::new();
+        for (port, (v, bytes)) in &computed.outputs {
+            store.put_object(&v.digest(), v.type_name(), bytes)?;
+            outs.push(ActionOutput {
+                port: port.to_string(),
+                ty: v.type_name().to_string(),
+                digest: v.digest().to_hex(),
+            });
         }
+        let mut files = Vec::new();
+        for path in self.c.output_files(i) {
+            let d = self.c.hasher.hash(&path).map_err(|e| {
+                std::io::Error::new(e.kind(), format!("cannot hash {}: {e}", path.display()))
+            })?;
+            files.push(WrittenFile {
+                path,
+                digest: d.to_hex(),
+            });
+        }
+        store.put_action(
+            key,
+            &ActionEntry {
+                node_type: gn.spec().name.to_string(),
+                node_id: gn.id.clone(),
+                frame: inst.frame,
+                outputs: outs,
+                files,
+                read_files: computed
+                    .read_files
+                    .iter()
+                    .map(|(path, d)| WrittenFile {
+                        path: path.clone(),
+                        digest: d.to_hex(),
+                    })
+                    .collect(),
+                seconds,
+            },
+        )
     }
 
     /// The value of output `port` of a resolved instance: in memory, else loaded from the

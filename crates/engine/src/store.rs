@@ -147,6 +147,8 @@ impl Store {
         self.root.join("files.json")
     }
 
+    /// Writes `bytes` to `dest` through a temporary in `tmp/`, renamed into place when complete;
+    /// on any failure (a full disk) the temporary is removed and the error names `dest`.
     fn write_atomic(&self, dest: &Path, bytes: &[&[u8]]) -> io::Result<()> {
         let n = TMP.fetch_add(1, Ordering::Relaxed);
         let tmp = self
@@ -164,10 +166,10 @@ impl Store {
             }
             fs::rename(&tmp, dest)
         })();
-        if r.is_err() {
+        r.map_err(|e| {
             let _ = fs::remove_file(&tmp);
-        }
-        r
+            io::Error::new(e.kind(), format!("cannot write {}: {e}", dest.display()))
+        })
     }
 
     fn object_path(&self, d: &Digest) -> PathBuf {

@@ -2,8 +2,6 @@
 //! cut from one scene at known offsets, and the real Memorial stack (`../shared/data`) cut the
 //! same way. The recovered shifts must be exact.
 
-use std::path::PathBuf;
-
 use vfxgraph_imaging::hdr::{
     align_exposures, read_exposure_list, AlignChain, AlignOptions, Exposure, ExposureStack,
 };
@@ -132,12 +130,8 @@ fn synthetic_bracket_shifts_are_recovered_exactly() {
 }
 
 fn memorial() -> Option<ExposureStack> {
-    let list = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/data/debevec_memorial/memorial.hdr_image_list.txt");
-    if !list.exists() {
-        eprintln!("skipped: {} not found", list.display());
-        return None;
-    }
+    let dir = vfxgraph_testdata::path("debevec_memorial")?;
+    let list = dir.join("memorial.hdr_image_list.txt");
     Some(read_exposure_list(&list).unwrap().0)
 }
 

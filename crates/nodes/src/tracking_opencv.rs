@@ -354,16 +354,12 @@ pub fn track_sequence_opencv(
 
 #[cfg(test)]
 mod tests {
-    use std::path::Path;
-
     use vfxgraph_engine::{InputValue, ParamValue, Value};
     use vfxgraph_imaging::{read_image, Image};
     use vfxgraph_vision::formats::flo::read_flo;
 
     use super::*;
     use crate::testing::{params, spec};
-
-    const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/");
 
     /// Runs a tracking node on `(frame, image)` pairs with `set` params.
     fn track(node: &str, frames: &[(i64, Image)], set: &[(&str, ParamValue)]) -> Tracks {
@@ -468,16 +464,13 @@ mod tests {
     /// on the corners both found.
     #[test]
     fn rubberwhale_cross_check_against_ground_truth() {
-        let dir = format!("{DATA}middlebury_flow_RubberWhale/");
-        let load = |n: &str| read_image(Path::new(&format!("{dir}{n}")));
-        let (Ok(a), Ok(b), Ok(flow)) = (
-            load("frame10.png"),
-            load("frame11.png"),
-            read_flo(Path::new(&format!("{dir}flow10.flo"))),
-        ) else {
-            eprintln!("skipping: {dir} absent");
+        // Absent: a notice (a failure under CI=true); present but undecodable: a failure.
+        let Some(dir) = vfxgraph_testdata::path("middlebury_flow_RubberWhale") else {
             return;
         };
+        let load = |n: &str| read_image(&dir.join(n)).unwrap();
+        let (a, b) = (load("frame10.png"), load("frame11.png"));
+        let flow = read_flo(&dir.join("flow10.flo")).unwrap();
         let frames = vec![(10, a), (11, b)];
         let set = [
             ("features", ParamValue::Int(500)),
@@ -543,7 +536,11 @@ mod tests {
         // The detectors agree on most corners (same score, same selection rule).
         assert!(shared as f64 >= 0.8 * ec.len() as f64, "{shared} shared");
         // OpenCV is as accurate as the KLT test asks of ours, and the two agree.
-        assert!(mc <= 0.1 && mo <= 0.1, "median EPE ours {mo}, OpenCV {mc}");
+        // README: 0.0467 / 0.0472 px; the bound within 2× of them.
+        assert!(
+            mc <= 0.09 && mo <= 0.09,
+            "median EPE ours {mo}, OpenCV {mc}"
+        );
         assert!((mo - mc).abs() <= 0.01, "median EPE ours {mo}, OpenCV {mc}");
         assert!(
             (bo - bc).abs() <= 0.01,

@@ -18,17 +18,17 @@ use vfxgraph_vision::klt::Tracks;
 use vfxgraph_vision::matchmove::{matchmove, relax_path, MatchmoveOptions, RelaxOptions};
 use vfxgraph_vision::modeling::point_cloud_calibrate;
 
-fn book() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/book-demo")
+/// The book's data folder; `None` when absent (a failure under CI=true).
+fn book() -> Option<PathBuf> {
+    vfxgraph_testdata::path("book-demo")
 }
 
 #[test]
 fn modeling_scn_catcher_is_the_marked_ground_in_order_and_reprojects_onto_the_marks() {
-    let dir = book();
-    let Ok(text) = std::fs::read_to_string(dir.join("f.txt")) else {
-        eprintln!("notice: {} is absent; skipping", dir.display());
+    let Some(dir) = book() else {
         return;
     };
+    let text = std::fs::read_to_string(dir.join("f.txt")).unwrap();
     let tracks = Tracks::parse(&text).unwrap();
     let k = read_intrinsics(&dir.join("g7cam.txt")).unwrap();
     let solve = matchmove(&tracks, &k, &MatchmoveOptions::default(), &|_, _, _| {}).unwrap();

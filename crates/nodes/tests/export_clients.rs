@@ -198,14 +198,12 @@ fn odd_k() -> Intrinsics {
     Intrinsics::new(1100.0, 1122.0, 652.25, 341.5).with_size(1280, 720)
 }
 
-/// The book's K (g7cam.txt) when the shared data is there, else its values.
+/// The book's K (g7cam.txt) when the shared data is there (under CI=true it must be), else
+/// its values.
 fn book_k() -> Intrinsics {
-    let p = repo().join("../shared/data/book-demo/g7cam.txt");
-    let k = if p.exists() {
-        vfxgraph_vision::formats::read_intrinsics(&p).unwrap()
-    } else {
-        eprintln!("notice: {} not found; using its values", p.display());
-        Intrinsics::new(1228.4022637363655, 1228.4022637363655, 639.5, 359.5)
+    let k = match vfxgraph_testdata::path("book-demo/g7cam.txt") {
+        Some(p) => vfxgraph_vision::formats::read_intrinsics(&p).unwrap(),
+        None => Intrinsics::new(1228.4022637363655, 1228.4022637363655, 639.5, 359.5),
     };
     k.with_size(1280, 720)
 }

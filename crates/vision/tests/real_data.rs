@@ -1,10 +1,10 @@
-//! Real data with ground truth from `../shared/data` (skipped with a notice when absent):
+//! Real data with ground truth from `../shared/data` (absent: a notice, or a failure under CI=true):
 //! - Oxford VGG "Model House": resect every view from the 3D points and its corners; the
 //!   reprojection RMS of the DLT cameras must be within 10 % of the given cameras' 0.625 px.
 //! - Oxford VGG "Merton College I": relative pose of every view pair from the VGG matches with the
 //!   K of the given cameras; the rotation error against the given R is reported and bounded.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use nalgebra::{Matrix3x4, Point2, Point3};
 use rand::SeedableRng;
@@ -18,15 +18,7 @@ use vfxgraph_vision::rotation::rotation_angle_between;
 use vfxgraph_vision::two_view::{reconstruct_two_view, TwoViewOptions};
 
 fn data_dir(name: &str) -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/data")
-        .join(name);
-    if p.exists() {
-        Some(p)
-    } else {
-        eprintln!("skipping: {} not found", p.display());
-        None
-    }
+    vfxgraph_testdata::path(name)
 }
 
 fn reproj(p: &Matrix3x4<f64>, x: &Point3<f64>, u: &Point2<f64>) -> f64 {
@@ -173,10 +165,10 @@ fn merton_college_relative_pose() {
 /// camera at known depths. The calibration must give that camera back.
 #[test]
 fn book_demo_hdr_camera_from_calib_projs() {
-    let Some(dir) = data_dir("book-demo") else {
+    let Some(file) = data_dir("book-demo/calib_projs.txt") else {
         return;
     };
-    let projs = read_points2d(&dir.join("calib_projs.txt")).unwrap().0;
+    let projs = read_points2d(&file).unwrap().0;
     assert_eq!(projs.len(), 6);
     let k = vfxgraph_vision::Intrinsics::new(3100.0, 3100.0, 2000.0, 1500.0);
     let r = vfxgraph_vision::rotation::axis_angle_to_r(&nalgebra::Vector3::new(0.1, -0.4, 0.05));

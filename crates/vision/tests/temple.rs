@@ -193,14 +193,7 @@ fn matches(a: &Grey, b: &Grey) -> (Vec<Point2<f64>>, Vec<Point2<f64>>) {
 }
 
 fn data_dir() -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/data/middlebury_mview_templeSparseRing");
-    if p.exists() {
-        Some(p)
-    } else {
-        eprintln!("skipping: {} not found", p.display());
-        None
-    }
+    vfxgraph_testdata::path("middlebury_mview_templeSparseRing")
 }
 
 #[allow(clippy::type_complexity)]

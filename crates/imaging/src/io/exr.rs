@@ -345,17 +345,10 @@ mod tests {
     use super::*;
     use std::path::{Path, PathBuf};
 
+    /// The ILM samples (every listed file present), or `None` when absent (see
+    /// `vfxgraph_testdata`).
     fn samples_dir() -> Option<PathBuf> {
-        let dir = Path::new(concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/../../../shared/data/openexr_images_subset"
-        ));
-        if dir.is_dir() {
-            Some(dir.to_path_buf())
-        } else {
-            eprintln!("note: {} is absent; skipping", dir.display());
-            None
-        }
+        vfxgraph_testdata::path("openexr_images_subset")
     }
 
     fn all_exr_files(dir: &Path) -> Vec<PathBuf> {

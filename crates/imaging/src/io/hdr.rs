@@ -481,18 +481,11 @@ mod tests {
 
     #[test]
     fn polyhaven_domes_decode() {
-        let dir = std::path::Path::new(concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/../../../shared/data/polyhaven_hdri_1k"
-        ));
-        let Ok(entries) = std::fs::read_dir(dir) else {
-            eprintln!(
-                "note: {} is absent; skipping the Poly Haven test",
-                dir.display()
-            );
+        let Some(dir) = vfxgraph_testdata::path("polyhaven_hdri_1k") else {
             return;
         };
-        let mut files: Vec<_> = entries
+        let mut files: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
             .filter_map(|e| e.ok().map(|e| e.path()))
             .filter(|p| p.extension().is_some_and(|e| e == "hdr"))
             .collect();

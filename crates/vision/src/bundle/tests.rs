@@ -9,10 +9,9 @@ use super::rotation::{angle_axis_to_matrix, matrix_to_angle_axis};
 use super::synthetic::{video_like, SyntheticModel, VideoConfig};
 use super::*;
 
+/// A data file or folder these tests cannot run without (a panic naming it when absent).
 fn shared_data(rel: &str) -> std::path::PathBuf {
-    std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/data")
-        .join(rel)
+    vfxgraph_testdata::require(rel)
 }
 
 const LADYBUG: &str = "bal_ladybug_49/problem-49-7776-pre.txt";

@@ -76,15 +76,10 @@ mod tests {
 
     #[test]
     fn book_demo_file() {
-        let path = concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/../../../shared/data/book-demo/g7cam.txt"
-        );
-        if !Path::new(path).exists() {
-            eprintln!("skipping: {path} not found");
+        let Some(path) = vfxgraph_testdata::path("book-demo/g7cam.txt") else {
             return;
-        }
-        let k = read_intrinsics(Path::new(path)).unwrap();
+        };
+        let k = read_intrinsics(&path).unwrap();
         assert!((k.f1 - 1228.4022637363655).abs() < 1e-9);
         assert_eq!((k.u0, k.v0, k.s), (639.5, 359.5, 0.0));
     }

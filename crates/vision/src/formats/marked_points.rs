@@ -117,15 +117,10 @@ mod tests {
     #[test]
     fn book_demo_files_and_round_trip() {
         for name in ["points2d.txt", "calib_video_projs.txt"] {
-            let path = format!(
-                "{}/../../../shared/data/book-demo/{name}",
-                env!("CARGO_MANIFEST_DIR")
-            );
-            if !Path::new(&path).exists() {
-                eprintln!("skipping: {path} not found");
+            let Some(path) = vfxgraph_testdata::path(&format!("book-demo/{name}")) else {
                 continue;
-            }
-            let m = read_marked_points(Path::new(&path)).unwrap();
+            };
+            let m = read_marked_points(&path).unwrap();
             assert!(m.frames.len() >= 4);
             let text = format_marked_points(&m);
             assert_eq!(parse_marked_points(&text, "x").unwrap(), m);

@@ -121,15 +121,10 @@ mod tests {
 
     #[test]
     fn book_calib_projs() {
-        let path = concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/../../../shared/data/book-demo/calib_projs.txt"
-        );
-        if !Path::new(path).exists() {
-            eprintln!("skipping: {path} not found");
+        let Some(path) = vfxgraph_testdata::path("book-demo/calib_projs.txt") else {
             return;
-        }
-        let p = read_points2d(Path::new(path)).unwrap();
+        };
+        let p = read_points2d(&path).unwrap();
         assert_eq!(p.len(), 6);
         assert_eq!(p.0[0], Point2::new(1420.0, 1845.0));
     }

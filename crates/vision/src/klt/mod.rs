@@ -52,3 +52,16 @@ pub enum KltError {
 
 #[cfg(test)]
 mod tests;
+
+/// For the tests that compare the AVX2 loops with the portable ones: whether this CPU runs the
+/// AVX2 loops. When it does not, the test says so on stderr (the comparison would set the
+/// portable loops against themselves) and skips it.
+#[cfg(test)]
+pub(crate) fn has_avx2_or_say_so(test: &str) -> bool {
+    #[cfg(target_arch = "x86_64")]
+    if std::is_x86_feature_detected!("avx2") {
+        return true;
+    }
+    eprintln!("notice: {test}: this CPU has no AVX2, so its AVX2 loops are not compared");
+    false
+}

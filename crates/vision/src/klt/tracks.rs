@@ -436,14 +436,10 @@ mod tests {
 
     #[test]
     fn the_books_f_txt_loads_and_writes_back_byte_for_byte() {
-        let path = concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/../../../shared/data/book-demo/f.txt"
-        );
-        let Ok(text) = std::fs::read_to_string(path) else {
-            eprintln!("skipping: {path} not found");
+        let Some(path) = vfxgraph_testdata::path("book-demo/f.txt") else {
             return;
         };
+        let text = std::fs::read_to_string(path).unwrap();
         let t = Tracks::from_book(&text).unwrap();
         t.validate().unwrap();
         assert_eq!(t.slots, 150);
