@@ -376,6 +376,7 @@ mod tests {
                 .collect(),
             track_ids: (0..20).collect(),
             errors: vec![0.25; 20],
+            ..Default::default()
         }
     }
 

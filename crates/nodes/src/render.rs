@@ -59,7 +59,9 @@ impl ArtifactType for SceneArt {
     fn decode(bytes: &[u8]) -> Result<Self, String> {
         let mut r = Reader::new(bytes);
         let scene: Scene = decode_json(r.bytes()?)?;
-        scene.camera.validate().map_err(|e| e.to_string())?;
+        if let Some(c) = &scene.camera {
+            c.validate().map_err(|e| e.to_string())?;
+        }
         let dome = match r.u64()? {
             0 => None,
             1 => Some(DomeArt::decode(r.bytes()?)?.0),
@@ -267,28 +269,58 @@ pub(crate) fn instance_camera(ctx: &Context<'_>, scene: &Scene) -> Result<Camera
 }
 
 /// [`instance_camera`] for frame `frame` (`None`: the scene camera unless `cameras` is
-/// connected, which then is an error).
+/// connected, which then is an error). A scene without a camera (a YAML scene without
+/// `camera:`) needs both the pose (`cameras`) and K with its image size (`intrinsics` or the
+/// path's K) from the inputs; the error says which is missing.
 pub(crate) fn camera_for_frame(
     ctx: &Context<'_>,
     scene: &Scene,
     frame: Option<i64>,
 ) -> Result<Camera, NodeError> {
-    let mut camera = scene.camera.clone();
+    let path = ctx.input_opt::<CameraPathArt>("cameras")?;
     // K: the `intrinsics` input, else the camera path's own K, else the scene camera's.
-    let path_k = ctx
-        .input_opt::<CameraPathArt>("cameras")?
-        .and_then(|p| p.0.intrinsics.clone());
-    let k_in = ctx
-        .input_opt::<IntrinsicsArt>("intrinsics")?
-        .map(|k| k.0.clone());
-    if let Some(k) = k_in.or(path_k) {
-        let k = &k;
+    let k = match ctx.input_opt::<IntrinsicsArt>("intrinsics")? {
+        Some(k) => Some(k.0.clone()),
+        None => path.and_then(|p| p.0.intrinsics.clone()),
+    };
+    let mut camera = match (&scene.camera, &k, path) {
+        (Some(c), _, _) => c.clone(),
+        (None, _, None) => {
+            return Err(NodeError::msg(
+                "no camera: the scene has no `camera:` and no `cameras` input is connected \
+                 (connect a camera path, or give the scene a camera)",
+            ))
+        }
+        (None, None, Some(_)) => {
+            return Err(NodeError::msg(
+                "no camera: the scene has no `camera:`, and neither the `cameras` path nor an \
+                 `intrinsics` input carries K",
+            ))
+        }
+        // K and the pose are set below, from K and the path.
+        (None, Some(k), Some(_)) => match (k.width, k.height) {
+            (Some(w), Some(h)) => Camera {
+                k: [[0.0; 3]; 3],
+                r: [[0.0; 3]; 3],
+                t: [0.0; 3],
+                width: w as usize,
+                height: h as usize,
+            },
+            _ => {
+                return Err(NodeError::msg(
+                    "no camera: the scene has no `camera:` and K carries no image size (give \
+                     the scene a camera whose `size` is K's image size, or K with its size)",
+                ))
+            }
+        },
+    };
+    if let Some(k) = &k {
         camera.k = [[k.f1, k.s, k.u0], [0.0, k.f2, k.v0], [0.0, 0.0, 1.0]];
         if let (Some(w), Some(h)) = (k.width, k.height) {
             (camera.width, camera.height) = (w as usize, h as usize);
         }
     }
-    if let Some(path) = ctx.input_opt::<CameraPathArt>("cameras")? {
+    if let Some(path) = path {
         let Some(f) = frame else {
             return Err(NodeError::msg(
                 "the `cameras` input renders one frame per instance: set `per_frame: true` on \
@@ -608,7 +640,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         std::fs::write(dir.path().join("s.scn"), SCN).unwrap();
         let scene = read(dir.path(), "s.scn").unwrap();
-        let c = &scene.scene.camera;
+        let c = scene.scene.camera.as_ref().unwrap();
         let pose_of = |dx: f64| Pose {
             r: nalgebra::Matrix3::from_fn(|i, j| c.r[i][j]),
             t: Vector3::new(c.t[0] + dx, c.t[1], c.t[2]),

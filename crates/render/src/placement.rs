@@ -248,7 +248,7 @@ pub fn transform_scene(scene: &Scene, s: &Similarity) -> Scene {
         d.orig = s.direction(d.orig);
         d.south = s.direction(d.south);
     }
-    out.camera = s.camera(&scene.camera);
+    out.camera = scene.camera.as_ref().map(|c| s.camera(c));
     out
 }
 
@@ -523,7 +523,7 @@ mod tests {
             assert!(fit.relative_rms < 1e-9);
             // The moved camera projects the moved sphere centre where the original camera
             // projected the original.
-            let (c0, c1) = (&s.camera, &moved.camera);
+            let (c0, c1) = (s.camera.as_ref().unwrap(), moved.camera.as_ref().unwrap());
             let Shape::Sphere(sp) = moved.objects[1].shape else {
                 panic!()
             };

@@ -57,13 +57,13 @@ fn a_textured_floor_renders_its_factor() {
     let out = render(
         &World::new(&scene),
         &env,
-        &scene.camera,
+        scene.camera.as_ref().unwrap(),
         &settings,
         &|_| {},
         None,
     )
     .unwrap();
-    let rays = scene.camera.rays();
+    let rays = scene.camera.as_ref().unwrap().rays();
     let hit = |x: f64, y: f64| {
         let r = rays.ray(x, y);
         r.o + r.d * (-r.o.y / r.d.y)
@@ -104,7 +104,7 @@ fn a_textured_floor_renders_its_factor() {
     let out = render(
         &World::new(&plain),
         &env,
-        &plain.camera,
+        plain.camera.as_ref().unwrap(),
         &settings,
         &|_| {},
         None,

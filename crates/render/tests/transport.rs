@@ -101,7 +101,15 @@ fn furnace(env: &dyn Environment, l_env: f64) {
         max_depth: 200,
         ..Default::default()
     };
-    let out = render(&world, env, &scene.camera, &settings, &|_| {}, None).unwrap();
+    let out = render(
+        &world,
+        env,
+        scene.camera.as_ref().unwrap(),
+        &settings,
+        &|_| {},
+        None,
+    )
+    .unwrap();
     assert_eq!(out.stats.nonfinite, 0);
     let n = out.image.pixel_count();
     let (mut sum, mut var) = (0.0, 0.0);
@@ -338,7 +346,17 @@ fn same_image_for_any_thread_count() {
             .num_threads(threads)
             .build()
             .unwrap()
-            .install(|| render(&world, &env, &scene.camera, &settings, &|_| {}, None).unwrap())
+            .install(|| {
+                render(
+                    &world,
+                    &env,
+                    scene.camera.as_ref().unwrap(),
+                    &settings,
+                    &|_| {},
+                    None,
+                )
+                .unwrap()
+            })
     };
     let (a, b) = (run(1), run(3));
     assert_eq!(a.image, b.image);
@@ -347,7 +365,7 @@ fn same_image_for_any_thread_count() {
     let other = render(
         &world,
         &env,
-        &scene.camera,
+        scene.camera.as_ref().unwrap(),
         &RenderSettings {
             seed: 43,
             ..settings
@@ -360,7 +378,15 @@ fn same_image_for_any_thread_count() {
     // Cancellation.
     let flag = std::sync::atomic::AtomicBool::new(true);
     assert_eq!(
-        render(&world, &env, &scene.camera, &settings, &|_| {}, Some(&flag)).unwrap_err(),
+        render(
+            &world,
+            &env,
+            scene.camera.as_ref().unwrap(),
+            &settings,
+            &|_| {},
+            Some(&flag)
+        )
+        .unwrap_err(),
         RenderError::Cancelled
     );
 }
