@@ -431,7 +431,7 @@ fn run_catcher_from_points(ctx: &mut Context<'_>) -> Result<(), NodeError> {
             };
             (
                 Scene {
-                    camera,
+                    camera: Some(camera),
                     objects: vec![],
                     lights: vec![],
                     background: Rgb::new(1.0, 1.0, 1.0),
