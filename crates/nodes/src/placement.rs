@@ -520,7 +520,7 @@ mod tests {
                 32,
                 24,
             )
-            .unwrap(),
+            .ok(),
             objects: vec![catcher, sphere],
             lights: vec![],
             background: Rgb::new(0.0, 0.0, 0.0),

@@ -683,6 +683,58 @@ mod tests {
         assert!(e.message.contains("per_frame: true"), "{e}");
     }
 
+    /// A scene without a camera renders through a camera path whose K carries the image size,
+    /// exactly as one whose camera the path replaces; without a pose, a K or an image size, the
+    /// error says which is missing.
+    #[test]
+    fn a_scene_without_a_camera_is_seen_through_the_path() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("s.scn"), SCN).unwrap();
+        let scene = read(dir.path(), "s.scn").unwrap();
+        let c = scene.scene.camera.clone().unwrap();
+        let k = vfxgraph_vision::Intrinsics {
+            s: c.k[0][1],
+            ..vfxgraph_vision::Intrinsics::new(c.k[0][0], c.k[1][1], c.k[0][2], c.k[1][2])
+        };
+        let path = |k: Option<vfxgraph_vision::Intrinsics>| CameraPath {
+            frames: vec![FramePose {
+                frame: 3,
+                pose: Pose {
+                    r: nalgebra::Matrix3::from_fn(|i, j| c.r[i][j]),
+                    t: Vector3::from(c.t),
+                },
+            }],
+            intrinsics: k,
+        };
+        let cams = |k| {
+            vec![(
+                "cameras",
+                InputValue::One(Value::new(CameraPathArt(path(k)))),
+            )]
+        };
+        let base = render_node(scene.clone(), Some(3), vec![], &[]).unwrap();
+        let mut bare = scene.clone();
+        bare.scene.camera = None;
+        let sized = k.clone().with_size(c.width as u32, c.height as u32);
+        assert_eq!(
+            render_node(bare.clone(), Some(3), cams(Some(sized)), &[]).unwrap(),
+            base
+        );
+        for (inputs, want) in [
+            (vec![], "no `cameras` input"),
+            (cams(None), "carries K"),
+            (cams(Some(k)), "no image size"),
+        ] {
+            let e = render_node(bare.clone(), Some(3), inputs, &[]).unwrap_err();
+            assert!(
+                e.message
+                    .starts_with("no camera: the scene has no `camera:`")
+                    && e.message.contains(want),
+                "{e}"
+            );
+        }
+    }
+
     #[test]
     fn scene_errors_name_file_line_and_column() {
         let dir = tempfile::tempdir().unwrap();

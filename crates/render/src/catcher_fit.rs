@@ -255,15 +255,17 @@ mod tests {
             }),
         );
         Scene {
-            camera: Camera::look_at(
-                Vec3::new(0.0, -4.0, 2.0),
-                Vec3::new(0.0, 0.0, 0.0),
-                Vec3::new(0.0, 0.0, 1.0),
-                50.0,
-                40,
-                30,
-            )
-            .unwrap(),
+            camera: Some(
+                Camera::look_at(
+                    Vec3::new(0.0, -4.0, 2.0),
+                    Vec3::new(0.0, 0.0, 0.0),
+                    Vec3::new(0.0, 0.0, 1.0),
+                    50.0,
+                    40,
+                    30,
+                )
+                .unwrap(),
+            ),
             objects: vec![floor, ball],
             lights: vec![],
             background: Rgb::new(1.0, 0.9, 0.7),

@@ -449,15 +449,17 @@ mod tests {
         );
         catcher.catcher = true;
         Scene {
-            camera: Camera::look_at(
-                Vec3::new(0.5, 2.0, 3.0),
-                Vec3::new(0.3, 0.0, 0.3),
-                Vec3::new(0.0, 1.0, 0.0),
-                50.0,
-                64,
-                48,
-            )
-            .unwrap(),
+            camera: Some(
+                Camera::look_at(
+                    Vec3::new(0.5, 2.0, 3.0),
+                    Vec3::new(0.3, 0.0, 0.3),
+                    Vec3::new(0.0, 1.0, 0.0),
+                    50.0,
+                    64,
+                    48,
+                )
+                .unwrap(),
+            ),
             objects: vec![
                 catcher,
                 Object::new(

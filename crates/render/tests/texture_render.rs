@@ -21,15 +21,17 @@ fn floor(texture: Option<Texture>) -> Scene {
     );
     o.texture = texture;
     Scene {
-        camera: Camera::look_at(
-            Vec3::new(0.0, 3.0, 0.001),
-            Vec3::ZERO,
-            Vec3::new(0.0, 1.0, 0.0),
-            60.0,
-            32,
-            32,
-        )
-        .unwrap(),
+        camera: Some(
+            Camera::look_at(
+                Vec3::new(0.0, 3.0, 0.001),
+                Vec3::ZERO,
+                Vec3::new(0.0, 1.0, 0.0),
+                60.0,
+                32,
+                32,
+            )
+            .unwrap(),
+        ),
         objects: vec![o],
         lights: vec![],
         background: Rgb::WHITE,

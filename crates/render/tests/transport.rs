@@ -56,7 +56,12 @@ fn white_furnace_through_the_dome_sampler() {
 /// every pixel must see the environment's radiance (nothing absorbs, nothing emits).
 fn furnace(env: &dyn Environment, l_env: f64) {
     let scene = Scene {
-        camera: camera(Vec3::new(0.0, -6.0, 2.0), Vec3::new(0.0, 0.0, 0.5), 24, 16),
+        camera: Some(camera(
+            Vec3::new(0.0, -6.0, 2.0),
+            Vec3::new(0.0, 0.0, 0.5),
+            24,
+            16,
+        )),
         objects: vec![
             Object {
                 shape: Shape::Sphere(Sphere {
@@ -165,7 +170,7 @@ fn irradiance_from_a_polygonal_light_matches_the_closed_form() {
     let p = Vec3::new(0.0, 0.0, 0.0);
     let truth = rho / PI * polygon_irradiance(p, Vec3::new(0.0, 0.0, 1.0), &corners, l);
     let scene = Scene {
-        camera: camera(Vec3::new(0.0, -3.0, 3.0), p, 8, 8),
+        camera: Some(camera(Vec3::new(0.0, -3.0, 3.0), p, 8, 8)),
         objects: vec![Object {
             shape: Shape::Triangles {
                 triangles: quad(
@@ -237,7 +242,7 @@ fn mis_has_the_mean_of_each_single_strategy() {
     // Glossy floor, an occluding sphere, a quad light AND a constant environment, several
     // bounces: MIS, BRDF-only and light-only estimators must agree within noise.
     let scene = Scene {
-        camera: camera(Vec3::new(0.0, -3.0, 3.0), Vec3::ZERO, 8, 8),
+        camera: Some(camera(Vec3::new(0.0, -3.0, 3.0), Vec3::ZERO, 8, 8)),
         objects: vec![
             Object {
                 shape: Shape::Triangles {
@@ -431,15 +436,17 @@ fn dome_direct_light_matches_the_brute_force_irradiance() {
         Vec3::new(0.0, 0.0, big),
     );
     let scene = Scene {
-        camera: Camera::look_at(
-            Vec3::new(0.0, 2.0, 3.0),
-            Vec3::ZERO,
-            Vec3::new(0.0, 1.0, 0.0),
-            50.0,
-            8,
-            8,
-        )
-        .unwrap(),
+        camera: Some(
+            Camera::look_at(
+                Vec3::new(0.0, 2.0, 3.0),
+                Vec3::ZERO,
+                Vec3::new(0.0, 1.0, 0.0),
+                50.0,
+                8,
+                8,
+            )
+            .unwrap(),
+        ),
         objects: vec![Object::new(
             Shape::Triangles { triangles: floor },
             lambert(rho),
@@ -488,15 +495,17 @@ fn dome_nee_has_the_mean_of_brdf_sampling() {
         Vec3::new(0.0, 0.0, 4.0),
     );
     let scene = Scene {
-        camera: Camera::look_at(
-            Vec3::new(0.0, 2.0, 3.0),
-            Vec3::ZERO,
-            Vec3::new(0.0, 1.0, 0.0),
-            50.0,
-            8,
-            8,
-        )
-        .unwrap(),
+        camera: Some(
+            Camera::look_at(
+                Vec3::new(0.0, 2.0, 3.0),
+                Vec3::ZERO,
+                Vec3::new(0.0, 1.0, 0.0),
+                50.0,
+                8,
+                8,
+            )
+            .unwrap(),
+        ),
         objects: vec![
             Object::new(
                 Shape::Triangles { triangles: floor },

@@ -41,15 +41,17 @@ fn scene(w: usize, h: usize) -> Scene {
     );
     let l = |x: f64, y: f64| Vec3::new(x, y, 3.0);
     Scene {
-        camera: Camera::look_at(
-            Vec3::new(0.0, -4.0, 1.6),
-            Vec3::new(0.0, 0.0, 0.4),
-            Vec3::new(0.0, 0.0, 1.0),
-            50.0,
-            w,
-            h,
-        )
-        .unwrap(),
+        camera: Some(
+            Camera::look_at(
+                Vec3::new(0.0, -4.0, 1.6),
+                Vec3::new(0.0, 0.0, 0.4),
+                Vec3::new(0.0, 0.0, 1.0),
+                50.0,
+                w,
+                h,
+            )
+            .unwrap(),
+        ),
         objects: vec![floor, ball],
         lights: vec![AreaLight {
             radiance: Rgb::splat(6.0),
