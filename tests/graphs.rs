@@ -6,7 +6,7 @@
 
 use std::fs;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
 use serde_json::Value as Json;
 use vfxgraph_imaging::color::linear_to_srgb8;
@@ -16,13 +16,8 @@ fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
-fn vfx(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_vfxgraph"))
-        .current_dir(dir)
-        .args(args)
-        .output()
-        .unwrap()
-}
+mod common;
+use common::{run_json, vfx};
 
 fn text(out: &Output) -> String {
     format!(
@@ -137,17 +132,24 @@ fn scratch_copy(name: &str, data: &Path) -> (tempfile::TempDir, PathBuf) {
     (tmp, g)
 }
 
-fn run_json(dir: &Path, args: &[&str]) -> Vec<Json> {
-    let mut a = vec!["run", "--json"];
-    a.extend_from_slice(args);
-    let out = vfx(dir, &a);
-    assert!(
-        out.status.success(),
-        "vfxgraph {a:?} failed:\n{}",
-        text(&out)
-    );
-    let v: Json = serde_json::from_slice(&out.stdout).expect("json on stdout");
-    v["nodes"].as_array().unwrap().clone()
+/// Runs `graph` in `dir` on `frames` with the cache `cache` and the `--set` overrides `sets`.
+fn run_frames(dir: &Path, graph: &str, frames: &str, cache: &str, sets: &[String]) -> Vec<Json> {
+    let mut args = vec![graph, "--frames", frames, "--cache", cache];
+    for s in sets {
+        args.extend(["--set", s.as_str()]);
+    }
+    run_json(dir, &args)
+}
+
+/// The names of the files in `dir` that `keep` accepts, sorted.
+fn listing(dir: &Path, keep: impl Fn(&str) -> bool) -> Vec<String> {
+    let mut names: Vec<String> = fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .filter(|n| keep(n))
+        .collect();
+    names.sort();
+    names
 }
 
 fn json_file(path: &Path) -> Json {
@@ -213,13 +215,6 @@ fn book_scene_and_book_shot_graphs_run_on_a_few_frames() {
 
     // The scene: frames 68 and 186 of the four marked ones.
     let (_tmp, g) = scratch_copy("book_scene.yaml", &data);
-    let mut args = vec![
-        "book_scene.yaml",
-        "--frames",
-        "68,186",
-        "--cache",
-        &cache_dir,
-    ];
     let sets: Vec<String> = ["render", "render_catcher", "desk_render"]
         .iter()
         .flat_map(|n| {
@@ -230,18 +225,10 @@ fn book_scene_and_book_shot_graphs_run_on_a_few_frames() {
             ]
         })
         .collect();
-    for s in &sets {
-        args.extend(["--set", s]);
-    }
-    let nodes = run_json(&g, &args);
+    let nodes = run_frames(&g, "book_scene.yaml", "68,186", &cache_dir, &sets);
     assert!(nodes.iter().all(|n| n["status"] == "ran"), "{nodes:?}");
     let out = g.join("out/book_scene");
-    let mut written: Vec<String> = fs::read_dir(&out)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().into_string().unwrap())
-        .filter(|n| n.ends_with(".png"))
-        .collect();
-    written.sort();
+    let written = listing(&out, |n| n.ends_with(".png"));
     assert_eq!(
         written,
         [
@@ -298,23 +285,8 @@ fn book_scene_and_book_shot_graphs_run_on_a_few_frames() {
 
     // The shot: frames 40 and 140, cheap adaptive sampling.
     let (_tmp2, g) = scratch_copy("book_shot.yaml", &data);
-    let mut args = vec![
-        "book_shot.yaml",
-        "--frames",
-        "40,140",
-        "--cache",
-        &cache_dir,
-    ];
-    let sets = [
-        "shot.width=160",
-        "shot.height=90",
-        "shot.spp=16",
-        "shot.min_spp=4",
-    ];
-    for s in &sets {
-        args.extend(["--set", s]);
-    }
-    let nodes = run_json(&g, &args);
+    let sets = ["width=160", "height=90", "spp=16", "min_spp=4"].map(|s| format!("shot.{s}"));
+    let nodes = run_frames(&g, "book_shot.yaml", "40,140", &cache_dir, &sets);
     for id in ["solve", "relax", "ground", "place"] {
         let n = nodes.iter().find(|n| n["id"] == id).unwrap();
         assert_eq!(
@@ -324,12 +296,7 @@ fn book_scene_and_book_shot_graphs_run_on_a_few_frames() {
     }
     let out = g.join("out/book_shot");
     check_book_solve(&json_file(&out.join("relax_report.json")));
-    let mut written: Vec<String> = fs::read_dir(&out)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().into_string().unwrap())
-        .filter(|n| !n.ends_with(".json"))
-        .collect();
-    written.sort();
+    let written = listing(&out, |n| !n.ends_with(".json"));
     assert_eq!(
         written,
         [

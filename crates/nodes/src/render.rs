@@ -80,7 +80,8 @@ pub fn register(r: &mut Registry) {
             "read_scene",
             "Reads a scene file, by extension: the book's S3D `.scn` language (scene/hdrscene, \
              view, primobj, polyobj, group, sphere, trilist, plastic, polylight, hdrdome, \
-             plshadow; book §9.13), or a YAML scene (`.yaml`/`.yml`: camera look_at or K/R/t, \
+             plshadow; book §9.13), or a YAML scene (`.yaml`/`.yml`: camera look_at or K/R/t \
+             — optional for a scene seen only through a `cameras` path whose K has a size, \
              spheres, quads, polygons, triangles, OBJ meshes with transforms, lambert/mirror/\
              plastic/blinn_phong materials, area lights, dome image or colour, catchers; see \
              the render crate's `yaml_scene` docs). Errors name file:line:column. Loads the \
@@ -106,7 +107,8 @@ pub fn register(r: &mut Registry) {
              per pixel (same image for any thread count). Light: the `dome` input if \
              connected, else the scene's dome, else its background colour. With `cameras` \
              (per frame: set `per_frame: true`), frame f is seen by that path's [R|t] of frame \
-             f with the scene camera's K (or the `intrinsics` input's). Output: mean radiance \
+             f with the scene camera's K (or the `intrinsics` input's, or the path's; a scene \
+             without a camera takes its K and image size from those). Output: mean radiance \
              per pixel (linear HDR) and the variance of that mean.",
         )
         .mode(Mode::Either)

@@ -498,31 +498,35 @@ mod tests {
         assert!(back.cloud.errors[0] == 0.0 && (back.cloud.errors[5] - 0.05).abs() < 1e-15);
     }
 
+    /// The test shot with tracks (id, first frame index, positions), one slot each.
+    fn shot_with_tracks(tracks: &[(u64, usize, &[[f64; 2]])]) -> Shot {
+        let mut s = shot();
+        s.tracks = Some(Tracks {
+            frames: s.path.frames.iter().map(|f| f.frame as i64).collect(),
+            slots: tracks.len(),
+            tracks: tracks
+                .iter()
+                .enumerate()
+                .map(|(slot, (id, first, points))| Track {
+                    id: *id,
+                    slot,
+                    first: *first,
+                    points: points.to_vec(),
+                    lost: None,
+                })
+                .collect(),
+        });
+        s
+    }
+
     /// Tracks become 2-D points (+0.5 px) and point tracks that index them.
     #[test]
     fn tracks_become_observations() {
-        let mut s = shot();
-        let frames: Vec<i64> = s.path.frames.iter().map(|f| f.frame as i64).collect();
-        s.tracks = Some(Tracks {
-            frames: frames.clone(),
-            slots: 2,
-            tracks: vec![
-                Track {
-                    id: 501,
-                    slot: 0,
-                    first: 1,
-                    points: vec![[10.0, 20.0], [11.0, 21.0]],
-                    lost: None,
-                },
-                Track {
-                    id: 9999, // no point in the cloud: ignored
-                    slot: 1,
-                    first: 0,
-                    points: vec![[1.0, 2.0]],
-                    lost: None,
-                },
-            ],
-        });
+        // Track 9999 has no point in the cloud: ignored.
+        let s = shot_with_tracks(&[
+            (501, 1, &[[10.0, 20.0], [11.0, 21.0]]),
+            (9999, 0, &[[1.0, 2.0]]),
+        ]);
         let m = format(&s).unwrap();
         let img: Vec<&str> = m.images.lines().filter(|l| !l.starts_with('#')).collect();
         assert_eq!(img[1], "");
@@ -537,30 +541,12 @@ mod tests {
     /// model back gives the marks again (the frames of each point's track).
     #[test]
     fn only_inliers_are_linked() {
-        let mut s = shot();
-        let frames: Vec<i64> = s.path.frames.iter().map(|f| f.frame as i64).collect();
         // Track 501 (point 2) is seen in images 2, 3, 4 (frames 11, 12, 13); the solve
         // rejected its observation in frame 12. Track 500 (point 1) has no inlier at all.
-        s.tracks = Some(Tracks {
-            frames: frames.clone(),
-            slots: 2,
-            tracks: vec![
-                Track {
-                    id: 501,
-                    slot: 0,
-                    first: 1,
-                    points: vec![[10.0, 20.0], [11.0, 21.0], [12.0, 22.0]],
-                    lost: None,
-                },
-                Track {
-                    id: 500,
-                    slot: 1,
-                    first: 1,
-                    points: vec![[30.0, 40.0]],
-                    lost: None,
-                },
-            ],
-        });
+        let mut s = shot_with_tracks(&[
+            (501, 1, &[[10.0, 20.0], [11.0, 21.0], [12.0, 22.0]]),
+            (500, 1, &[[30.0, 40.0]]),
+        ]);
         let cloud = s.cloud.as_mut().unwrap();
         cloud.inlier_frames = vec![Vec::new(); cloud.points.len()];
         cloud.inlier_frames[1] = vec![11, 13];
