@@ -14,6 +14,19 @@ fn camera(from: Vec3, at: Vec3, w: usize, h: usize) -> Camera {
     Camera::look_at(from, at, Vec3::new(0.0, 0.0, 1.0), 50.0, w, h).unwrap()
 }
 
+/// An 8×8 camera above a y-up floor, looking at the origin.
+fn floor_camera() -> Camera {
+    Camera::look_at(
+        Vec3::new(0.0, 2.0, 3.0),
+        Vec3::ZERO,
+        Vec3::new(0.0, 1.0, 0.0),
+        50.0,
+        8,
+        8,
+    )
+    .unwrap()
+}
+
 fn quad(c: Vec3, a: Vec3, b: Vec3) -> Vec<[Vec3; 3]> {
     let (p0, p1, p2, p3) = (c - a - b, c + a - b, c + a + b, c - a + b);
     vec![[p0, p1, p2], [p0, p2, p3]]
@@ -340,6 +353,7 @@ fn same_image_for_any_thread_count() {
     let env = ConstantEnvironment {
         radiance: Rgb::BLACK,
     };
+    let cam = scene.camera.as_ref().unwrap();
     let settings = RenderSettings {
         spp: 8,
         tile: 7,
@@ -351,17 +365,7 @@ fn same_image_for_any_thread_count() {
             .num_threads(threads)
             .build()
             .unwrap()
-            .install(|| {
-                render(
-                    &world,
-                    &env,
-                    scene.camera.as_ref().unwrap(),
-                    &settings,
-                    &|_| {},
-                    None,
-                )
-                .unwrap()
-            })
+            .install(|| render(&world, &env, cam, &settings, &|_| {}, None).unwrap())
     };
     let (a, b) = (run(1), run(3));
     assert_eq!(a.image, b.image);
@@ -370,7 +374,7 @@ fn same_image_for_any_thread_count() {
     let other = render(
         &world,
         &env,
-        scene.camera.as_ref().unwrap(),
+        cam,
         &RenderSettings {
             seed: 43,
             ..settings
@@ -383,15 +387,7 @@ fn same_image_for_any_thread_count() {
     // Cancellation.
     let flag = std::sync::atomic::AtomicBool::new(true);
     assert_eq!(
-        render(
-            &world,
-            &env,
-            scene.camera.as_ref().unwrap(),
-            &settings,
-            &|_| {},
-            Some(&flag)
-        )
-        .unwrap_err(),
+        render(&world, &env, cam, &settings, &|_| {}, Some(&flag)).unwrap_err(),
         RenderError::Cancelled
     );
 }
@@ -436,17 +432,7 @@ fn dome_direct_light_matches_the_brute_force_irradiance() {
         Vec3::new(0.0, 0.0, big),
     );
     let scene = Scene {
-        camera: Some(
-            Camera::look_at(
-                Vec3::new(0.0, 2.0, 3.0),
-                Vec3::ZERO,
-                Vec3::new(0.0, 1.0, 0.0),
-                50.0,
-                8,
-                8,
-            )
-            .unwrap(),
-        ),
+        camera: Some(floor_camera()),
         objects: vec![Object::new(
             Shape::Triangles { triangles: floor },
             lambert(rho),
@@ -495,17 +481,7 @@ fn dome_nee_has_the_mean_of_brdf_sampling() {
         Vec3::new(0.0, 0.0, 4.0),
     );
     let scene = Scene {
-        camera: Some(
-            Camera::look_at(
-                Vec3::new(0.0, 2.0, 3.0),
-                Vec3::ZERO,
-                Vec3::new(0.0, 1.0, 0.0),
-                50.0,
-                8,
-                8,
-            )
-            .unwrap(),
-        ),
+        camera: Some(floor_camera()),
         objects: vec![
             Object::new(
                 Shape::Triangles { triangles: floor },
