@@ -505,7 +505,7 @@ fn read_video_feeds_klt_track_in_a_graph() {
         full_range: false,
         matrix_from_stream: true,
     };
-    vfxgraph_video::write_mp4(&g.join("clip.mp4"), &frames, 30, 3, 8, color).unwrap();
+    vfxgraph_video::write_mp4(&g.join("clip.mp4"), &frames, 30.0, 3, 8, color).unwrap();
     let yaml = "version: 1\nframes: 0..=5\nnodes:\n  plate:\n    type: read_video\n    \
                 params: {path: clip.mp4}\n  track:\n    type: klt_track\n    \
                 inputs: {frames: plate.sequence}\n    params: {features: 30, min_distance: 8}\n  \

@@ -201,6 +201,22 @@ pub fn register(r: &mut Registry) {
         },
     ));
     r.register_node(FnNode::new(
+        NodeSpec::new(
+            "write_intrinsics",
+            "Writes camera intrinsics K as the book's g7cam.txt (3×3, rows), or JSON (with \
+             the image size) when the name ends in .json; what `read_intrinsics` reads.",
+        )
+        .input(PortSpec::one("intrinsics", IntrinsicsArt::NAME, "K"))
+        .param(path_out("g7cam.txt-style K file, or .json")),
+        |ctx| {
+            let k = &ctx.input::<IntrinsicsArt>("intrinsics")?.0;
+            Ok(formats::write_intrinsics(
+                &crate::output_path(ctx, "path")?,
+                k,
+            )?)
+        },
+    ));
+    r.register_node(FnNode::new(
         NodeSpec::new("write_report", "Writes any report as pretty JSON.")
             .input(PortSpec::one("report", ReportArt::NAME, "the report"))
             .param(path_out("JSON file")),

@@ -81,3 +81,14 @@ pub fn registry() -> Registry {
     );
     r
 }
+
+/// The file a node writes: path param `param` resolved against the graph's folder, with its
+/// folder created.
+pub(crate) fn output_path(ctx: &Context<'_>, param: &str) -> Result<std::path::PathBuf, NodeError> {
+    let path = ctx.path(param);
+    if let Some(parent) = path.parent() {
+        std::fs::create_dir_all(parent)
+            .map_err(|e| NodeError::msg(format!("cannot create {}: {e}", parent.display())))?;
+    }
+    Ok(path)
+}

@@ -4,7 +4,9 @@ use vfxgraph_engine::artifact::{decode_json, encode_json};
 use vfxgraph_engine::{
     ArtifactType, Mode, NodeSpec, ParamSpec, ParamType, PathRole, PortSpec, Registry,
 };
-use vfxgraph_vision::formats::marked_points::{read_marked_points, MarkedPoints};
+use vfxgraph_vision::formats::marked_points::{
+    read_marked_points, write_marked_points, MarkedPoints,
+};
 use vfxgraph_vision::modeling::point_cloud_calibrate;
 
 use crate::artifacts::{CameraPathArt, IntrinsicsArt, Points3dArt, ReportArt};
@@ -51,6 +53,26 @@ pub fn register(r: &mut Registry) {
             };
             ctx.output("marks", MarkedPointsArt(marks));
             Ok(())
+        },
+    ));
+    r.register_node(FnNode::new(
+        NodeSpec::new(
+            "write_marks",
+            "Writes marked points as the book's `points2d.txt`, or JSON when the name ends \
+             in .json; what `read_marks` reads.",
+        )
+        .param(ParamSpec::required(
+            "path",
+            ParamType::Path(PathRole::Output),
+            "marked-points file",
+        ))
+        .input(PortSpec::one("marks", MarkedPointsArt::NAME, "the marks")),
+        |ctx| {
+            let marks = &ctx.input::<MarkedPointsArt>("marks")?.0;
+            Ok(write_marked_points(
+                &crate::output_path(ctx, "path")?,
+                marks,
+            )?)
         },
     ));
     r.register_node(FnNode::new(

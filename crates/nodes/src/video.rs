@@ -11,8 +11,8 @@ use vfxgraph_engine::{
     ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, ParamValue, PathRole,
     PortSpec, Registry,
 };
-use vfxgraph_imaging::Image;
-use vfxgraph_video::{Video, VideoError};
+use vfxgraph_imaging::{tonemap, Image, Operator};
+use vfxgraph_video::{write_mp4, ColorInfo, Matrix, Video, VideoError};
 
 use crate::artifacts::ImageArt;
 use crate::FnNode;
@@ -48,7 +48,71 @@ pub fn register(r: &mut Registry) {
         )),
         run_read_video,
     ));
+    r.register_node(FnNode::new(
+        NodeSpec::new(
+            "write_video",
+            "Writes the frames of a sequence, in frame order, as an H.264 .mp4 a person can \
+             play (OpenH264 encoder, bundled; Y'CbCr 4:2:0, limited range, BT.709 declared \
+             in the stream). The input is linear light: it is tone-mapped (`tonemap`: clip \
+             as a PNG is, or Reinhard for HDR) and sRGB-encoded. Frames must be one even \
+             size. The write is atomic.",
+        )
+        .mode(Mode::Once)
+        .param(ParamSpec::required(
+            "path",
+            ParamType::Path(PathRole::Output),
+            "the .mp4 file, relative to the graph file",
+        ))
+        .param(ParamSpec::optional(
+            "fps",
+            ParamType::Float {
+                min: 0.1,
+                max: 1000.0,
+            },
+            ParamValue::Float(24.0),
+            "frames per second (23.976, 24, 25, 30, …)",
+        ))
+        .param(ParamSpec::optional(
+            "quality",
+            ParamType::Int { min: 0, max: 51 },
+            ParamValue::Int(20),
+            "the largest H.264 quantiser (QP): lower is better and larger; 0–10 is near \
+             lossless, 18–23 what streaming services use",
+        ))
+        .param(ParamSpec::optional(
+            "keyframe_interval",
+            ParamType::Int {
+                min: 0,
+                max: 100_000,
+            },
+            ParamValue::Int(24),
+            "a key frame every this many frames (0: the first only); smaller seeks faster",
+        ))
+        .param(ParamSpec::optional(
+            "tonemap",
+            ParamType::Enum(TONEMAPS),
+            ParamValue::Str("srgb".into()),
+            "srgb (clip to [0, 1], as PNG frames are) | reinhard (L/(1+L), for HDR input)",
+        ))
+        .param(ParamSpec::optional(
+            "exposure",
+            ParamType::Float {
+                min: -30.0,
+                max: 30.0,
+            },
+            ParamValue::Float(0.0),
+            "stops applied before the tone map",
+        ))
+        .input(PortSpec::sequence(
+            "sequence",
+            ImageArt::NAME,
+            "the frames, in order",
+        )),
+        run_write_video,
+    ));
 }
+
+const TONEMAPS: &[&str] = &["srgb", "reinhard"];
 
 const BACKENDS: &[&str] = &["native", "opencv"];
 
@@ -127,11 +191,53 @@ fn run_read_video(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     Ok(())
 }
 
+fn run_write_video(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+    let p = ctx.params();
+    let op: Operator = p.str("tonemap").parse().map_err(NodeError::msg)?;
+    let (stops, fps) = (p.f64("exposure") as f32, p.f64("fps"));
+    let (qp, keys) = (p.i64("quality") as u8, p.i64("keyframe_interval") as u32);
+    let path = ctx.path("path");
+    let frames = ctx.sequence::<ImageArt>("sequence")?;
+    if frames.is_empty() {
+        return Err(NodeError::msg(format!(
+            "write_video: no frames to write to {}",
+            path.display()
+        )));
+    }
+    let (w, h) = (frames[0].1 .0.width, frames[0].1 .0.height);
+    if let Some((f, img)) = frames
+        .iter()
+        .find(|(_, i)| (i.0.width, i.0.height) != (w, h))
+    {
+        return Err(NodeError::msg(format!(
+            "write_video: frame {f} is {}×{}, frame {} is {w}×{h}: a video has one size",
+            img.0.width, img.0.height, frames[0].0
+        )));
+    }
+    if w % 2 == 1 || h % 2 == 1 {
+        return Err(NodeError::msg(format!(
+            "write_video: frames are {w}×{h}; H.264 4:2:0 needs an even width and height \
+             (render or crop to an even size)"
+        )));
+    }
+    let mapped: Vec<Image> = frames
+        .iter()
+        .map(|(_, img)| tonemap(&img.0, op, stops))
+        .collect();
+    let path = crate::output_path(ctx, "path")?;
+    let color = ColorInfo {
+        matrix: Matrix::Bt709,
+        full_range: false,
+        matrix_from_stream: true,
+    };
+    write_mp4(&path, &mapped, fps, keys, qp, color).map_err(|e| NodeError::msg(e.to_string()))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::testing::{params, spec};
-    use vfxgraph_video::{write_mp4, ColorInfo, Matrix};
+    use vfxgraph_engine::{InputValue, Value};
     use vfxgraph_vision::klt::{track_sequence, GrayImage, TrackerParams};
 
     /// A smooth random-ish texture translated by `(dx, dy)` pixels (linear light, gray).
@@ -177,7 +283,7 @@ mod tests {
             full_range: false,
             matrix_from_stream: true,
         };
-        write_mp4(&dir.path().join("clip.mp4"), &src, 25, 4, 6, color).unwrap();
+        write_mp4(&dir.path().join("clip.mp4"), &src, 25.0, 4, 6, color).unwrap();
         let frames: Vec<Image> = (0..n as i64)
             .map(|f| read(dir.path(), "clip.mp4", f).unwrap())
             .collect();
@@ -227,13 +333,127 @@ mod tests {
             full_range: false,
             matrix_from_stream: true,
         };
-        write_mp4(&dir.path().join("short.mp4"), &src, 25, 0, 10, color).unwrap();
+        write_mp4(&dir.path().join("short.mp4"), &src, 25.0, 0, 10, color).unwrap();
         assert!(read(dir.path(), "short.mp4", 2).is_ok());
         let e = read(dir.path(), "short.mp4", 3).unwrap_err();
         assert!(
             e.message.contains("short.mp4") && e.message.contains("3 frames"),
             "{e}"
         );
+    }
+
+    /// Runs `write_video` on `frames` (numbered from `first`) with extra params.
+    fn write_video(
+        dir: &Path,
+        file: &str,
+        first: i64,
+        frames: &[Image],
+        extra: &[(&str, ParamValue)],
+    ) -> Result<(), NodeError> {
+        let s = spec("write_video");
+        let mut ps = vec![("path", ParamValue::Str(file.into()))];
+        ps.extend(extra.iter().cloned());
+        let p = params(&s, &ps);
+        let seq = frames
+            .iter()
+            .enumerate()
+            .map(|(k, img)| (first + k as i64, Value::new(ImageArt(img.clone()))))
+            .collect();
+        let inputs = vec![("sequence", InputValue::Sequence(seq))];
+        let mut ctx = Context::for_test(&s, &p, dir, None, inputs);
+        run_write_video(&mut ctx)
+    }
+
+    #[test]
+    fn write_video_round_trips_through_the_reader() {
+        let dir = tempfile::tempdir().unwrap();
+        let (w, h, n) = (96, 64, 10);
+        let src: Vec<Image> = (0..n)
+            .map(|k| texture(w, h, 1.25 * k as f32, 0.5 * k as f32))
+            .collect();
+        write_video(
+            dir.path(),
+            "out/clip.mp4",
+            100,
+            &src,
+            &[("fps", ParamValue::Float(23.976))],
+        )
+        .unwrap();
+        let v = Video::open(&dir.path().join("out/clip.mp4")).unwrap();
+        assert_eq!(v.frame_count(), n);
+        assert_eq!(v.size(), (w, h));
+        assert!((v.fps() - 23.976).abs() < 1e-3, "fps {}", v.fps());
+        // Each decoded frame is its source frame (sRGB codes, mean |Δ| < 1 % of full scale;
+        // the next frame's texture is ≥ 5× further away, so frame order is checked too).
+        for (k, img) in src.iter().enumerate() {
+            let got = v.frame(k as i64).unwrap();
+            let d = |a: &Image, b: &Image| {
+                let (ga, gb) = (GrayImage::from_image(a), GrayImage::from_image(b));
+                ga.data
+                    .iter()
+                    .zip(&gb.data)
+                    .map(|(x, y)| (x - y).abs())
+                    .sum::<f32>()
+                    / ga.data.len() as f32
+                    / 255.0
+            };
+            let own = d(&got, img);
+            assert!(own < 0.01, "frame {k}: mean |Δ| {own}");
+            if let Some(next) = src.get(k + 1) {
+                assert!(
+                    d(&got, next) > 5.0 * own,
+                    "frame {k} looks like frame {}",
+                    k + 1
+                );
+            }
+        }
+        // Reinhard maps HDR values below white: a 4.0 image is not clipped to white.
+        let bright = vec![Image::from_fn(32, 32, 3, |_, _, _| 4.0); 2];
+        write_video(dir.path(), "hdr.mp4", 0, &bright, &[]).unwrap();
+        write_video(
+            dir.path(),
+            "hdr_r.mp4",
+            0,
+            &bright,
+            &[("tonemap", ParamValue::Str("reinhard".into()))],
+        )
+        .unwrap();
+        let luma = |f: &str| {
+            let img = Video::open(&dir.path().join(f)).unwrap().frame(0).unwrap();
+            GrayImage::from_image(&img).data[500] / 255.0
+        };
+        assert!(luma("hdr.mp4") > 0.97, "clipped: {}", luma("hdr.mp4"));
+        // Linear 4/(1+4) = 0.8, i.e. sRGB code 0.906 (the gray image holds sRGB codes).
+        let (r, want) = (
+            luma("hdr_r.mp4"),
+            vfxgraph_imaging::color::linear_to_srgb(0.8),
+        );
+        assert!((r - want).abs() < 0.02, "reinhard: {r}, want {want}");
+    }
+
+    #[test]
+    fn write_video_refuses_what_h264_cannot_hold() {
+        let dir = tempfile::tempdir().unwrap();
+        let odd = vec![Image::new(33, 32, 3); 2];
+        let e = write_video(dir.path(), "a.mp4", 0, &odd, &[]).unwrap_err();
+        assert!(
+            e.message.contains("33×32") && e.message.contains("even"),
+            "{e}"
+        );
+        let mixed = vec![Image::new(32, 32, 3), Image::new(64, 32, 3)];
+        let e = write_video(dir.path(), "b.mp4", 5, &mixed, &[]).unwrap_err();
+        assert!(
+            e.message.contains("frame 6") && e.message.contains("64×32"),
+            "{e}"
+        );
+        let e = write_video(dir.path(), "c.mp4", 0, &[], &[]).unwrap_err();
+        assert!(
+            e.message.contains("no frames") && e.message.contains("c.mp4"),
+            "{e}"
+        );
+        for f in ["a.mp4", "b.mp4", "c.mp4"] {
+            assert!(!dir.path().join(f).exists(), "{f} half-written");
+        }
     }
 
     #[cfg(not(feature = "opencv"))]
@@ -267,7 +487,7 @@ mod tests {
             full_range: false,
             matrix_from_stream: true,
         };
-        write_mp4(&dir.path().join("clip.mp4"), &src, 25, 3, 6, color).unwrap();
+        write_mp4(&dir.path().join("clip.mp4"), &src, 25.0, 3, 6, color).unwrap();
         for f in [3, 0, 5, 1] {
             let a = read_with(dir.path(), "clip.mp4", f, "opencv").unwrap();
             let b = read(dir.path(), "clip.mp4", f).unwrap();

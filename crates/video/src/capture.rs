@@ -309,7 +309,7 @@ mod tests {
             full_range: false,
             matrix_from_stream: true,
         };
-        write_mp4(&p, frames, 24, 5, 4, color).unwrap();
+        write_mp4(&p, frames, 24.0, 5, 4, color).unwrap();
         p
     }
 

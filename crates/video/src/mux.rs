@@ -3,6 +3,7 @@
 //! 14496-12/-15: `ftyp`, `moov` with one `avc1` track, `mdat`). The tests make their own
 //! videos with it; the reader does not depend on it.
 
+use std::borrow::Borrow;
 use std::path::Path;
 
 use openh264::encoder::{
@@ -211,13 +212,16 @@ fn moov(
 }
 
 /// Encodes `frames` (linear light, all the same even size) as H.264 with OpenH264 and writes
-/// them to an MP4 file at `fps` frames per second, with a key frame every `keyframe_interval`
-/// frames (0: only the first) and near-lossless quantisation (QP ≤ `max_qp`). The colour
-/// conversion (`color`) is declared in the stream's VUI. The write is atomic.
-pub fn write_mp4(
+/// them to an MP4 file at `fps` frames per second (any rate in (0, 1000]: the track's time
+/// scale is `fps` × 1000 rounded, one frame 1000 ticks, so 23.976 is exact), with a key frame
+/// every `keyframe_interval` frames (0: only the first) and quantisation QP ≤ `max_qp` (0–51;
+/// lower is better, 0–10 near-lossless). The colour conversion (`color`) is declared in the
+/// stream's VUI; values are clipped to [0, 1] and sRGB-encoded (tone-map HDR input first).
+/// The write is atomic.
+pub fn write_mp4<I: Borrow<Image>>(
     path: &Path,
-    frames: &[Image],
-    fps: u32,
+    frames: &[I],
+    fps: f64,
     keyframe_interval: u32,
     max_qp: u8,
     color: ColorInfo,
@@ -226,12 +230,23 @@ pub fn write_mp4(
         path: path.to_path_buf(),
         message: m,
     };
-    let first = frames.first().ok_or_else(|| err("no frames".into()))?;
+    if !(fps.is_finite() && fps > 0.0 && fps <= 1000.0) {
+        return Err(err(format!("frame rate {fps} must be in (0, 1000]")));
+    }
+    let timescale = (fps * 1000.0).round().max(1.0) as u32;
+    let first = frames
+        .first()
+        .map(Borrow::borrow)
+        .ok_or_else(|| err("no frames".into()))?;
     let (w, h) = (first.width, first.height);
     if w == 0 || h == 0 || w % 2 == 1 || h % 2 == 1 || w > 4096 || h > 4096 {
         return Err(err(format!("frame size {w}×{h} must be even, 2–4096")));
     }
-    if let Some(f) = frames.iter().find(|f| (f.width, f.height) != (w, h)) {
+    if let Some(f) = frames
+        .iter()
+        .map(Borrow::borrow)
+        .find(|f| (f.width, f.height) != (w, h))
+    {
         return Err(err(format!(
             "frames differ in size: {w}×{h} and {}×{}",
             f.width, f.height
@@ -246,7 +261,7 @@ pub fn write_mp4(
     let config = EncoderConfig::new()
         .vui(vui)
         .bitrate(BitRate::from_bps(50_000_000))
-        .max_frame_rate(FrameRate::from_hz(fps.max(1) as f32))
+        .max_frame_rate(FrameRate::from_hz(fps as f32))
         .rate_control_mode(RateControlMode::Quality)
         .qp(QpRange::new(0, max_qp.min(51)))
         .skip_frames(false)
@@ -255,7 +270,7 @@ pub fn write_mp4(
         .map_err(|e| err(e.to_string()))?;
     let (mut sps, mut pps) = (None, None);
     let mut out = Vec::with_capacity(frames.len());
-    for (k, img) in frames.iter().enumerate() {
+    for (k, img) in frames.iter().map(Borrow::borrow).enumerate() {
         let yuv = YUVBuffer::from_vec(to_i420(img, &color), w, h);
         let bs = enc
             .encode(&yuv)
@@ -279,7 +294,6 @@ pub fn write_mp4(
         (Some(s), Some(p)) if s.len() >= 4 => (s, p),
         _ => return Err(err("the encoder produced no parameter sets".into())),
     };
-    let timescale = fps.max(1) * 1000;
     let ftyp = bx(
         b"ftyp",
         &[&b"isom"[..], &512u32.to_be_bytes(), b"isomiso2avc1mp41"].concat(),
@@ -293,6 +307,12 @@ pub fn write_mp4(
             mdat.extend_from_slice(&(n.len() as u32).to_be_bytes());
             mdat.extend_from_slice(n);
         }
+    }
+    if mdat.len() as u64 + offset as u64 + 8 > u32::MAX as u64 {
+        return Err(err(format!(
+            "{} MB of video data: over the 4 GB a 32-bit MP4 holds; write shorter clips",
+            mdat.len() >> 20
+        )));
     }
     let file = [ftyp, moov, bx(b"mdat", &mdat)].concat();
     vfxgraph_imaging::io::write_atomic(path, &file).map_err(|e| err(e.to_string()))

@@ -57,7 +57,7 @@ fn write(dir: &Path, name: &str, frames: &[Image], matrix: Matrix) -> PathBuf {
         full_range: false,
         matrix_from_stream: true,
     };
-    write_mp4(&p, frames, 24, 5, 4, color).unwrap();
+    write_mp4(&p, frames, 24.0, 5, 4, color).unwrap();
     p
 }
 
