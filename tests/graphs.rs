@@ -109,6 +109,16 @@ fn every_graph_checks() {
         );
         lacking.push(name);
     }
+    // `describe` gives the same reason.
+    for (ty, why) in FEATURE_NODES {
+        let out = vfx(&dir, &["describe", ty]);
+        let said = text(&out);
+        if cfg!(not(feature = "opencv")) {
+            assert!(!out.status.success() && said.contains(why), "{said}");
+        } else {
+            assert!(out.status.success(), "{said}");
+        }
+    }
     eprintln!(
         "{} graphs: {checked:?} check; {lacking:?} need a feature this build lacks",
         graphs.len()
@@ -304,7 +314,10 @@ fn book_scene_and_book_shot_graphs_run_on_a_few_frames() {
     let nodes = run_frames(&g, "book_shot.yaml", "40,140", &cache_dir, &sets);
     for id in ["solve", "relax", "ground", "place"] {
         let n = nodes.iter().find(|n| n.0 == id).unwrap();
-        assert_eq!(n.2, "cached", "{id} comes from the scene graph's run: {n:?}");
+        assert_eq!(
+            n.2, "cached",
+            "{id} comes from the scene graph's run: {n:?}"
+        );
     }
     let out = g.join("out/book_shot");
     check_book_solve(&json_file(&out.join("relax_report.json")));
