@@ -343,9 +343,10 @@ fn dispatch(cli: Cli, registry: &Registry) -> Result<u8, String> {
                 report::print_describe(n.spec(), registry);
                 Ok(0)
             }
-            None => Err(format!(
-                "unknown node type `{node_type}` (`vfxgraph nodes` lists them)"
-            )),
+            None => Err(match registry.unavailable(&node_type) {
+                Some(why) => format!("unknown node type `{node_type}`: {why}"),
+                None => format!("unknown node type `{node_type}` (`vfxgraph nodes` lists them)"),
+            }),
         },
         Command::Dot { graph, cache } => {
             let g = match load_graph(&graph, registry) {

@@ -35,11 +35,12 @@ fn have(module: &str) -> bool {
     ok
 }
 
-fn check(script: &str, export: &Path, truth: &Path) {
+fn check(script: &str, export: &Path, truth: &Path, extra: &[&str]) {
     let out = Command::new(python())
         .arg(repo().join("scripts/check").join(script))
         .arg(export)
         .arg(truth)
+        .args(extra)
         .output()
         .expect("run python");
     let text = format!(
@@ -81,6 +82,7 @@ fn book_export_graph_writes_every_format_and_the_clients_agree() {
         "book_camera_filmback.txt",
         "book_cameras.json",
         "book_points.ply",
+        "relax_report.json",
     ] {
         assert!(o.join(f).is_file(), "{f} written");
     }
@@ -110,6 +112,40 @@ fn book_export_graph_writes_every_format_and_the_clients_agree() {
         assert!((a.pose.t - t).abs().max() < 1e-9);
         assert!(j["rms_px"].is_f64() && j["observations"].as_u64().unwrap() > 0);
     }
+
+    // Exports claim only what the solve believes: per frame, the JSON's observations are the
+    // relaxation's inliers (its report's count), its RMS is theirs, and the COLMAP model links
+    // exactly those observations (the rest are unassigned 2-D points).
+    let report: serde_json::Value =
+        serde_json::from_str(&fs::read_to_string(o.join("relax_report.json")).unwrap()).unwrap();
+    let rframes = report["frames"].as_array().unwrap();
+    let images = fs::read_to_string(o.join("colmap/images.txt")).unwrap();
+    let point_lines: Vec<&str> = images
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .skip(1)
+        .step_by(2)
+        .collect();
+    assert_eq!(point_lines.len(), jframes.len());
+    let (mut linked, mut rejected) = (0, 0);
+    for ((j, r), line) in jframes.iter().zip(rframes).zip(&point_lines) {
+        assert_eq!(j["frame"], r["frame"]);
+        assert_eq!(j["observations"], r["inliers"], "frame {}", j["frame"]);
+        let ids: Vec<&str> = line.split(' ').skip(2).step_by(3).collect();
+        let kept = ids.iter().filter(|id| **id != "-1").count();
+        assert_eq!(kept as u64, j["observations"].as_u64().unwrap());
+        assert_eq!((ids.len() - kept) as u64, j["outliers"].as_u64().unwrap());
+        linked += kept;
+        rejected += ids.len() - kept;
+        if let (Some(a), Some(b)) = (j["rms_px"].as_f64(), r["rms"].as_f64()) {
+            assert!((a - b).abs() < 1e-9, "frame {}: {a} vs {b}", j["frame"]);
+        }
+    }
+    eprintln!("book export: {linked} observations linked, {rejected} rejected by the solve");
+    assert!(
+        rejected > 0,
+        "the book's tracks have observations the solve rejects"
+    );
     assert!(!ours.cloud.points.is_empty());
     let solve = ours;
 
@@ -146,13 +182,22 @@ fn book_export_graph_writes_every_format_and_the_clients_agree() {
         .to_string(),
     )
     .unwrap();
+    // The solve's own inlier decision: every observation linked to a point is within the
+    // relaxation's final tolerance in pycolmap too (+ the 1e-6 px by which pycolmap's
+    // projections may differ from ours, checked above).
+    let tol = (report["inlier_tolerance"].as_f64().unwrap() + 1e-6).to_string();
     if have("pycolmap") {
-        check("colmap_check.py", &o.join("colmap"), &truth);
+        check(
+            "colmap_check.py",
+            &o.join("colmap"),
+            &truth,
+            &["--obs-tol", &tol],
+        );
     }
     if have("bpy") {
-        check("blender_check.py", &o.join("book_camera.py"), &truth);
+        check("blender_check.py", &o.join("book_camera.py"), &truth, &[]);
     }
     if have("pxr.Usd") {
-        check("usd_check.py", &o.join("book_camera.usda"), &truth);
+        check("usd_check.py", &o.join("book_camera.usda"), &truth, &[]);
     }
 }

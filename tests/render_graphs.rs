@@ -134,3 +134,50 @@ fn sigint_cancels_a_long_render_cleanly() {
     assert_eq!(status(&p, "scene").as_deref(), Some("cached"), "{p}");
     assert_eq!(status(&p, "render").as_deref(), Some("run"), "{p}");
 }
+
+/// A YAML scene without `camera:` (issue 20, point 8b) reads and places; rendered with nothing
+/// that supplies a camera, the run fails at the node that needs one, naming it and the cause.
+#[test]
+fn a_scene_without_a_camera_fails_only_where_a_camera_is_needed() {
+    let tmp = tempfile::tempdir().unwrap();
+    let g = tmp.path();
+    std::fs::write(
+        g.join("scene.yaml"),
+        "objects:\n  - sphere: {center: [0, 0, 0], radius: 1}\ndome: {color: 1}\n",
+    )
+    .unwrap();
+    std::fs::write(
+        g.join("g.yaml"),
+        "version: 1\nnodes:\n  scene:\n    type: read_scene\n    params: {path: scene.yaml}\n  \
+         beauty:\n    type: render\n    inputs: {scene: scene.scene}\n    params: {spp: 1}\n",
+    )
+    .unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_vfxgraph"))
+        .current_dir(g)
+        .args(["run", "--json", "g.yaml"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1), "{out:?}");
+    let v: Json = serde_json::from_slice(&out.stdout).unwrap();
+    let nodes = v["nodes"].as_array().unwrap();
+    let by = |id: &str| nodes.iter().find(|n| n["id"] == id).unwrap().clone();
+    assert_eq!(by("scene")["status"], "ran", "{nodes:?}");
+    let beauty = by("beauty");
+    assert_eq!(beauty["status"], "failed");
+    let why = beauty["reason"].as_str().unwrap();
+    assert!(
+        why.contains("no camera") && why.contains("`cameras`"),
+        "{why}"
+    );
+    // Without --json, the error names the node.
+    let out = Command::new(env!("CARGO_BIN_EXE_vfxgraph"))
+        .current_dir(g)
+        .args(["run", "--no-cache", "g.yaml"])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("node `beauty` (render) failed: no camera"),
+        "{stderr}"
+    );
+}

@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
 """pycolmap reads vfxgraph's COLMAP export; projecting its points with its cameras must land on
-our reprojections within 1e-6 px.
+our reprojections within 1e-6 px; with --obs-tol, every 2-D point linked to a point must lie
+within that distance of the point's projection.
 
-usage: colmap_check.py MODEL_DIR TRUTH.json [--tol 1e-6]
+usage: colmap_check.py MODEL_DIR TRUTH.json [--tol 1e-6] [--obs-tol PX]
 
 COLMAP's pixel origin is the top-left corner of the image, ours the centre of the top-left
 pixel: COLMAP's pixel − 0.5 is compared with ours.
@@ -21,8 +22,9 @@ def main():
     ap.add_argument("truth")
     ap.add_argument("--tol", type=float, default=1e-6)
     ap.add_argument("--obs-tol", type=float, default=None,
-                    help="also require every 2-D point within this distance (px) of its "
-                         "point's projection (for observations known to be exact)")
+                    help="also require every linked 2-D point within this distance (px) of its "
+                         "point's projection (the solve's final inlier threshold, or a "
+                         "bound for observations known to be exact)")
     a = ap.parse_args()
     truth = load(a.truth)
     rec = pycolmap.Reconstruction(a.model)
@@ -61,11 +63,15 @@ def main():
             xy = img.points2D[el.point2D_idx].xy
             worst_obs = max(worst_obs, float(np.hypot(*(np.asarray(uv) - xy))))
             n_obs += 1
+    unassigned = sum(1 for img in rec.images.values() for p in img.points2D
+                     if not p.has_point3D())
+    print("2-D points: %d linked, %d unassigned (POINT3D_ID -1); pycolmap's mean reprojection "
+          "error %.3f px -> reported" % (n_obs, unassigned, rec.compute_mean_reprojection_error()))
     if a.obs_tol is None:
         print("tracks: %d observations, max distance to the projection %.3e px (not checked)"
               % (n_obs, worst_obs))
     else:
-        print("tracks: %d observations, max distance to the projection %.3e px (bound %.3e) -> %s"
+        print("tracks: %d observations, max distance to the projection %.9f px (bound %.9f) -> %s"
               % (n_obs, worst_obs, a.obs_tol, "OK" if worst_obs <= a.obs_tol else "FAIL"))
         if worst_obs > a.obs_tol:
             fail("an observation is %.3e px from its point's projection" % worst_obs)

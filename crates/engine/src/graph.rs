@@ -371,13 +371,18 @@ pub fn parse(
         };
         let type_name = type_y.as_str().unwrap_or("");
         let Some(node) = registry.node(type_name) else {
-            d.push_help(
-                ErrorKind::UnknownNodeType,
-                Some(type_y.span),
-                format!("unknown node type `{type_name}` for node `{id}`"),
-                suggest(type_name, registry.nodes().map(|n| n.spec().name))
-                    .or(Some("`vfxgraph nodes` lists the node types".to_string())),
-            );
+            let (message, help) = match registry.unavailable(type_name) {
+                Some(why) => (
+                    format!("unknown node type `{type_name}` for node `{id}`: {why}"),
+                    None,
+                ),
+                None => (
+                    format!("unknown node type `{type_name}` for node `{id}`"),
+                    suggest(type_name, registry.nodes().map(|n| n.spec().name))
+                        .or(Some("`vfxgraph nodes` lists the node types".to_string())),
+                ),
+            };
+            d.push_help(ErrorKind::UnknownNodeType, Some(type_y.span), message, help);
             raws.push(raw);
             continue;
         };

@@ -24,6 +24,8 @@ pub struct ArtifactInfo {
 pub struct Registry {
     nodes: BTreeMap<&'static str, Arc<dyn Node>>,
     artifacts: BTreeMap<&'static str, ArtifactInfo>,
+    /// Node types this build lacks (behind a cargo feature), with what it takes to have them.
+    unavailable: BTreeMap<&'static str, &'static str>,
 }
 
 impl Registry {
@@ -67,6 +69,18 @@ impl Registry {
         if self.nodes.insert(name, Arc::new(node)).is_some() {
             panic!("node type `{name}` registered twice");
         }
+    }
+
+    /// Records a node type this build does not have (e.g. behind a cargo feature it was built
+    /// without) and why, so that a graph naming it gets that reason instead of a bare
+    /// "unknown node type".
+    pub fn register_unavailable(&mut self, name: &'static str, why: &'static str) {
+        self.unavailable.insert(name, why);
+    }
+
+    /// Why a node type this build lacks is missing (see [`Registry::register_unavailable`]).
+    pub fn unavailable(&self, name: &str) -> Option<&'static str> {
+        self.unavailable.get(name).copied()
     }
 
     /// A node type by name.

@@ -203,6 +203,7 @@ mod tests {
                 .collect(),
             track_ids: (0..world.len() as u64).map(|i| 100 + i).collect(),
             errors: vec![],
+            ..Default::default()
         };
         let r = crate::registry();
         let spec = r.node("bundle_adjust").unwrap().spec().clone();

@@ -55,7 +55,9 @@ pub fn register(r: &mut Registry) {
             PortSpec::one(
                 "tracks",
                 TracksArt::NAME,
-                "the observations: COLMAP 2-D points and tracks, per-frame solve error",
+                "the observations: COLMAP 2-D points and tracks (only those the solve kept as \
+                 inliers linked to a point, per the points' inlier marks), per-frame solve error \
+                 over the inliers",
             )
             .optional(),
         )
@@ -376,6 +378,7 @@ mod tests {
                 .collect(),
             track_ids: (0..20).collect(),
             errors: vec![0.25; 20],
+            ..Default::default()
         }
     }
 

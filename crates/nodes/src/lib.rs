@@ -73,6 +73,12 @@ pub fn registry() -> Registry {
     video::register(&mut r);
     #[cfg(feature = "opencv")]
     tracking_opencv::register(&mut r);
+    #[cfg(not(feature = "opencv"))]
+    r.register_unavailable(
+        "klt_track_opencv",
+        "it needs the `opencv` cargo feature, and this vfxgraph was built without opencv \
+         (README, \"Optional: OpenCV\": cargo build --features opencv)",
+    );
     r
 }
 

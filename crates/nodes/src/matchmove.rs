@@ -114,7 +114,8 @@ fn solve_outputs(spec: NodeSpec) -> NodeSpec {
     .output(PortSpec::one(
         "points",
         PointCloudArt::NAME,
-        "the reconstructed points, with track ids and RMS errors",
+        "the reconstructed points, with track ids, RMS errors over their inlier observations and \
+         the frames of those (the solve's final inliers, within the report's inlier_tolerance)",
     ))
     .output(PortSpec::one(
         "report",

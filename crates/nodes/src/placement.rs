@@ -329,10 +329,10 @@ fn run_place_scene(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     }
     let mut scene = transform_scene(&art.scene, &fit.similarity);
     flip_dome(&mut scene, p.bool("flip_dome"));
-    scene
-        .camera
-        .validate()
-        .map_err(|e| NodeError::msg(format!("{NODE}: the moved camera: {e}")))?;
+    if let Some(c) = &scene.camera {
+        c.validate()
+            .map_err(|e| NodeError::msg(format!("{NODE}: the moved camera: {e}")))?;
+    }
     let dome = placed_dome(ctx, &scene, art.dome.as_ref())?;
     let report = json!({
         "similarity": similarity_json(&fit.similarity),
@@ -431,7 +431,7 @@ fn run_catcher_from_points(ctx: &mut Context<'_>) -> Result<(), NodeError> {
             };
             (
                 Scene {
-                    camera,
+                    camera: Some(camera),
                     objects: vec![],
                     lights: vec![],
                     background: Rgb::new(1.0, 1.0, 1.0),
@@ -520,7 +520,7 @@ mod tests {
                 32,
                 24,
             )
-            .unwrap(),
+            .ok(),
             objects: vec![catcher, sphere],
             lights: vec![],
             background: Rgb::new(0.0, 0.0, 0.0),

@@ -59,7 +59,9 @@ impl ArtifactType for SceneArt {
     fn decode(bytes: &[u8]) -> Result<Self, String> {
         let mut r = Reader::new(bytes);
         let scene: Scene = decode_json(r.bytes()?)?;
-        scene.camera.validate().map_err(|e| e.to_string())?;
+        if let Some(c) = &scene.camera {
+            c.validate().map_err(|e| e.to_string())?;
+        }
         let dome = match r.u64()? {
             0 => None,
             1 => Some(DomeArt::decode(r.bytes()?)?.0),
@@ -78,7 +80,8 @@ pub fn register(r: &mut Registry) {
             "read_scene",
             "Reads a scene file, by extension: the book's S3D `.scn` language (scene/hdrscene, \
              view, primobj, polyobj, group, sphere, trilist, plastic, polylight, hdrdome, \
-             plshadow; book §9.13), or a YAML scene (`.yaml`/`.yml`: camera look_at or K/R/t, \
+             plshadow; book §9.13), or a YAML scene (`.yaml`/`.yml`: camera look_at or K/R/t \
+             — optional for a scene seen only through a `cameras` path whose K has a size, \
              spheres, quads, polygons, triangles, OBJ meshes with transforms, lambert/mirror/\
              plastic/blinn_phong materials, area lights, dome image or colour, catchers; see \
              the render crate's `yaml_scene` docs). Errors name file:line:column. Loads the \
@@ -104,7 +107,8 @@ pub fn register(r: &mut Registry) {
              per pixel (same image for any thread count). Light: the `dome` input if \
              connected, else the scene's dome, else its background colour. With `cameras` \
              (per frame: set `per_frame: true`), frame f is seen by that path's [R|t] of frame \
-             f with the scene camera's K (or the `intrinsics` input's). Output: mean radiance \
+             f with the scene camera's K (or the `intrinsics` input's, or the path's; a scene \
+             without a camera takes its K and image size from those). Output: mean radiance \
              per pixel (linear HDR) and the variance of that mean.",
         )
         .mode(Mode::Either)
@@ -267,28 +271,58 @@ pub(crate) fn instance_camera(ctx: &Context<'_>, scene: &Scene) -> Result<Camera
 }
 
 /// [`instance_camera`] for frame `frame` (`None`: the scene camera unless `cameras` is
-/// connected, which then is an error).
+/// connected, which then is an error). A scene without a camera (a YAML scene without
+/// `camera:`) needs both the pose (`cameras`) and K with its image size (`intrinsics` or the
+/// path's K) from the inputs; the error says which is missing.
 pub(crate) fn camera_for_frame(
     ctx: &Context<'_>,
     scene: &Scene,
     frame: Option<i64>,
 ) -> Result<Camera, NodeError> {
-    let mut camera = scene.camera.clone();
+    let path = ctx.input_opt::<CameraPathArt>("cameras")?;
     // K: the `intrinsics` input, else the camera path's own K, else the scene camera's.
-    let path_k = ctx
-        .input_opt::<CameraPathArt>("cameras")?
-        .and_then(|p| p.0.intrinsics.clone());
-    let k_in = ctx
-        .input_opt::<IntrinsicsArt>("intrinsics")?
-        .map(|k| k.0.clone());
-    if let Some(k) = k_in.or(path_k) {
-        let k = &k;
+    let k = match ctx.input_opt::<IntrinsicsArt>("intrinsics")? {
+        Some(k) => Some(k.0.clone()),
+        None => path.and_then(|p| p.0.intrinsics.clone()),
+    };
+    let mut camera = match (&scene.camera, &k, path) {
+        (Some(c), _, _) => c.clone(),
+        (None, _, None) => {
+            return Err(NodeError::msg(
+                "no camera: the scene has no `camera:` and no `cameras` input is connected \
+                 (connect a camera path, or give the scene a camera)",
+            ))
+        }
+        (None, None, Some(_)) => {
+            return Err(NodeError::msg(
+                "no camera: the scene has no `camera:`, and neither the `cameras` path nor an \
+                 `intrinsics` input carries K",
+            ))
+        }
+        // K and the pose are set below, from K and the path.
+        (None, Some(k), Some(_)) => match (k.width, k.height) {
+            (Some(w), Some(h)) => Camera {
+                k: [[0.0; 3]; 3],
+                r: [[0.0; 3]; 3],
+                t: [0.0; 3],
+                width: w as usize,
+                height: h as usize,
+            },
+            _ => {
+                return Err(NodeError::msg(
+                    "no camera: the scene has no `camera:` and K carries no image size (give \
+                     the scene a camera whose `size` is K's image size, or K with its size)",
+                ))
+            }
+        },
+    };
+    if let Some(k) = &k {
         camera.k = [[k.f1, k.s, k.u0], [0.0, k.f2, k.v0], [0.0, 0.0, 1.0]];
         if let (Some(w), Some(h)) = (k.width, k.height) {
             (camera.width, camera.height) = (w as usize, h as usize);
         }
     }
-    if let Some(path) = ctx.input_opt::<CameraPathArt>("cameras")? {
+    if let Some(path) = path {
         let Some(f) = frame else {
             return Err(NodeError::msg(
                 "the `cameras` input renders one frame per instance: set `per_frame: true` on \
@@ -608,7 +642,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         std::fs::write(dir.path().join("s.scn"), SCN).unwrap();
         let scene = read(dir.path(), "s.scn").unwrap();
-        let c = &scene.scene.camera;
+        let c = scene.scene.camera.as_ref().unwrap();
         let pose_of = |dx: f64| Pose {
             r: nalgebra::Matrix3::from_fn(|i, j| c.r[i][j]),
             t: Vector3::new(c.t[0] + dx, c.t[1], c.t[2]),
@@ -649,6 +683,58 @@ mod tests {
         );
         let e = render_node(scene, None, cams(), &[]).unwrap_err();
         assert!(e.message.contains("per_frame: true"), "{e}");
+    }
+
+    /// A scene without a camera renders through a camera path whose K carries the image size,
+    /// exactly as one whose camera the path replaces; without a pose, a K or an image size, the
+    /// error says which is missing.
+    #[test]
+    fn a_scene_without_a_camera_is_seen_through_the_path() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("s.scn"), SCN).unwrap();
+        let scene = read(dir.path(), "s.scn").unwrap();
+        let c = scene.scene.camera.clone().unwrap();
+        let k = vfxgraph_vision::Intrinsics {
+            s: c.k[0][1],
+            ..vfxgraph_vision::Intrinsics::new(c.k[0][0], c.k[1][1], c.k[0][2], c.k[1][2])
+        };
+        let path = |k: Option<vfxgraph_vision::Intrinsics>| CameraPath {
+            frames: vec![FramePose {
+                frame: 3,
+                pose: Pose {
+                    r: nalgebra::Matrix3::from_fn(|i, j| c.r[i][j]),
+                    t: Vector3::from(c.t),
+                },
+            }],
+            intrinsics: k,
+        };
+        let cams = |k| {
+            vec![(
+                "cameras",
+                InputValue::One(Value::new(CameraPathArt(path(k)))),
+            )]
+        };
+        let base = render_node(scene.clone(), Some(3), vec![], &[]).unwrap();
+        let mut bare = scene.clone();
+        bare.scene.camera = None;
+        let sized = k.clone().with_size(c.width as u32, c.height as u32);
+        assert_eq!(
+            render_node(bare.clone(), Some(3), cams(Some(sized)), &[]).unwrap(),
+            base
+        );
+        for (inputs, want) in [
+            (vec![], "no `cameras` input"),
+            (cams(None), "carries K"),
+            (cams(Some(k)), "no image size"),
+        ] {
+            let e = render_node(bare.clone(), Some(3), inputs, &[]).unwrap_err();
+            assert!(
+                e.message
+                    .starts_with("no camera: the scene has no `camera:`")
+                    && e.message.contains(want),
+                "{e}"
+            );
+        }
     }
 
     #[test]

@@ -651,7 +651,7 @@ mod tests {
             &vfxgraph_render::ConstantEnvironment {
                 radiance: real.scene.background,
             },
-            &real.scene.camera,
+            real.scene.camera.as_ref().unwrap(),
             &RenderSettings {
                 spp: 256,
                 max_depth: 3,
@@ -714,7 +714,7 @@ mod tests {
             &vfxgraph_render::ConstantEnvironment {
                 radiance: real.scene.background,
             },
-            &real.scene.camera,
+            real.scene.camera.as_ref().unwrap(),
             &RenderSettings {
                 spp: 256,
                 max_depth: 3,

@@ -117,7 +117,7 @@ fn modeling_scn_catcher_is_the_marked_ground_in_order_and_reprojects_onto_the_ma
     // The book's dome `south` points into the ground (against the normal on the spheres' and
     // cameras' side): an image with the sky on its top row needs `flip_dome` (place_scene).
     let spec = placed.dome.as_ref().expect("modeling.scn has an hdrdome");
-    let up = if (placed.camera.center() - a).dot(nrm) > 0.0 {
+    let up = if (placed.camera.as_ref().unwrap().center() - a).dot(nrm) > 0.0 {
         nrm
     } else {
         -nrm

@@ -146,6 +146,7 @@ fn shot(k: Intrinsics) -> Shot {
         points,
         track_ids: (0..n as u64).collect(),
         errors: vec![0.3; n],
+        ..Default::default()
     });
     s
 }

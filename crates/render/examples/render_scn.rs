@@ -82,8 +82,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let path = scene_path.ok_or("usage: render_scn SCENE.scn [options]")?;
     let text = std::fs::read_to_string(&path)?;
     let mut scene = parse_scn(&text).map_err(|e| format!("{}:{e}", path.display()))?;
+    // A .scn scene always has a camera (its view, or the language's default one).
+    let mut camera = scene.camera.clone().ok_or("the scene has no camera")?;
     if let Some((w, h)) = size {
-        scene.camera = scene.camera.resized(w, h);
+        camera = camera.resized(w, h);
     }
     if diffuse_only {
         for o in &mut scene.objects {
@@ -95,7 +97,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if let Some(d) = &dump {
         std::fs::write(d, serde_json::to_vec_pretty(&scene)?)?;
     }
-    let camera = scene.camera.clone();
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()?;

@@ -255,15 +255,17 @@ mod tests {
             }),
         );
         Scene {
-            camera: Camera::look_at(
-                Vec3::new(0.0, -4.0, 2.0),
-                Vec3::new(0.0, 0.0, 0.0),
-                Vec3::new(0.0, 0.0, 1.0),
-                50.0,
-                40,
-                30,
-            )
-            .unwrap(),
+            camera: Some(
+                Camera::look_at(
+                    Vec3::new(0.0, -4.0, 2.0),
+                    Vec3::new(0.0, 0.0, 0.0),
+                    Vec3::new(0.0, 0.0, 1.0),
+                    50.0,
+                    40,
+                    30,
+                )
+                .unwrap(),
+            ),
             objects: vec![floor, ball],
             lights: vec![],
             background: Rgb::new(1.0, 0.9, 0.7),
@@ -289,7 +291,7 @@ mod tests {
         let plate = render(
             &World::new(&real),
             &env,
-            &real.camera,
+            real.camera.as_ref().unwrap(),
             &settings,
             &|_| {},
             None,
@@ -305,8 +307,15 @@ mod tests {
             max_iterations: 4,
             tolerance: 1e-3,
         };
-        let (fitted, fit) =
-            fit_catcher(&start, &env, &start.camera, &plate, &options, None).unwrap();
+        let (fitted, fit) = fit_catcher(
+            &start,
+            &env,
+            start.camera.as_ref().unwrap(),
+            &plate,
+            &options,
+            None,
+        )
+        .unwrap();
         for (c, t) in [truth.r, truth.g, truth.b].into_iter().enumerate() {
             let rel = (fit.after[c] - t).abs() / t;
             assert!(rel < 0.01, "channel {c}: {} vs {t} ({fit:?})", fit.after[c]);
@@ -333,14 +342,23 @@ mod tests {
             tolerance: 1e-3,
         };
         let plate = Image::new(40, 30, 3);
-        let e = fit_catcher(&s, &env, &s.camera, &Image::new(8, 8, 3), &st, None).unwrap_err();
+        let e = fit_catcher(
+            &s,
+            &env,
+            s.camera.as_ref().unwrap(),
+            &Image::new(8, 8, 3),
+            &st,
+            None,
+        )
+        .unwrap_err();
         assert!(e.to_string().contains("8×8"), "{e}");
         // A black plate cannot be matched.
-        let e = fit_catcher(&s, &env, &s.camera, &plate, &st, None).unwrap_err();
+        let e = fit_catcher(&s, &env, s.camera.as_ref().unwrap(), &plate, &st, None).unwrap_err();
         assert!(matches!(e, FitError::Degenerate { .. }), "{e}");
         let mut none = s.clone();
         none.objects.retain(|o| !o.catcher);
-        let e = fit_catcher(&none, &env, &s.camera, &plate, &st, None).unwrap_err();
+        let e =
+            fit_catcher(&none, &env, s.camera.as_ref().unwrap(), &plate, &st, None).unwrap_err();
         assert!(matches!(e, FitError::NoCatcher));
     }
 }

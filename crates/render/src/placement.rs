@@ -248,7 +248,7 @@ pub fn transform_scene(scene: &Scene, s: &Similarity) -> Scene {
         d.orig = s.direction(d.orig);
         d.south = s.direction(d.south);
     }
-    out.camera = s.camera(&scene.camera);
+    out.camera = scene.camera.as_ref().map(|c| s.camera(c));
     out
 }
 
@@ -449,15 +449,17 @@ mod tests {
         );
         catcher.catcher = true;
         Scene {
-            camera: Camera::look_at(
-                Vec3::new(0.5, 2.0, 3.0),
-                Vec3::new(0.3, 0.0, 0.3),
-                Vec3::new(0.0, 1.0, 0.0),
-                50.0,
-                64,
-                48,
-            )
-            .unwrap(),
+            camera: Some(
+                Camera::look_at(
+                    Vec3::new(0.5, 2.0, 3.0),
+                    Vec3::new(0.3, 0.0, 0.3),
+                    Vec3::new(0.0, 1.0, 0.0),
+                    50.0,
+                    64,
+                    48,
+                )
+                .unwrap(),
+            ),
             objects: vec![
                 catcher,
                 Object::new(
@@ -523,7 +525,7 @@ mod tests {
             assert!(fit.relative_rms < 1e-9);
             // The moved camera projects the moved sphere centre where the original camera
             // projected the original.
-            let (c0, c1) = (&s.camera, &moved.camera);
+            let (c0, c1) = (s.camera.as_ref().unwrap(), moved.camera.as_ref().unwrap());
             let Shape::Sphere(sp) = moved.objects[1].shape else {
                 panic!()
             };

@@ -92,8 +92,10 @@ pub struct DomeSpec {
 /// A whole scene (book §9.13).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Scene {
-    /// The camera (from `view{…}` or a calibrated K[R|t]).
-    pub camera: Camera,
+    /// The camera (from `view{…}` or a calibrated K[R|t]); `None` for a YAML scene without
+    /// `camera:`, which is seen only through cameras from elsewhere (a solved camera path).
+    #[serde(default)]
+    pub camera: Option<Camera>,
     /// Reflecting objects.
     pub objects: Vec<Object>,
     /// Area lights.

@@ -680,15 +680,17 @@ pub fn parse_scn(text: &str) -> Result<Scene, ScnError> {
         }
     }
     let mut scene = Scene {
-        camera: Camera::look_at(
-            Vec3::new(0.0, -5.0, 0.0),
-            Vec3::ZERO,
-            Vec3::new(0.0, 0.0, 1.0),
-            90.0,
-            320,
-            240,
-        )
-        .expect("the default view is valid"),
+        camera: Some(
+            Camera::look_at(
+                Vec3::new(0.0, -5.0, 0.0),
+                Vec3::ZERO,
+                Vec3::new(0.0, 0.0, 1.0),
+                90.0,
+                320,
+                240,
+            )
+            .expect("the default view is valid"),
+        ),
         objects: Vec::new(),
         lights: Vec::new(),
         background: Rgb::BLACK,
@@ -706,7 +708,7 @@ pub fn parse_scn(text: &str) -> Result<Scene, ScnError> {
                 if have_camera {
                     return err(it.val.pos(), "a second camera");
                 }
-                scene.camera = view(&it.val)?;
+                scene.camera = Some(view(&it.val)?);
                 have_camera = true;
             }
             (Some("object"), _) | (None, Some("primobj" | "polyobj" | "group")) => {

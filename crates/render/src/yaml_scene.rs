@@ -2,7 +2,7 @@
 //! Wavefront OBJ meshes ([`crate::obj`]). Errors carry line:column of the offending value.
 //!
 //! ```yaml
-//! camera:                       # look_at (fov: HORIZONTAL degrees, as .scn's view) …
+//! camera:                       # optional; look_at (fov: HORIZONTAL degrees, as .scn's view) …
 //!   look_at: {from: [0, 1, 4], at: [0, 0.5, 0], up: [0, 1, 0], fov: 50}
 //!   size: [640, 360]
 //!   # … or a calibrated camera x ~ K(RX + t) (book §2.8): K, R as 3 rows, t
@@ -34,6 +34,11 @@
 //!   scale: 1.0
 //!   # … or a constant colour: color: [0.5, 0.5, 0.5]
 //! ```
+//!
+//! `camera` may be left out when the scene is only seen through cameras from elsewhere: a
+//! solved camera path (the `cameras` input of `render`, `differential_render`, `fit_catcher`)
+//! whose K — or the `intrinsics` input — carries the image size. Where a camera is needed and
+//! nothing supplies one, the node that needs it says so ([`crate::scene::Scene::camera`]).
 //!
 //! Meanings: `texture` is a solid texture ([`crate::texture`]) multiplying the diffuse albedo by
 //! a factor in [1 − contrast, 1] (`cells`: random per-cell levels on a 3-D grid of side `size`,
@@ -778,7 +783,7 @@ pub fn parse_yaml_scene(text: &str, dir: &Path) -> Result<YamlScene, YamlSceneEr
     )?;
     let mut files = Vec::new();
     let mut scene = Scene {
-        camera: camera(top.req("camera")?)?,
+        camera: top.get("camera").map(camera).transpose()?,
         objects: Vec::new(),
         lights: Vec::new(),
         background: Rgb::BLACK,

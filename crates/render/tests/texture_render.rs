@@ -21,15 +21,17 @@ fn floor(texture: Option<Texture>) -> Scene {
     );
     o.texture = texture;
     Scene {
-        camera: Camera::look_at(
-            Vec3::new(0.0, 3.0, 0.001),
-            Vec3::ZERO,
-            Vec3::new(0.0, 1.0, 0.0),
-            60.0,
-            32,
-            32,
-        )
-        .unwrap(),
+        camera: Some(
+            Camera::look_at(
+                Vec3::new(0.0, 3.0, 0.001),
+                Vec3::ZERO,
+                Vec3::new(0.0, 1.0, 0.0),
+                60.0,
+                32,
+                32,
+            )
+            .unwrap(),
+        ),
         objects: vec![o],
         lights: vec![],
         background: Rgb::WHITE,
@@ -57,13 +59,13 @@ fn a_textured_floor_renders_its_factor() {
     let out = render(
         &World::new(&scene),
         &env,
-        &scene.camera,
+        scene.camera.as_ref().unwrap(),
         &settings,
         &|_| {},
         None,
     )
     .unwrap();
-    let rays = scene.camera.rays();
+    let rays = scene.camera.as_ref().unwrap().rays();
     let hit = |x: f64, y: f64| {
         let r = rays.ray(x, y);
         r.o + r.d * (-r.o.y / r.d.y)
@@ -104,7 +106,7 @@ fn a_textured_floor_renders_its_factor() {
     let out = render(
         &World::new(&plain),
         &env,
-        &plain.camera,
+        plain.camera.as_ref().unwrap(),
         &settings,
         &|_| {},
         None,

@@ -14,6 +14,19 @@ fn camera(from: Vec3, at: Vec3, w: usize, h: usize) -> Camera {
     Camera::look_at(from, at, Vec3::new(0.0, 0.0, 1.0), 50.0, w, h).unwrap()
 }
 
+/// An 8×8 camera above a y-up floor, looking at the origin.
+fn floor_camera() -> Camera {
+    Camera::look_at(
+        Vec3::new(0.0, 2.0, 3.0),
+        Vec3::ZERO,
+        Vec3::new(0.0, 1.0, 0.0),
+        50.0,
+        8,
+        8,
+    )
+    .unwrap()
+}
+
 fn quad(c: Vec3, a: Vec3, b: Vec3) -> Vec<[Vec3; 3]> {
     let (p0, p1, p2, p3) = (c - a - b, c + a - b, c + a + b, c - a + b);
     vec![[p0, p1, p2], [p0, p2, p3]]
@@ -56,7 +69,12 @@ fn white_furnace_through_the_dome_sampler() {
 /// every pixel must see the environment's radiance (nothing absorbs, nothing emits).
 fn furnace(env: &dyn Environment, l_env: f64) {
     let scene = Scene {
-        camera: camera(Vec3::new(0.0, -6.0, 2.0), Vec3::new(0.0, 0.0, 0.5), 24, 16),
+        camera: Some(camera(
+            Vec3::new(0.0, -6.0, 2.0),
+            Vec3::new(0.0, 0.0, 0.5),
+            24,
+            16,
+        )),
         objects: vec![
             Object {
                 shape: Shape::Sphere(Sphere {
@@ -101,7 +119,15 @@ fn furnace(env: &dyn Environment, l_env: f64) {
         max_depth: 200,
         ..Default::default()
     };
-    let out = render(&world, env, &scene.camera, &settings, &|_| {}, None).unwrap();
+    let out = render(
+        &world,
+        env,
+        scene.camera.as_ref().unwrap(),
+        &settings,
+        &|_| {},
+        None,
+    )
+    .unwrap();
     assert_eq!(out.stats.nonfinite, 0);
     let n = out.image.pixel_count();
     let (mut sum, mut var) = (0.0, 0.0);
@@ -157,7 +183,7 @@ fn irradiance_from_a_polygonal_light_matches_the_closed_form() {
     let p = Vec3::new(0.0, 0.0, 0.0);
     let truth = rho / PI * polygon_irradiance(p, Vec3::new(0.0, 0.0, 1.0), &corners, l);
     let scene = Scene {
-        camera: camera(Vec3::new(0.0, -3.0, 3.0), p, 8, 8),
+        camera: Some(camera(Vec3::new(0.0, -3.0, 3.0), p, 8, 8)),
         objects: vec![Object {
             shape: Shape::Triangles {
                 triangles: quad(
@@ -229,7 +255,7 @@ fn mis_has_the_mean_of_each_single_strategy() {
     // Glossy floor, an occluding sphere, a quad light AND a constant environment, several
     // bounces: MIS, BRDF-only and light-only estimators must agree within noise.
     let scene = Scene {
-        camera: camera(Vec3::new(0.0, -3.0, 3.0), Vec3::ZERO, 8, 8),
+        camera: Some(camera(Vec3::new(0.0, -3.0, 3.0), Vec3::ZERO, 8, 8)),
         objects: vec![
             Object {
                 shape: Shape::Triangles {
@@ -327,6 +353,7 @@ fn same_image_for_any_thread_count() {
     let env = ConstantEnvironment {
         radiance: Rgb::BLACK,
     };
+    let cam = scene.camera.as_ref().unwrap();
     let settings = RenderSettings {
         spp: 8,
         tile: 7,
@@ -338,7 +365,7 @@ fn same_image_for_any_thread_count() {
             .num_threads(threads)
             .build()
             .unwrap()
-            .install(|| render(&world, &env, &scene.camera, &settings, &|_| {}, None).unwrap())
+            .install(|| render(&world, &env, cam, &settings, &|_| {}, None).unwrap())
     };
     let (a, b) = (run(1), run(3));
     assert_eq!(a.image, b.image);
@@ -347,7 +374,7 @@ fn same_image_for_any_thread_count() {
     let other = render(
         &world,
         &env,
-        &scene.camera,
+        cam,
         &RenderSettings {
             seed: 43,
             ..settings
@@ -360,7 +387,7 @@ fn same_image_for_any_thread_count() {
     // Cancellation.
     let flag = std::sync::atomic::AtomicBool::new(true);
     assert_eq!(
-        render(&world, &env, &scene.camera, &settings, &|_| {}, Some(&flag)).unwrap_err(),
+        render(&world, &env, cam, &settings, &|_| {}, Some(&flag)).unwrap_err(),
         RenderError::Cancelled
     );
 }
@@ -405,15 +432,7 @@ fn dome_direct_light_matches_the_brute_force_irradiance() {
         Vec3::new(0.0, 0.0, big),
     );
     let scene = Scene {
-        camera: Camera::look_at(
-            Vec3::new(0.0, 2.0, 3.0),
-            Vec3::ZERO,
-            Vec3::new(0.0, 1.0, 0.0),
-            50.0,
-            8,
-            8,
-        )
-        .unwrap(),
+        camera: Some(floor_camera()),
         objects: vec![Object::new(
             Shape::Triangles { triangles: floor },
             lambert(rho),
@@ -462,15 +481,7 @@ fn dome_nee_has_the_mean_of_brdf_sampling() {
         Vec3::new(0.0, 0.0, 4.0),
     );
     let scene = Scene {
-        camera: Camera::look_at(
-            Vec3::new(0.0, 2.0, 3.0),
-            Vec3::ZERO,
-            Vec3::new(0.0, 1.0, 0.0),
-            50.0,
-            8,
-            8,
-        )
-        .unwrap(),
+        camera: Some(floor_camera()),
         objects: vec![
             Object::new(
                 Shape::Triangles { triangles: floor },

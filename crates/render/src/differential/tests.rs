@@ -41,15 +41,17 @@ fn scene(w: usize, h: usize) -> Scene {
     );
     let l = |x: f64, y: f64| Vec3::new(x, y, 3.0);
     Scene {
-        camera: Camera::look_at(
-            Vec3::new(0.0, -4.0, 1.6),
-            Vec3::new(0.0, 0.0, 0.4),
-            Vec3::new(0.0, 0.0, 1.0),
-            50.0,
-            w,
-            h,
-        )
-        .unwrap(),
+        camera: Some(
+            Camera::look_at(
+                Vec3::new(0.0, -4.0, 1.6),
+                Vec3::new(0.0, 0.0, 0.4),
+                Vec3::new(0.0, 0.0, 1.0),
+                50.0,
+                w,
+                h,
+            )
+            .unwrap(),
+        ),
         objects: vec![floor, ball],
         lights: vec![AreaLight {
             radiance: Rgb::splat(6.0),
@@ -82,7 +84,7 @@ fn full_render(s: &Scene, spp: u32, seed: u64) -> crate::render::RenderOutput {
     render(
         &World::new(s),
         &env(s),
-        &s.camera,
+        s.camera.as_ref().unwrap(),
         &settings(spp, seed),
         &|_| {},
         None,
@@ -94,7 +96,7 @@ fn diff(s: &Scene, spp: u32, seed: u64) -> DifferentialOutput {
     differential_render(
         s,
         &env(s),
-        &s.camera,
+        s.camera.as_ref().unwrap(),
         &settings(spp, seed),
         None,
         &|_| {},
@@ -244,7 +246,7 @@ fn adaptive_sampling_spends_samples_where_the_noise_is() {
     let d = differential_render(
         &s,
         &env(&s),
-        &s.camera,
+        s.camera.as_ref().unwrap(),
         &settings(256, 23),
         Some(a),
         &|_| {},
@@ -315,7 +317,7 @@ fn joint_with_without_paths_equal_separate_paths() {
     let without = World::new(&s.without_synthetic_objects());
     let is_catcher: Vec<bool> = s.objects.iter().map(|o| o.catcher).collect();
     let is_synthetic = |m: u32| !is_catcher[m as usize];
-    let gen = s.camera.rays();
+    let gen = s.camera.as_ref().unwrap().rays();
     let mut pick = seeded_sampler(11);
     let mut parted = 0;
     for strategy in [Strategy::Mis, Strategy::BrdfOnly, Strategy::LightOnly] {

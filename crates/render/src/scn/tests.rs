@@ -12,8 +12,14 @@ fn reads_the_books_cornell_box() {
         return;
     };
     let s = parse_scn(&text).unwrap();
-    assert_eq!((s.camera.width, s.camera.height), (640, 480));
-    assert!((s.camera.center() - Vec3::new(5.0, 20.0, 5.0)).length() < 1e-12);
+    assert_eq!(
+        (
+            s.camera.as_ref().unwrap().width,
+            s.camera.as_ref().unwrap().height
+        ),
+        (640, 480)
+    );
+    assert!((s.camera.as_ref().unwrap().center() - Vec3::new(5.0, 20.0, 5.0)).length() < 1e-12);
     assert_eq!(s.objects.len(), 8);
     assert_eq!(s.lights.len(), 1);
     assert_eq!(s.lights[0].triangles.len(), 2);
@@ -44,7 +50,13 @@ fn reads_the_books_modeling_scene() {
     let dome = s.dome.as_ref().unwrap();
     assert_eq!(dome.image, "dome.pfm");
     assert!((dome.south.y - 0.821183).abs() < 1e-12);
-    assert_eq!((s.camera.width, s.camera.height), (1280, 720));
+    assert_eq!(
+        (
+            s.camera.as_ref().unwrap().width,
+            s.camera.as_ref().unwrap().height
+        ),
+        (1280, 720)
+    );
     let catchers: Vec<_> = s.catchers().collect();
     assert_eq!(catchers.len(), 1);
     assert_eq!(s.objects.len(), 3);

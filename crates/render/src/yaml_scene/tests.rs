@@ -42,9 +42,20 @@ fn reads_every_construct() {
     let dir = with_obj();
     let y = parse_yaml_scene(SCENE, dir.path()).unwrap();
     let s = &y.scene;
-    assert_eq!((s.camera.width, s.camera.height), (64, 36));
+    assert_eq!(
+        (
+            s.camera.as_ref().unwrap().width,
+            s.camera.as_ref().unwrap().height
+        ),
+        (64, 36)
+    );
     // The target projects to the image centre.
-    let (u, v) = s.camera.project(Vec3::new(0.0, 0.5, 0.0)).unwrap();
+    let (u, v) = s
+        .camera
+        .as_ref()
+        .unwrap()
+        .project(Vec3::new(0.0, 0.5, 0.0))
+        .unwrap();
     assert!(
         (u - 31.5).abs() < 1e-9 && (v - 17.5).abs() < 1e-9,
         "{u} {v}"
@@ -90,8 +101,8 @@ fn reads_every_construct() {
 fn krt_camera_and_constant_dome() {
     let text = "camera:\n  K: [[100, 0, 15.5], [0, 100, 11.5], [0, 0, 1]]\n  R: [[1, 0, 0], [0, 1, 0], [0, 0, 1]]\n  t: [0, 0, 5]\n  size: [32, 24]\ndome: {color: [0.5, 0.5, 0.5]}\n";
     let s = parse_yaml_scene(text, Path::new(".")).unwrap().scene;
-    assert_eq!(s.camera.k[0][0], 100.0);
-    assert_eq!(s.camera.t, [0.0, 0.0, 5.0]);
+    assert_eq!(s.camera.as_ref().unwrap().k[0][0], 100.0);
+    assert_eq!(s.camera.as_ref().unwrap().t, [0.0, 0.0, 5.0]);
     assert_eq!(s.background, Rgb::splat(0.5));
     assert!(s.dome.is_none());
 }
@@ -158,9 +169,22 @@ fn errors_point_at_line_and_column() {
     let e =
         parse_yaml_scene(&format!("{cam}objects:\n  - obj: bad.obj\n"), dir.path()).unwrap_err();
     assert!(e.to_string().contains("bad.obj:2: face corner"), "{e}");
-    // No camera.
-    let e = parse_yaml_scene("objects: []\n", dir.path()).unwrap_err();
-    assert!(e.message.contains("missing `camera`"), "{e}");
+    // A camera block that is there must be whole.
+    let e = parse_yaml_scene("camera: {size: [8, 8]}\n", dir.path()).unwrap_err();
+    assert!(e.message.contains("needs `look_at` or `K`"), "{e}");
+}
+
+/// `camera:` is optional: a scene to be seen through a solved camera path has none.
+#[test]
+fn a_scene_without_a_camera_reads() {
+    let dir = with_obj();
+    let y = parse_yaml_scene(
+        "objects:\n  - sphere: {center: [0, 0, 0], radius: 1}\n",
+        dir.path(),
+    )
+    .unwrap();
+    assert!(y.scene.camera.is_none());
+    assert_eq!(y.scene.objects.len(), 1);
 }
 
 #[test]

@@ -145,6 +145,8 @@ pub fn adjust_sequence(
             .collect(),
         track_ids: cloud.track_ids.clone(),
         errors: report.point_rms.clone(),
+        // Every observation was adjusted: no outlier decision.
+        inlier_frames: Vec::new(),
     };
     Ok(AdjustedSequence {
         path: out_path,
@@ -236,6 +238,7 @@ mod tests {
                 .collect(),
             track_ids: (0..world.len() as u64).collect(),
             errors: vec![],
+            ..Default::default()
         };
         let out =
             adjust_sequence(&path, &cloud, &tracks, &k, false, &SolverOptions::default()).unwrap();
@@ -260,6 +263,7 @@ mod tests {
             points: cloud.points.clone(),
             track_ids: vec![0],
             errors: vec![],
+            ..Default::default()
         };
         assert!(
             adjust_sequence(&path, &bad, &tracks, &k, false, &SolverOptions::default()).is_err()

@@ -5,8 +5,13 @@
 //! only add zeros; a skewed K is refused), images with the world→camera rotation as a Hamilton
 //! quaternion `QW QX QY QZ` and t (x_cam = R X + t, as ours), and pixels whose origin is the
 //! top-left *corner* of the image: COLMAP's (cx, cy) and 2-D points are ours + 0.5.
-//! Image ids are 1, 2, … in path order; point ids 1, 2, … in cloud order. Numbers are written
-//! with Rust's shortest round-trip formatting, so a read gives back the same f64s.
+//! Image ids are 1, 2, … in path order; point ids 1, 2, … in cloud order. Each image's 2-D
+//! points are the tracks' observations of the cloud's points in that frame: those the solve
+//! kept as inliers ([`crate::points::PointCloud::inlier_frames`]) are linked to their point and
+//! make its track; those it rejected are unassigned (`POINT3D_ID -1`), so a bundle adjustment
+//! started from the model is not dragged by them. Reading back, a point's inlier frames are
+//! the frames of its track's images. Numbers are written with Rust's shortest round-trip
+//! formatting, so a read gives back the same f64s.
 
 use std::collections::{BTreeMap, HashMap};
 use std::fmt::Write as _;
@@ -68,48 +73,36 @@ pub fn format(shot: &Shot) -> Result<TextModel> {
         k.v0 + PIXEL_OFFSET
     );
 
-    // Observations per (image, point) from the tracks.
+    // The tracks' observations of the cloud's points, per image: the solve's inliers are
+    // linked to their point (and listed in its track), the outliers stay unassigned 2-D
+    // points (POINT3D_ID −1).
     let cloud = shot.cloud.as_ref();
-    let point_of: HashMap<u64, usize> = cloud
-        .map(|c| {
-            c.track_ids
-                .iter()
-                .enumerate()
-                .map(|(i, id)| (*id, i))
-                .collect()
-        })
-        .unwrap_or_default();
-    let mut per_image: Vec<Vec<([f64; 2], usize)>> = vec![Vec::new(); shot.path.frames.len()];
-    let mut point_tracks: Vec<Vec<(usize, usize)>> = vec![Vec::new(); point_of.len()];
-    if let (Some(tracks), Some(_)) = (&shot.tracks, cloud) {
-        for (img, f) in shot.path.frames.iter().enumerate() {
-            let Some(fi) = tracks.frames.iter().position(|&n| n == f.frame as i64) else {
-                continue;
-            };
-            for (id, x) in tracks.observations(fi) {
-                if let Some(&j) = point_of.get(&id) {
-                    let idx = per_image[img].len();
-                    per_image[img].push((x, j));
-                    point_tracks[j].push((img + 1, idx));
-                }
-            }
+    let per_image = shot.observations();
+    let mut point_tracks: Vec<Vec<(usize, usize)>> =
+        vec![Vec::new(); cloud.map_or(0, |c| c.points.len())];
+    for (img, obs) in per_image.iter().enumerate() {
+        for (idx, o) in obs.iter().enumerate().filter(|(_, o)| o.inlier) {
+            point_tracks[o.point].push((img + 1, idx));
         }
     }
 
     let n_obs: usize = per_image.iter().map(Vec::len).sum();
+    let n_linked: usize = point_tracks.iter().map(Vec::len).sum();
     let mut images = String::new();
     let _ = write!(
         images,
         "# Image list with two lines of data per image:\n\
          #   IMAGE_ID, QW, QX, QY, QZ, TX, TY, TZ, CAMERA_ID, NAME\n\
          #   POINTS2D[] as (X, Y, POINT3D_ID)\n\
-         # Number of images: {}, mean observations per image: {}\n",
+         # Number of images: {}, mean observations per image: {} (the solve's inliers; \
+         {} more 2-D points, POINT3D_ID -1, are observations it rejected)\n",
         shot.path.frames.len(),
         if shot.path.frames.is_empty() {
             0.0
         } else {
-            n_obs as f64 / shot.path.frames.len() as f64
-        }
+            n_linked as f64 / shot.path.frames.len() as f64
+        },
+        n_obs - n_linked
     );
     for (img, f) in shot.path.frames.iter().enumerate() {
         let q = quaternion_wxyz(&f.pose.r);
@@ -136,7 +129,14 @@ pub fn format(shot: &Shot) -> Result<TextModel> {
         );
         let obs: Vec<String> = per_image[img]
             .iter()
-            .map(|(x, j)| format!("{} {} {}", x[0] + PIXEL_OFFSET, x[1] + PIXEL_OFFSET, j + 1))
+            .map(|o| {
+                let id = if o.inlier { o.point as i64 + 1 } else { -1 };
+                format!(
+                    "{} {} {id}",
+                    o.pixel[0] + PIXEL_OFFSET,
+                    o.pixel[1] + PIXEL_OFFSET
+                )
+            })
             .collect();
         let _ = writeln!(images, "{}", obs.join(" "));
     }
@@ -384,8 +384,10 @@ pub fn parse(cameras: (&str, &str), images: (&str, &str), points3d: (&str, &str)
     let mut frames = Vec::with_capacity(entries.len());
     let mut names = Vec::with_capacity(entries.len());
     let mut seen = std::collections::BTreeSet::new();
+    let mut frame_of_image: HashMap<u64, i64> = HashMap::new();
     for (pos, (id, name, pose)) in entries.into_iter().enumerate() {
         let frame = frame_number(&name).unwrap_or(pos);
+        frame_of_image.insert(id, frame as i64);
         if !seen.insert(frame) {
             return Err(parse_error(
                 ifile,
@@ -414,9 +416,24 @@ pub fn parse(cameras: (&str, &str), images: (&str, &str), points3d: (&str, &str)
             *slot = number(pfile, line, t[1 + k])?;
         }
         let e = number(pfile, line, t[7])?;
+        let mut track = Vec::with_capacity((t.len() - 8) / 2);
+        for el in t[8..].chunks(2) {
+            let image = int(pfile, line, el[0])?;
+            let frame = frame_of_image.get(&image).ok_or_else(|| {
+                parse_error(pfile, line, format!("point {id}: unknown image id {image}"))
+            })?;
+            track.push(*frame);
+        }
+        track.sort_unstable();
+        track.dedup();
         cloud.points.push(p);
         cloud.track_ids.push(id);
         cloud.errors.push(if e < 0.0 { f64::NAN } else { e });
+        cloud.inlier_frames.push(track);
+    }
+    // A model without any track made no inlier decision.
+    if cloud.inlier_frames.iter().all(Vec::is_empty) {
+        cloud.inlier_frames.clear();
     }
     Ok(Model {
         path: CameraPath {
@@ -481,31 +498,35 @@ mod tests {
         assert!(back.cloud.errors[0] == 0.0 && (back.cloud.errors[5] - 0.05).abs() < 1e-15);
     }
 
+    /// The test shot with tracks (id, first frame index, positions), one slot each.
+    fn shot_with_tracks(tracks: &[(u64, usize, &[[f64; 2]])]) -> Shot {
+        let mut s = shot();
+        s.tracks = Some(Tracks {
+            frames: s.path.frames.iter().map(|f| f.frame as i64).collect(),
+            slots: tracks.len(),
+            tracks: tracks
+                .iter()
+                .enumerate()
+                .map(|(slot, (id, first, points))| Track {
+                    id: *id,
+                    slot,
+                    first: *first,
+                    points: points.to_vec(),
+                    lost: None,
+                })
+                .collect(),
+        });
+        s
+    }
+
     /// Tracks become 2-D points (+0.5 px) and point tracks that index them.
     #[test]
     fn tracks_become_observations() {
-        let mut s = shot();
-        let frames: Vec<i64> = s.path.frames.iter().map(|f| f.frame as i64).collect();
-        s.tracks = Some(Tracks {
-            frames: frames.clone(),
-            slots: 2,
-            tracks: vec![
-                Track {
-                    id: 501,
-                    slot: 0,
-                    first: 1,
-                    points: vec![[10.0, 20.0], [11.0, 21.0]],
-                    lost: None,
-                },
-                Track {
-                    id: 9999, // no point in the cloud: ignored
-                    slot: 1,
-                    first: 0,
-                    points: vec![[1.0, 2.0]],
-                    lost: None,
-                },
-            ],
-        });
+        // Track 9999 has no point in the cloud: ignored.
+        let s = shot_with_tracks(&[
+            (501, 1, &[[10.0, 20.0], [11.0, 21.0]]),
+            (9999, 0, &[[1.0, 2.0]]),
+        ]);
         let m = format(&s).unwrap();
         let img: Vec<&str> = m.images.lines().filter(|l| !l.starts_with('#')).collect();
         assert_eq!(img[1], "");
@@ -513,6 +534,66 @@ mod tests {
         assert_eq!(img[5], "11.5 21.5 2");
         let p2 = m.points3d.lines().find(|l| l.starts_with("2 ")).unwrap();
         assert!(p2.ends_with(" 2 0 3 0"), "{p2}");
+    }
+
+    /// With the solve's inlier marks, a rejected observation is an unassigned 2-D point
+    /// (POINT3D_ID −1) and is not in its point's track; the others stay linked; reading the
+    /// model back gives the marks again (the frames of each point's track).
+    #[test]
+    fn only_inliers_are_linked() {
+        // Track 501 (point 2) is seen in images 2, 3, 4 (frames 11, 12, 13); the solve
+        // rejected its observation in frame 12. Track 500 (point 1) has no inlier at all.
+        let mut s = shot_with_tracks(&[
+            (501, 1, &[[10.0, 20.0], [11.0, 21.0], [12.0, 22.0]]),
+            (500, 1, &[[30.0, 40.0]]),
+        ]);
+        let cloud = s.cloud.as_mut().unwrap();
+        cloud.inlier_frames = vec![Vec::new(); cloud.points.len()];
+        cloud.inlier_frames[1] = vec![11, 13];
+        let m = format(&s).unwrap();
+        let img: Vec<&str> = m.images.lines().filter(|l| !l.starts_with('#')).collect();
+        assert_eq!(img[3], "10.5 20.5 2 30.5 40.5 -1");
+        assert_eq!(img[5], "11.5 21.5 -1");
+        assert_eq!(img[7], "12.5 22.5 2");
+        let p2 = m.points3d.lines().find(|l| l.starts_with("2 ")).unwrap();
+        assert!(p2.ends_with(" 2 0 4 0"), "{p2}");
+        let p1 = m.points3d.lines().find(|l| l.starts_with("1 ")).unwrap();
+        assert_eq!(p1.split(' ').count(), 8, "point 1 has an empty track: {p1}");
+        let back = parse(
+            (&m.cameras, "cameras.txt"),
+            (&m.images, "images.txt"),
+            (&m.points3d, "points3D.txt"),
+        )
+        .unwrap();
+        assert_eq!(back.cloud.inlier_frames.len(), 40);
+        assert_eq!(back.cloud.inlier_frames[1], [11, 13]);
+        assert!(back.cloud.inlier_frames[0].is_empty());
+        assert!(back.cloud.is_inlier(1, 13) && !back.cloud.is_inlier(1, 12));
+        // Without marks, every observation is linked; a model without tracks reads back
+        // with no inlier decision.
+        s.cloud.as_mut().unwrap().inlier_frames.clear();
+        let read = |s: &Shot| {
+            let m = format(s).unwrap();
+            let back = parse(
+                (&m.cameras, "cameras.txt"),
+                (&m.images, "images.txt"),
+                (&m.points3d, "points3D.txt"),
+            );
+            (m, back.unwrap())
+        };
+        let (m, back) = read(&s);
+        let point_lines = m.images.lines().filter(|l| !l.starts_with('#')).skip(1);
+        assert!(
+            point_lines
+                .step_by(2)
+                .all(|l| !l.split(' ').any(|t| t == "-1")),
+            "{}",
+            m.images
+        );
+        assert_eq!(back.cloud.inlier_frames[1], [11, 12, 13]);
+        s.tracks = None;
+        let (_, back) = read(&s);
+        assert!(back.cloud.inlier_frames.is_empty());
     }
 
     #[test]

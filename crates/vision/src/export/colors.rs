@@ -1,6 +1,8 @@
 //! Point colours from the plate: each point's colour is the mean of the plate, sampled
 //! bilinearly at the point's projection, over the solved frames where it is in front of the
-//! camera and inside the image; returned as 8-bit sRGB.
+//! camera and inside the image and — for a cloud that carries the solve's inlier marks — where
+//! the solve kept its observation (the frames it believes the point is seen in); returned as
+//! 8-bit sRGB.
 
 use nalgebra::Point3;
 use vfxgraph_imaging::color::linear_to_srgb8;
@@ -13,6 +15,7 @@ use crate::Camera;
 /// no frame are mid grey.
 pub fn sample_point_colors(shot: &Shot, plate: &[(i64, &Image)]) -> Vec<[u8; 3]> {
     let pts = shot.points();
+    let cloud = shot.cloud.as_ref();
     let mut sum = vec![[0.0f64; 3]; pts.len()];
     let mut n = vec![0usize; pts.len()];
     for f in &shot.path.frames {
@@ -24,7 +27,7 @@ pub fn sample_point_colors(shot: &Shot, plate: &[(i64, &Image)]) -> Vec<[u8; 3]>
             pose: f.pose.clone(),
         };
         for (j, p) in pts.iter().enumerate() {
-            if cam.depth(p) <= 0.0 {
+            if cam.depth(p) <= 0.0 || !cloud.is_some_and(|c| c.is_inlier(j, f.frame as i64)) {
                 continue;
             }
             if let Some(rgb) = cam
@@ -93,10 +96,39 @@ mod tests {
             .iter()
             .map(|f| (f.frame as i64, &img))
             .collect();
-        let cols = sample_point_colors(&s, &plate);
+        let mut s = s;
+        let mut cols = Vec::new();
+        for marked in [false, true] {
+            if marked {
+                // The solve kept each point's observations in three frames only.
+                let c = s.cloud.as_mut().unwrap();
+                c.inlier_frames = (0..c.points.len())
+                    .map(|j| (0..3).map(|k| 10 + ((j + 4 * k) % 12) as i64).collect())
+                    .map(|mut v: Vec<i64>| {
+                        v.sort();
+                        v
+                    })
+                    .collect();
+            }
+            cols.push(check_colours(&s, &plate));
+        }
+        // The marks matter: most points get another colour from their three frames.
+        let changed = cols[0].iter().zip(&cols[1]).filter(|(a, b)| a != b).count();
+        assert!(changed > 20, "{changed} of 40 colours changed");
+    }
+
+    /// Checks every colour against the mean over the point's inlier frames; returns them.
+    fn check_colours(s: &Shot, plate: &[(i64, &Image)]) -> Vec<[u8; 3]> {
+        let cols = sample_point_colors(s, plate);
+        let c = s.cloud.as_ref().unwrap();
         for (j, p) in s.points().iter().enumerate() {
             let (mut sx, mut n) = (0.0, 0);
-            for f in &s.path.frames {
+            for f in s
+                .path
+                .frames
+                .iter()
+                .filter(|f| c.is_inlier(j, f.frame as i64))
+            {
                 let cam = Camera {
                     intrinsics: s.intrinsics.clone(),
                     pose: f.pose.clone(),
@@ -119,5 +151,6 @@ mod tests {
                 assert_eq!(cols[j], [128, 128, 128]);
             }
         }
+        cols
     }
 }

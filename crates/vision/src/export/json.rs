@@ -1,5 +1,7 @@
 //! Our JSON export: per frame K, R, t (x ~ K(RX + t), rows first), the camera centre and the
-//! solve error (RMS reprojection over the frame's tracked points, when the tracks are known).
+//! solve error when the tracks and points are known: `rms_px`, the RMS reprojection error over
+//! the observations the solve kept in that frame (its inliers, `observations` of them), and
+//! `outliers`, the observations of the frame's points that it rejected (not in `rms_px`).
 
 use serde_json::{json, Value};
 
@@ -23,19 +25,18 @@ pub fn to_value(shot: &Shot, fps: f64) -> Result<Value> {
         .map(|(i, f)| {
             let r = &f.pose.r;
             let c = f.pose.center();
-            let (rms, n) = errors.as_ref().map_or((None, None), |e| {
-                (Some(e[i].0).filter(|v| v.is_finite()), Some(e[i].1))
-            });
+            let e = errors.as_ref().map(|e| e[i]);
             let mut o = json!({
                 "frame": f.frame,
                 "K": k_rows,
                 "R": (0..3).map(|row| [r[(row, 0)], r[(row, 1)], r[(row, 2)]]).collect::<Vec<_>>(),
                 "t": [f.pose.t.x, f.pose.t.y, f.pose.t.z],
                 "center": [c.x, c.y, c.z],
-                "rms_px": rms,
+                "rms_px": e.map(|e| e.rms_px).filter(|v| v.is_finite()),
             });
-            if let Some(n) = n {
-                o["observations"] = json!(n);
+            if let Some(e) = e {
+                o["observations"] = json!(e.inliers);
+                o["outliers"] = json!(e.outliers);
             }
             if let Some(name) = shot.image_name(f.frame) {
                 o["image"] = json!(name);
@@ -146,6 +147,23 @@ mod tests {
                 0.0
             };
             assert!((rms - want).abs() < 1e-9, "frame {i}: {rms} vs {want}");
+            assert_eq!(fj["outliers"], 0);
         }
+        // The solve rejected the displaced observation: it leaves the frame's error and count
+        // and is counted as an outlier.
+        let c = s.cloud.as_mut().unwrap();
+        c.inlier_frames = vec![frames_of(&s.path); c.points.len()];
+        c.inlier_frames[7].retain(|&f| f != s.path.frames[2].frame as i64);
+        let v = to_value(&s, 24.0).unwrap();
+        for (i, fj) in v["frames"].as_array().unwrap().iter().enumerate() {
+            let bad = usize::from(i == 2);
+            assert_eq!(fj["observations"], n - bad);
+            assert_eq!(fj["outliers"], bad);
+            assert!(fj["rms_px"].as_f64().unwrap() < 1e-9, "frame {i}: {fj}");
+        }
+    }
+
+    fn frames_of(path: &crate::formats::CameraPath) -> Vec<i64> {
+        path.frames.iter().map(|f| f.frame as i64).collect()
     }
 }

@@ -225,16 +225,7 @@ impl Shot {
             }
         }
         if let Some(c) = &self.cloud {
-            if c.points.len() != c.track_ids.len()
-                || !(c.errors.is_empty() || c.errors.len() == c.points.len())
-            {
-                return Err(VisionError::InvalidInput(format!(
-                    "point cloud: {} points, {} track ids, {} errors",
-                    c.points.len(),
-                    c.track_ids.len(),
-                    c.errors.len()
-                )));
-            }
+            c.validate().map_err(VisionError::InvalidInput)?;
             if c.points.iter().flatten().any(|v| !v.is_finite()) {
                 return Err(VisionError::InvalidInput(
                     "point cloud has a non-finite coordinate".into(),
@@ -316,51 +307,100 @@ impl Shot {
         }
     }
 
-    /// Per frame of the path, the RMS reprojection error (px) and the number of observations,
-    /// over every track seen in that frame whose point is in the cloud (outliers included);
-    /// `None` without tracks.
-    pub fn frame_errors(&self) -> Option<Vec<(f64, usize)>> {
-        let (tracks, cloud) = (self.tracks.as_ref()?, self.cloud.as_ref()?);
-        let by_id: std::collections::HashMap<u64, usize> = cloud
+    /// Per frame of the path (in path order), the tracks' observations of the cloud's points
+    /// in that frame, each with whether the solve kept it ([`PointCloud::is_inlier`]); empty
+    /// lists without tracks or cloud. Observations of tracks that have no point are left out.
+    pub fn observations(&self) -> Vec<Vec<Observation>> {
+        let mut out = vec![Vec::new(); self.path.frames.len()];
+        let (Some(tracks), Some(cloud)) = (&self.tracks, &self.cloud) else {
+            return out;
+        };
+        let point_of: std::collections::HashMap<u64, usize> = cloud
             .track_ids
             .iter()
             .enumerate()
             .map(|(i, id)| (*id, i))
             .collect();
-        let cam = |pose: &Pose| crate::Camera {
-            intrinsics: self.intrinsics.clone(),
-            pose: pose.clone(),
-        };
+        for (img, f) in self.path.frames.iter().enumerate() {
+            let frame = f.frame as i64;
+            let Some(fi) = tracks.frames.iter().position(|&n| n == frame) else {
+                continue;
+            };
+            for (id, x) in tracks.observations(fi) {
+                if let Some(&point) = point_of.get(&id) {
+                    out[img].push(Observation {
+                        pixel: x,
+                        point,
+                        inlier: cloud.is_inlier(point, frame),
+                    });
+                }
+            }
+        }
+        out
+    }
+
+    /// Per frame of the path, the solve error over the observations the solve kept: RMS
+    /// reprojection error (px; NaN with none), the number of inlier observations and the
+    /// number of outliers (observations of a point the solve rejected); `None` without tracks
+    /// or cloud.
+    pub fn frame_errors(&self) -> Option<Vec<FrameError>> {
+        self.cloud.as_ref()?;
+        self.tracks.as_ref()?;
+        let points = self.points();
         Some(
             self.path
                 .frames
                 .iter()
-                .map(|f| {
-                    let Some(fi) = tracks.frames.iter().position(|&n| n == f.frame as i64) else {
-                        return (f64::NAN, 0);
+                .zip(self.observations())
+                .map(|(f, obs)| {
+                    let c = crate::Camera {
+                        intrinsics: self.intrinsics.clone(),
+                        pose: f.pose.clone(),
                     };
-                    let c = cam(&f.pose);
-                    let (mut sum, mut n) = (0.0, 0usize);
-                    for (id, x) in tracks.observations(fi) {
-                        if let Some(&j) = by_id.get(&id) {
-                            let p = cloud.points[j];
-                            let e = c.reprojection_error(
-                                &Point3::new(p[0], p[1], p[2]),
-                                &nalgebra::Point2::new(x[0], x[1]),
-                            );
-                            sum += e * e;
-                            n += 1;
-                        }
+                    let (mut sum, mut inliers) = (0.0, 0usize);
+                    for o in obs.iter().filter(|o| o.inlier) {
+                        let e = c.reprojection_error(
+                            &points[o.point],
+                            &nalgebra::Point2::new(o.pixel[0], o.pixel[1]),
+                        );
+                        sum += e * e;
+                        inliers += 1;
                     }
-                    if n == 0 {
-                        (f64::NAN, 0)
-                    } else {
-                        ((sum / n as f64).sqrt(), n)
+                    FrameError {
+                        rms_px: if inliers == 0 {
+                            f64::NAN
+                        } else {
+                            (sum / inliers as f64).sqrt()
+                        },
+                        inliers,
+                        outliers: obs.len() - inliers,
                     }
                 })
                 .collect(),
         )
     }
+}
+
+/// One observation of a cloud point in a frame (see [`Shot::observations`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Observation {
+    /// The tracked position, our pixel convention.
+    pub pixel: [f64; 2],
+    /// The point's index in the cloud.
+    pub point: usize,
+    /// Whether the solve kept this observation.
+    pub inlier: bool,
+}
+
+/// One frame's solve error (see [`Shot::frame_errors`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrameError {
+    /// RMS reprojection error over the inlier observations, px (NaN without any).
+    pub rms_px: f64,
+    /// Inlier observations.
+    pub inliers: usize,
+    /// Observations of the frame's points that the solve rejected.
+    pub outliers: usize,
 }
 
 /// The Hamilton quaternion (w, x, y, z) of a rotation matrix, with w ≥ 0.
@@ -489,6 +529,7 @@ pub(crate) mod test_shot {
                 points,
                 track_ids: (0..n as u64).map(|i| 500 + i).collect(),
                 errors: (0..n).map(|i| 0.01 * i as f64).collect(),
+                inlier_frames: Vec::new(),
             }),
             tracks: None,
             colors: Some(

@@ -1,5 +1,5 @@
 //! The point cloud as an ASCII PLY (x y z as doubles in the solve's world, sRGB colours when
-//! known, and each point's RMS solve error).
+//! known, and each point's RMS solve error over the observations the solve kept).
 
 use std::fmt::Write as _;
 

@@ -2,7 +2,9 @@
 //! relaxation, §7.14): every track seen in enough posed frames is triangulated robustly, then all
 //! cameras and points are adjusted together by the sparse Schur solver of [`crate::bundle`] with
 //! a robust loss; observations farther than a shrinking threshold are marked outliers, their
-//! tracks re-triangulated from the rest, and the adjustment repeated.
+//! tracks re-triangulated from the rest, and the adjustment repeated. The solve's final inliers
+//! (in its report and its cloud) are the observations within the last threshold of the
+//! adjusted cameras and points: the same marking applied once more to the result.
 
 use nalgebra::Vector3;
 use rayon::prelude::*;
@@ -59,6 +61,15 @@ impl Default for GlobalOptions {
 }
 
 impl GlobalOptions {
+    /// The last outlier threshold (the first triangulation's tolerance when there are no
+    /// rounds): what counts as an inlier of the adjusted solve.
+    pub fn final_threshold(&self) -> f64 {
+        self.thresholds
+            .last()
+            .copied()
+            .unwrap_or(self.triangulation_tolerance)
+    }
+
     fn loss(&self) -> Loss {
         match self.loss {
             RobustLoss::None => Loss::Trivial,

@@ -265,15 +265,12 @@ pub fn matchmove(
         stages.push(StageTime::new("global bundle adjustment", t0));
     }
 
-    let mut solve = finish_solve(
-        tracks,
-        k,
-        &poses,
-        &points,
+    // The inlier threshold of the stage that made the final cameras and points.
+    let tolerance = options.global.as_ref().map_or(
         options.refine.final_tolerance(),
-        stages,
-        options.score,
-    )?;
+        GlobalOptions::final_threshold,
+    );
+    let mut solve = finish_solve(tracks, k, &poses, &points, tolerance, stages, options.score)?;
     solve.report.notes = notes;
     solve.report.fragments = solutions
         .iter()
@@ -289,6 +286,8 @@ pub fn matchmove(
 
 /// Builds the [`Solve`] of poses and points: the path (with K), the cloud, and the report with
 /// the given stage times and, when `with_score` is set, the book-style score of [`score`].
+/// The solve's final inlier decision ([`inlier_marks`] at `inlier_tolerance`) is the one the
+/// report counts and the cloud carries (`PointCloud::inlier_frames`).
 pub fn finish_solve(
     tracks: &Tracks,
     k: &Intrinsics,
@@ -299,8 +298,9 @@ pub fn finish_solve(
     with_score: bool,
 ) -> Result<Solve> {
     let path = path_from_poses(tracks, k, poses)?;
-    let cloud = cloud_from_points(tracks, k, poses, points);
-    let mut report = report::solve_report(tracks, k, poses, points, inlier_tolerance);
+    let marks = inlier_marks(tracks, k, poses, points, inlier_tolerance);
+    let cloud = cloud_from_points(tracks, k, poses, points, &marks);
+    let mut report = report::solve_report(tracks, k, poses, points, &marks, inlier_tolerance);
     report.stages = stages;
     if with_score {
         let t0 = Instant::now();
@@ -344,11 +344,7 @@ pub fn adjust_path(
     let t0 = Instant::now();
     let (poses, points) = global_bundle_adjust(tracks, k, &poses, options)?;
     let stages = vec![StageTime::new("global bundle adjustment", t0)];
-    let tol = options
-        .thresholds
-        .last()
-        .copied()
-        .unwrap_or(options.triangulation_tolerance);
+    let tol = options.final_threshold();
     finish_solve(tracks, k, &poses, &points, tol, stages, with_score)
 }
 
@@ -419,33 +415,62 @@ pub fn poses_by_index(tracks: &Tracks, path: &CameraPath) -> Vec<Option<Pose>> {
         .collect()
 }
 
-/// A point cloud from points keyed by track index, with each point's RMS error.
+/// The solve's final decision on every observation, by track index and observation: an inlier
+/// when its frame has a camera, its track a point, and its reprojection error is at most
+/// `tolerance` px in the final cameras and points. This is the rule every outlier-marking
+/// stage applies (the relaxation's re-marking of §7.14, the global adjustment's rounds, the
+/// refinement cycles of §7.9), applied once more to the result at the stage's last tolerance.
+pub(crate) fn inlier_marks(
+    tracks: &Tracks,
+    k: &Intrinsics,
+    poses: &[Option<Pose>],
+    points: &[Option<Vector3<f64>>],
+    tolerance: f64,
+) -> Vec<Vec<bool>> {
+    tracks
+        .tracks
+        .iter()
+        .zip(points)
+        .map(|(t, x)| {
+            t.points
+                .iter()
+                .enumerate()
+                .map(|(j, obs)| match (x, poses.get(t.first + j)) {
+                    (Some(x), Some(Some(p))) => reprojection_error(k, p, x, obs) <= tolerance,
+                    _ => false,
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// A point cloud from points keyed by track index, with each point's RMS error over its inlier
+/// observations (`marks`, from [`inlier_marks`]) and the frames of those observations.
 pub(crate) fn cloud_from_points(
     tracks: &Tracks,
     k: &Intrinsics,
     poses: &[Option<Pose>],
     points: &[Option<Vector3<f64>>],
+    marks: &[Vec<bool>],
 ) -> PointCloud {
     let mut cloud = PointCloud::default();
-    for (t, x) in tracks.tracks.iter().zip(points) {
+    for ((t, x), m) in tracks.tracks.iter().zip(points).zip(marks) {
         let Some(x) = x else { continue };
-        let (mut s, mut n) = (0.0, 0usize);
+        let (mut s, mut frames) = (0.0, Vec::new());
         for (j, obs) in t.points.iter().enumerate() {
-            if let Some(Some(p)) = poses.get(t.first + j) {
-                let e = reprojection_error(k, p, x, obs);
-                if e.is_finite() {
-                    s += e * e;
-                    n += 1;
-                }
+            if let (true, Some(Some(p))) = (m[j], poses.get(t.first + j)) {
+                s += reprojection_error(k, p, x, obs).powi(2);
+                frames.push(tracks.frames[t.first + j]);
             }
         }
         cloud.points.push([x.x, x.y, x.z]);
         cloud.track_ids.push(t.id);
-        cloud.errors.push(if n > 0 {
-            (s / n as f64).sqrt()
-        } else {
+        cloud.errors.push(if frames.is_empty() {
             f64::NAN
+        } else {
+            (s / frames.len() as f64).sqrt()
         });
+        cloud.inlier_frames.push(frames);
     }
     cloud
 }

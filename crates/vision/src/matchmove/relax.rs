@@ -253,7 +253,7 @@ pub fn relax(
                         .map(|(j, o)| {
                             poses[t.first + j]
                                 .as_ref()
-                                .is_some_and(|p| reprojection_error(k, p, x, o) < tol)
+                                .is_some_and(|p| reprojection_error(k, p, x, o) <= tol)
                         })
                         .collect(),
                     None => vec![false; t.points.len()],

@@ -78,12 +78,14 @@ pub struct SolveReport {
     pub notes: Vec<String>,
 }
 
-/// Builds the per-frame and per-track figures of a solve.
+/// Builds the per-frame and per-track figures of a solve; `marks` (by track index and
+/// observation) are the solve's inliers at `inlier_tolerance` (`super::inlier_marks`).
 pub fn solve_report(
     tracks: &Tracks,
     k: &Intrinsics,
     poses: &[Option<Pose>],
     points: &[Option<Vector3<f64>>],
+    marks: &[Vec<bool>],
     inlier_tolerance: f64,
 ) -> SolveReport {
     let n = tracks.frames.len();
@@ -100,7 +102,7 @@ pub fn solve_report(
     let mut sq = vec![0.0; n];
     let mut track_reports = Vec::new();
     let (mut total_sq, mut total_n) = (0.0, 0usize);
-    for (t, x) in tracks.tracks.iter().zip(points) {
+    for ((t, x), m) in tracks.tracks.iter().zip(points).zip(marks) {
         let Some(x) = x else { continue };
         let (mut s, mut c) = (0.0, 0usize);
         for (j, o) in t.points.iter().enumerate() {
@@ -110,7 +112,7 @@ pub fn solve_report(
             };
             let e = reprojection_error(k, p, x, o);
             frames[f].observations += 1;
-            if e <= inlier_tolerance {
+            if m[j] {
                 frames[f].inliers += 1;
                 sq[f] += e * e;
                 total_sq += e * e;

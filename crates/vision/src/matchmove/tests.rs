@@ -77,6 +77,59 @@ fn synthetic_shot_is_recovered_within_tolerance() {
     );
     assert!(max_rot < 0.1, "rotation error {max_rot}°");
     assert!(max_c < 0.005, "centre error {} of the path length", max_c);
+    check_inlier_marks(&shot, &solve);
+}
+
+/// The cloud carries the solve's final inlier decision: every kept observation is within the
+/// report's tolerance, the report counts exactly the kept observations per frame, the clean
+/// tracks' observations (σ = 0.5 px, so beyond 3 px has probability e⁻¹⁸) are all kept, and
+/// the rejected ones are the drifting tracks'.
+fn check_inlier_marks(shot: &super::synthetic::SyntheticShot, solve: &Solve) {
+    let (cloud, rep) = (&solve.cloud, &solve.report);
+    cloud.validate().unwrap();
+    assert_eq!(cloud.inlier_frames.len(), cloud.points.len());
+    assert_eq!(rep.inlier_tolerance, 3.0);
+    let poses: std::collections::HashMap<i64, &Pose> = solve
+        .path
+        .frames
+        .iter()
+        .map(|f| (f.frame as i64, &f.pose))
+        .collect();
+    let mut per_frame: std::collections::HashMap<i64, usize> = Default::default();
+    let (mut clean, mut clean_kept, mut rejected, mut rejected_drifting) = (0, 0, 0, 0);
+    for (j, id) in cloud.track_ids.iter().enumerate() {
+        let t = shot.tracks.tracks.iter().find(|t| t.id == *id).unwrap();
+        let x = Vector3::from(cloud.points[j]);
+        let drifting = shot.outliers.contains(id);
+        for (i, o) in t.points.iter().enumerate() {
+            let frame = shot.tracks.frames[t.first + i];
+            let e = reprojection_error(&shot.k, poses[&frame], &x, o);
+            let kept = cloud.is_inlier(j, frame);
+            if kept {
+                assert!(
+                    e <= rep.inlier_tolerance,
+                    "track {id} frame {frame}: {e} px"
+                );
+                *per_frame.entry(frame).or_default() += 1;
+            } else {
+                rejected += 1;
+                rejected_drifting += usize::from(drifting);
+            }
+            if !drifting {
+                clean += 1;
+                clean_kept += usize::from(kept);
+            }
+        }
+    }
+    for f in &rep.frames {
+        assert_eq!(f.inliers, per_frame.get(&f.frame).copied().unwrap_or(0));
+    }
+    eprintln!(
+        "inlier marks: {clean_kept} of {clean} clean observations kept, {rejected} rejected \
+         ({rejected_drifting} of drifting tracks)"
+    );
+    assert_eq!(clean_kept, clean, "every clean observation is kept");
+    assert!(rejected > 0 && rejected_drifting == rejected);
 }
 
 /// Same seed, same cameras, whatever the thread count (fragments and pairs run in parallel).
