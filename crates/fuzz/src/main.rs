@@ -2,7 +2,8 @@
 //!
 //! ```text
 //! cargo run --release -p vfxgraph-fuzz -- [--inputs N] [--target NAME]… [--seed S]
-//!     [--timeout-ms MS] [--max-alloc-mb MB] [--crash-dir DIR] [--threads N]
+//!     [--skip NAME]…
+//!     [--timeout-ms MS] [--max-alloc-mb MB] [--crash-dir DIR] [--threads N] [--progress N]
 //! cargo run --release -p vfxgraph-fuzz -- --target NAME --index I [--seed S] [--save FILE]
 //! cargo run --release -p vfxgraph-fuzz -- --list
 //! ```
@@ -19,7 +20,7 @@ use vfxgraph_fuzz::targets::{all, SeedDirs};
 
 fn usage() -> ExitCode {
     eprintln!(
-        "usage: vfxgraph-fuzz [--inputs N] [--target NAME]... [--seed S] [--timeout-ms MS] \
+        "usage: vfxgraph-fuzz [--inputs N] [--target NAME]... [--skip NAME]... [--seed S] [--timeout-ms MS] \
          [--max-alloc-mb MB] [--crash-dir DIR] [--threads N] [--progress N]\n       \
          vfxgraph-fuzz --target NAME --index I [--seed S] [--save FILE]\n       \
          vfxgraph-fuzz --list"
@@ -33,6 +34,7 @@ fn main() -> ExitCode {
         ..Options::default()
     };
     let mut names: Vec<String> = Vec::new();
+    let mut skip: Vec<String> = Vec::new();
     let mut index: Option<u64> = None;
     let mut save: Option<PathBuf> = None;
     let mut threads = 1usize;
@@ -72,6 +74,10 @@ fn main() -> ExitCode {
                 Some(v) => names.push(v),
                 None => return usage(),
             },
+            "--skip" => match value() {
+                Some(v) => skip.push(v),
+                None => return usage(),
+            },
             "--list" => {
                 for t in all() {
                     println!("{:<14} {}", t.name, t.what);
@@ -88,6 +94,7 @@ fn main() -> ExitCode {
     let targets: Vec<_> = all()
         .into_iter()
         .filter(|t| names.is_empty() || names.iter().any(|n| n == t.name))
+        .filter(|t| !skip.iter().any(|n| n == t.name))
         .collect();
     if let Some(n) = names
         .iter()
