@@ -8,6 +8,11 @@ use crate::guard;
 use crate::mutate::{input_rng, mutate};
 use crate::targets::{fix_png_crcs, SeedDirs, Target};
 
+/// The default memory bound: the largest image the project accepts (`MAX_SAMPLES` f32 samples,
+/// 4 GiB) plus 1 MiB. Readers may honour a header's size up to that limit (an EXR's display
+/// window is zero-filled outside its data window); one allocation beyond it is a blow-up.
+pub const MAX_ALLOC: usize = vfxgraph_imaging::image::MAX_SAMPLES * 4 + (1 << 20);
+
 /// What a campaign runs.
 #[derive(Clone, Debug)]
 pub struct Options {
@@ -33,7 +38,7 @@ impl Default for Options {
             inputs: 1000,
             seed: 0,
             timeout: Duration::from_secs(2),
-            max_alloc: 1 << 30,
+            max_alloc: MAX_ALLOC,
             crash_dir: PathBuf::from("fuzz-crashes"),
             dirs: SeedDirs::default(),
             progress_every: 0,

@@ -5,7 +5,7 @@
 
 use std::time::Duration;
 
-use vfxgraph_fuzz::run::{campaign, on_fuzz_thread, table, Options};
+use vfxgraph_fuzz::run::{campaign, on_fuzz_thread, table, Options, MAX_ALLOC};
 use vfxgraph_fuzz::targets::{all, SeedDirs};
 
 /// Mutated inputs per target in CI (the dev profile; see the README for the measured cost).
@@ -39,7 +39,7 @@ fn every_reader_survives_its_ci_budget() {
             // Generous for the dev profile on a loaded 2-core machine: the slowest input of
             // the long run takes well under this (see the README).
             timeout: Duration::from_secs(10),
-            max_alloc: 1 << 30,
+            max_alloc: MAX_ALLOC,
             crash_dir: crash_dir.clone(),
             dirs: dirs.clone(),
             progress_every: 0,
