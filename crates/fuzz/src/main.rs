@@ -5,6 +5,7 @@
 //!     [--skip NAME]…
 //!     [--timeout-ms MS] [--max-alloc-mb MB] [--crash-dir DIR] [--threads N] [--progress N]
 //! cargo run --release -p vfxgraph-fuzz -- --target NAME --index I [--seed S] [--save FILE]
+//! cargo run --release -p vfxgraph-fuzz -- --target NAME --file FILE
 //! cargo run --release -p vfxgraph-fuzz -- --list
 //! ```
 //!
@@ -23,6 +24,7 @@ fn usage() -> ExitCode {
         "usage: vfxgraph-fuzz [--inputs N] [--target NAME]... [--skip NAME]... [--seed S] [--timeout-ms MS] \
          [--max-alloc-mb MB] [--crash-dir DIR] [--threads N] [--progress N]\n       \
          vfxgraph-fuzz --target NAME --index I [--seed S] [--save FILE]\n       \
+         vfxgraph-fuzz --target NAME --file FILE\n       \
          vfxgraph-fuzz --list"
     );
     ExitCode::from(2)
@@ -37,6 +39,7 @@ fn main() -> ExitCode {
     let mut skip: Vec<String> = Vec::new();
     let mut index: Option<u64> = None;
     let mut save: Option<PathBuf> = None;
+    let mut file: Option<PathBuf> = None;
     let mut threads = 1usize;
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -64,6 +67,10 @@ fn main() -> ExitCode {
             "--index" => index = Some(num!()),
             "--crash-dir" => match value() {
                 Some(v) => opts.crash_dir = v.into(),
+                None => return usage(),
+            },
+            "--file" => match value() {
+                Some(v) => file = Some(v.into()),
                 None => return usage(),
             },
             "--save" => match value() {
@@ -103,19 +110,34 @@ fn main() -> ExitCode {
         eprintln!("unknown target `{n}` (see --list)");
         return ExitCode::from(2);
     }
-    if let Some(i) = index {
+    if index.is_some() || file.is_some() {
         let [t] = targets.as_slice() else {
-            eprintln!("--index needs exactly one --target");
+            eprintln!("--index and --file need exactly one --target");
             return ExitCode::from(2);
         };
         vfxgraph_fuzz::guard::install(opts.timeout, opts.max_alloc, opts.crash_dir.clone());
-        let seeds: Vec<Vec<u8>> = (t.seeds)(&SeedDirs::default())
-            .into_iter()
-            .map(|s| s.bytes)
-            .collect();
-        let Some(input) = make_input(t, &seeds, opts.seed, i) else {
-            eprintln!("target `{}` has no seeds", t.name);
-            return ExitCode::from(2);
+        let (i, input) = match (&file, index) {
+            (Some(p), _) => match std::fs::read(p) {
+                Ok(b) => (0, b),
+                Err(e) => {
+                    eprintln!("cannot read {}: {e}", p.display());
+                    return ExitCode::from(2);
+                }
+            },
+            (None, i) => {
+                let i = i.unwrap_or(0);
+                let seeds: Vec<Vec<u8>> = (t.seeds)(&SeedDirs::default())
+                    .into_iter()
+                    .map(|s| s.bytes)
+                    .collect();
+                match make_input(t, &seeds, opts.seed, i) {
+                    Some(input) => (i, input),
+                    None => {
+                        eprintln!("target `{}` has no seeds", t.name);
+                        return ExitCode::from(2);
+                    }
+                }
+            }
         };
         if let Some(p) = &save {
             if let Err(e) = std::fs::write(p, &input) {
@@ -125,8 +147,10 @@ fn main() -> ExitCode {
         }
         let e = on_fuzz_thread(|| execute(t, opts.seed, i, &input));
         println!(
-            "target {} input #{i} ({} bytes): {:?}, {} panic(s){}, {:.1} ms",
+            "target {} input {} ({} bytes): {:?}, {} panic(s){}, {:.1} ms",
             t.name,
+            file.as_ref()
+                .map_or(format!("#{i}"), |p| p.display().to_string()),
             input.len(),
             e.result,
             e.panics,
