@@ -540,6 +540,6 @@ mod tests {
         assert_eq!(format_frame(&hashes, 1), hashes);
         assert!(check_frame_pattern("f.%032d.png").is_ok());
         assert!(check_frame_pattern("f.%33d.png").is_err());
-        assert_eq!(format_frame(&format!("{}", "#".repeat(32)), 5).len(), 32);
+        assert_eq!(format_frame(&"#".repeat(32), 5).len(), 32);
     }
 }

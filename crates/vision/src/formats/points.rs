@@ -47,7 +47,7 @@ pub fn parse_points2d(text: &str, file: &str) -> Result<Points2d> {
 /// that is not a multiple of 3 is an error naming the count and the line of the incomplete point.
 pub fn parse_points3d(text: &str, file: &str) -> Result<Points3d> {
     let toks = tokens(text);
-    if toks.len() % 3 != 0 {
+    if !toks.len().is_multiple_of(3) {
         let first_left = toks[toks.len() - toks.len() % 3].0;
         return Err(parse_error(
             file,
