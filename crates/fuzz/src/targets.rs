@@ -223,6 +223,38 @@ const COLMAP_DICT: &[&str] = &[
     "0 0 ",
 ];
 
+/// The target of one image format: `imaging::decode`, seeds from [`image_seeds`].
+macro_rules! image_target {
+    ($name:literal, $what:literal, $format:ident) => {
+        Target {
+            name: $name,
+            what: $what,
+            kind: Kind::Binary,
+            dict: &[],
+            seeds: |d| image_seeds(d, Format::$format),
+            run: |b| vfxgraph_imaging::decode(b, Format::$format).is_ok(),
+        }
+    };
+}
+
+/// The target of a book text format with a JSON form: both readers on each input.
+macro_rules! text_and_json_target {
+    ($name:literal, $what:literal, $seeds:ident, $parse:path, $json:ty) => {
+        Target {
+            name: $name,
+            what: $what,
+            kind: Kind::Text,
+            dict: TEXT_DICT,
+            seeds: $seeds,
+            run: |b| {
+                let t = text(b);
+                let book = $parse(&t, "f").is_ok();
+                book | serde_json::from_str::<$json>(&t).is_ok()
+            },
+        }
+    };
+}
+
 /// Every target, in report order.
 pub fn all() -> Vec<Target> {
     vec![
@@ -266,30 +298,20 @@ pub fn all() -> Vec<Target> {
             seeds: seeds_tracks,
             run: |b| Tracks::parse(&text(b)).is_ok(),
         },
-        Target {
-            name: "cameras",
-            what: "cameras file, book text and JSON (formats::parse_cameras, read_json)",
-            kind: Kind::Text,
-            dict: TEXT_DICT,
-            seeds: seeds_cameras,
-            run: |b| {
-                let t = text(b);
-                let a = formats::parse_cameras(&t, "f").is_ok();
-                a | serde_json::from_str::<CameraPath>(&t).is_ok()
-            },
-        },
-        Target {
-            name: "marks",
-            what: "marked points, book text and JSON (formats::parse_marked_points, read_json)",
-            kind: Kind::Text,
-            dict: TEXT_DICT,
-            seeds: seeds_marks,
-            run: |b| {
-                let t = text(b);
-                let a = formats::parse_marked_points(&t, "f").is_ok();
-                a | serde_json::from_str::<MarkedPoints>(&t).is_ok()
-            },
-        },
+        text_and_json_target!(
+            "cameras",
+            "cameras file, book text and JSON (formats::parse_cameras, read_json)",
+            seeds_cameras,
+            formats::parse_cameras,
+            CameraPath
+        ),
+        text_and_json_target!(
+            "marks",
+            "marked points, book text and JSON (formats::parse_marked_points, read_json)",
+            seeds_marks,
+            formats::parse_marked_points,
+            MarkedPoints
+        ),
         Target {
             name: "points",
             what: "2-D and 3-D point lists, text and JSON (formats::parse_points2d/3d, read_json)",
@@ -304,18 +326,13 @@ pub fn all() -> Vec<Target> {
                 a | c | d | serde_json::from_str::<Points3d>(&t).is_ok()
             },
         },
-        Target {
-            name: "intrinsics",
-            what: "intrinsics g7cam.txt and JSON (formats::parse_intrinsics, read_json)",
-            kind: Kind::Text,
-            dict: TEXT_DICT,
-            seeds: seeds_intrinsics,
-            run: |b| {
-                let t = text(b);
-                let a = formats::parse_intrinsics(&t, "f").is_ok();
-                a | serde_json::from_str::<Intrinsics>(&t).is_ok()
-            },
-        },
+        text_and_json_target!(
+            "intrinsics",
+            "intrinsics g7cam.txt and JSON (formats::parse_intrinsics, read_json)",
+            seeds_intrinsics,
+            formats::parse_intrinsics,
+            Intrinsics
+        ),
         Target {
             name: "exposure_list",
             what: "exposure list (imaging::hdr::stack::parse_exposure_list)",
@@ -332,46 +349,15 @@ pub fn all() -> Vec<Target> {
             seeds: seeds_colmap,
             run: run_colmap,
         },
-        Target {
-            name: "pfm",
-            what: "PFM (imaging::decode)",
-            kind: Kind::Binary,
-            dict: &[],
-            seeds: |d| image_seeds(d, Format::Pfm),
-            run: |b| vfxgraph_imaging::decode(b, Format::Pfm).is_ok(),
-        },
-        Target {
-            name: "hdr",
-            what: "Radiance .hdr (imaging::decode)",
-            kind: Kind::Binary,
-            dict: &[],
-            seeds: |d| image_seeds(d, Format::Hdr),
-            run: |b| vfxgraph_imaging::decode(b, Format::Hdr).is_ok(),
-        },
-        Target {
-            name: "exr",
-            what: "OpenEXR through our wrapper (imaging::decode)",
-            kind: Kind::Binary,
-            dict: &[],
-            seeds: |d| image_seeds(d, Format::Exr),
-            run: |b| vfxgraph_imaging::decode(b, Format::Exr).is_ok(),
-        },
-        Target {
-            name: "png",
-            what: "PNG (imaging::decode); chunk CRCs repaired after mutation half the time",
-            kind: Kind::Binary,
-            dict: &[],
-            seeds: |d| image_seeds(d, Format::Png),
-            run: |b| vfxgraph_imaging::decode(b, Format::Png).is_ok(),
-        },
-        Target {
-            name: "jpeg",
-            what: "JPEG (imaging::decode)",
-            kind: Kind::Binary,
-            dict: &[],
-            seeds: |d| image_seeds(d, Format::Jpeg),
-            run: |b| vfxgraph_imaging::decode(b, Format::Jpeg).is_ok(),
-        },
+        image_target!("pfm", "PFM (imaging::decode)", Pfm),
+        image_target!("hdr", "Radiance .hdr (imaging::decode)", Hdr),
+        image_target!("exr", "OpenEXR through our wrapper (imaging::decode)", Exr),
+        image_target!(
+            "png",
+            "PNG (imaging::decode); chunk CRCs repaired after mutation half the time",
+            Png
+        ),
+        image_target!("jpeg", "JPEG (imaging::decode)", Jpeg),
         Target {
             name: "mp4",
             what: "H.264 MP4 (video::Video::from_bytes, then the first and last frames)",
