@@ -83,9 +83,9 @@ pub struct Outcome {
 }
 
 impl Outcome {
-    /// Executions per second.
+    /// Mutated inputs per second.
     pub fn rate(&self) -> f64 {
-        self.executions as f64 / self.seconds.max(1e-9)
+        self.executions.saturating_sub(self.seeds as u64) as f64 / self.seconds.max(1e-9)
     }
 }
 
