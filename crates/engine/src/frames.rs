@@ -62,8 +62,16 @@ impl FrameSet {
             let (a, b) = if let Some((a, b)) = range.split_once("..=") {
                 (num(a)?, num(b)?)
             } else if let Some((a, b)) = range.split_once("..") {
-                (num(a)?, num(b)? - 1)
-            } else if let Some(pos) = range[1..].find('-').map(|p| p + 1) {
+                let end = num(b)?
+                    .checked_sub(1)
+                    .ok_or_else(|| format!("range `{item}` is empty (end before start)"))?;
+                (num(a)?, end)
+            } else if let Some(pos) = range
+                .char_indices()
+                .skip(1)
+                .find(|&(_, c)| c == '-')
+                .map(|(p, _)| p)
+            {
                 (num(&range[..pos])?, num(&range[pos + 1..])?)
             } else {
                 let n = num(range)?;
@@ -78,7 +86,10 @@ impl FrameSet {
                 if frames.len() > LIMIT {
                     return Err(format!("frame range `{text}` has more than {LIMIT} frames"));
                 }
-                f += step;
+                match f.checked_add(step) {
+                    Some(next) => f = next,
+                    None => break,
+                }
             }
         }
         Ok(FrameSet::from_frames(frames))
@@ -135,5 +146,26 @@ mod tests {
         assert!(FrameSet::parse("a-b").is_err());
         assert!(FrameSet::parse("1-5:0").is_err());
         assert!(FrameSet::parse("1,,2").is_err());
+    }
+
+    /// Regression (found in review while writing the graph target): an empty or non-ASCII
+    /// range was sliced at byte 1 (a panic), and the ends of the i64 range overflowed.
+    #[test]
+    fn odd_ranges_are_errors_or_frames_never_panics() {
+        for text in [":5", "é-3", "1é-3", "-", "0..-9223372036854775808"] {
+            assert!(FrameSet::parse(text).is_err(), "{text}");
+        }
+        assert_eq!(
+            FrameSet::parse("9223372036854775806-9223372036854775807:5")
+                .unwrap()
+                .frames(),
+            &[9223372036854775806]
+        );
+        assert_eq!(
+            FrameSet::parse("-9223372036854775808..-9223372036854775806")
+                .unwrap()
+                .frames(),
+            &[i64::MIN, i64::MIN + 1]
+        );
     }
 }

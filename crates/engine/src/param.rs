@@ -240,7 +240,13 @@ impl ParamType {
                     Ok(ParamValue::Float(x))
                 }
             }
-            (ParamType::Str | ParamType::Path(_), v @ ParamValue::Str(_)) => Ok(v),
+            (ParamType::Path(_), ParamValue::Str(s)) => {
+                match crate::node::check_frame_pattern(&s) {
+                    Ok(()) => Ok(ParamValue::Str(s)),
+                    Err(e) => Err(ParamCheck::Range(e)),
+                }
+            }
+            (ParamType::Str, v @ ParamValue::Str(_)) => Ok(v),
             (ParamType::Enum(choices), ParamValue::Str(s)) => {
                 if choices.contains(&s.as_str()) {
                     Ok(ParamValue::Str(s))

@@ -76,11 +76,38 @@ pub struct YamlError {
     pub span: Span,
 }
 
+/// Deepest nesting of collections accepted (the tree is built, compared and dropped by
+/// recursion; graph files nest a few levels).
+pub const MAX_DEPTH: usize = 128;
+
+/// Most values a document may expand to through aliases (each alias copies its anchor's
+/// tree, so nested aliases grow exponentially: the "billion laughs" document).
+pub const MAX_ALIAS_VALUES: usize = 1_000_000;
+
+/// The number of values in a tree (iterative: the tree may be deep).
+fn count_values(y: &Yaml) -> usize {
+    let mut n = 0;
+    let mut todo = vec![y];
+    while let Some(v) = todo.pop() {
+        n += 1;
+        match &v.kind {
+            YamlKind::Scalar { .. } => {}
+            YamlKind::Seq(items) => todo.extend(items),
+            YamlKind::Map(entries) => todo.extend(entries.iter().flat_map(|(k, v)| [k, v])),
+        }
+    }
+    n
+}
+
 /// Parses one YAML document into a spanned tree. An empty document is an empty mapping.
+/// Nesting deeper than [`MAX_DEPTH`] and aliases expanding to more than [`MAX_ALIAS_VALUES`]
+/// values are errors.
 pub fn parse(src: &str) -> Result<Yaml, YamlError> {
     let offsets = CharOffsets::new(src);
     let mut stack: Vec<Frame> = Vec::new();
-    let mut anchors: Vec<Option<Yaml>> = Vec::new();
+    // Each anchor's tree and its number of values.
+    let mut anchors: Vec<Option<(Yaml, usize)>> = Vec::new();
+    let mut alias_values = 0usize;
     let mut root: Option<Yaml> = None;
     let parser = Parser::new_from_str(src);
     for item in parser {
@@ -103,8 +130,18 @@ pub fn parse(src: &str) -> Result<Yaml, YamlError> {
                 };
                 Some((value, anchor))
             }
-            Event::Alias(id) => match anchors.get(id).cloned().flatten() {
-                Some(mut v) => {
+            Event::Alias(id) => match anchors.get(id).and_then(|a| a.as_ref()) {
+                Some((v, n)) => {
+                    alias_values += n;
+                    if alias_values > MAX_ALIAS_VALUES {
+                        return Err(YamlError {
+                            message: format!(
+                                "aliases expand to more than {MAX_ALIAS_VALUES} values"
+                            ),
+                            span: start,
+                        });
+                    }
+                    let mut v = v.clone();
                     v.span = start;
                     Some((v, 0))
                 }
@@ -116,6 +153,12 @@ pub fn parse(src: &str) -> Result<Yaml, YamlError> {
                 }
             },
             Event::SequenceStart(anchor, _) => {
+                if stack.len() == MAX_DEPTH {
+                    return Err(YamlError {
+                        message: format!("collections nested deeper than {MAX_DEPTH} levels"),
+                        span: start,
+                    });
+                }
                 stack.push(Frame {
                     start,
                     anchor,
@@ -125,6 +168,12 @@ pub fn parse(src: &str) -> Result<Yaml, YamlError> {
                 None
             }
             Event::MappingStart(anchor, _) => {
+                if stack.len() == MAX_DEPTH {
+                    return Err(YamlError {
+                        message: format!("collections nested deeper than {MAX_DEPTH} levels"),
+                        span: start,
+                    });
+                }
                 stack.push(Frame {
                     start,
                     anchor,
@@ -166,7 +215,7 @@ pub fn parse(src: &str) -> Result<Yaml, YamlError> {
                 if anchors.len() <= anchor {
                     anchors.resize(anchor + 1, None);
                 }
-                anchors[anchor] = Some(value.clone());
+                anchors[anchor] = Some((value.clone(), count_values(&value)));
             }
             match stack.last_mut() {
                 Some(parent) => parent.items.push(value),
@@ -305,6 +354,33 @@ mod tests {
         let y = parse("a: &x {k: 1}\nb: *x\n").unwrap();
         let m = y.as_map().unwrap();
         assert_eq!(m[1].1.as_map().unwrap()[0].1.as_str(), Some("1"));
+    }
+
+    /// Regression (found in review, reproduced with the fuzz harness: a hang): nested aliases
+    /// (a "billion laughs" document, 10^9 values from 500 bytes) grew the tree exponentially;
+    /// now an error at the alias that crosses the budget.
+    #[test]
+    fn alias_bombs_are_refused() {
+        let mut doc = String::from("l0: &l0 [x, x, x, x, x, x, x, x, x, x]\n");
+        for k in 1..9 {
+            let refs = vec![format!("*l{}", k - 1); 10].join(", ");
+            doc += &format!("l{k}: &l{k} [{refs}]\n");
+        }
+        let e = parse(&doc).unwrap_err();
+        assert!(e.message.contains("more than 1000000 values"), "{e:?}");
+        assert_eq!(e.span.line, 6, "{e:?}"); // l5 (10^6 values) crosses it
+                                             // Ten thousand values through aliases are fine.
+        let small: String = doc.lines().take(4).map(|l| format!("{l}\n")).collect();
+        assert!(parse(&small).is_ok());
+    }
+
+    /// Regression (found in review, reproduced with the fuzz harness: a stack overflow on a
+    /// 2 MiB thread): deep block nesting (`- - - …`) made a tree too deep to drop; now an error.
+    #[test]
+    fn deep_nesting_is_refused() {
+        let e = parse(&"- ".repeat(100_000)).unwrap_err();
+        assert!(e.message.contains("deeper than 128"), "{e:?}");
+        assert!(parse(&format!("{}x", "- ".repeat(100))).is_ok());
     }
 
     #[test]

@@ -209,3 +209,16 @@ fn unknown_keys_and_version() {
     assert!(kinds.contains(&(ErrorKind::Structure, 4)), "{d}");
     assert!(d.to_string().contains("did you mean `inputs`"), "{d}");
 }
+
+/// Regression (fuzzing): a frame-pattern width from the file panicked in the formatter.
+#[test]
+fn too_wide_frame_pattern_is_a_range_error() {
+    for path in ["f.%9223372036854775808d.txt", "f.%99999d.txt"] {
+        let d = errors(&format!(
+            "version: 1\nnodes:\n  r:\n    type: read_num\n    params: {{path: \"{path}\"}}\n"
+        ));
+        assert_eq!(at(&d, ErrorKind::ParamRange), (5, 20));
+        let text = d.to_string();
+        assert!(text.contains("wider than 32 digits"), "{text}");
+    }
+}

@@ -245,9 +245,14 @@ impl Val {
     }
 }
 
+/// Deepest nesting of `{…}` accepted: the book's scenes nest 5 levels; a parser recursing once
+/// per level would overflow a thread's stack on a few thousand `{`.
+const MAX_DEPTH: usize = 64;
+
 struct Parser {
     toks: Vec<(Tok, Pos)>,
     i: usize,
+    depth: usize,
 }
 
 impl Parser {
@@ -268,6 +273,18 @@ impl Parser {
         }
     }
     fn value(&mut self) -> Result<Val, ScnError> {
+        if self.depth == MAX_DEPTH {
+            return err(
+                self.peek().1,
+                format!("values nested deeper than {MAX_DEPTH} levels"),
+            );
+        }
+        self.depth += 1;
+        let v = self.value_inner();
+        self.depth -= 1;
+        v
+    }
+    fn value_inner(&mut self) -> Result<Val, ScnError> {
         match self.next() {
             (Tok::Num(v), p) => Ok(Val::Num(v, p)),
             (Tok::Str(s), p) => Ok(Val::Str(s, p)),
@@ -660,7 +677,11 @@ fn view(v: &Val) -> Result<Camera, ScnError> {
 /// grammar and the mapping of parameters).
 pub fn parse_scn(text: &str) -> Result<Scene, ScnError> {
     let toks = lex(text)?;
-    let mut p = Parser { toks, i: 0 };
+    let mut p = Parser {
+        toks,
+        i: 0,
+        depth: 0,
+    };
     let (name, pos) = match p.next() {
         (Tok::Ident(n), pos) if n == "scene" || n == "hdrscene" => (n, pos),
         (t, pos) => {

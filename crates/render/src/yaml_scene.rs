@@ -110,6 +110,10 @@ fn err<T>(n: &Node, message: impl Into<String>) -> R<T> {
     })
 }
 
+/// Deepest nesting of collections accepted (scenes nest four levels; the tree is dropped by
+/// recursion, which a document of `- - - …` would overflow).
+const MAX_DEPTH: usize = 128;
+
 fn parse_tree(src: &str) -> R<Node> {
     struct Open {
         line: usize,
@@ -146,6 +150,13 @@ fn parse_tree(src: &str) -> R<Node> {
                 Some((n, 0))
             }
             Event::SequenceStart(..) | Event::MappingStart(..) => {
+                if stack.len() == MAX_DEPTH {
+                    return Err(YamlSceneError {
+                        line,
+                        col,
+                        message: format!("collections nested deeper than {MAX_DEPTH} levels"),
+                    });
+                }
                 stack.push(Open {
                     line,
                     col,

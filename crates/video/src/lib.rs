@@ -25,6 +25,7 @@ use openh264::decoder::Decoder;
 use openh264::formats::YUVSource;
 use vfxgraph_imaging::Image;
 
+mod bounded;
 #[cfg(feature = "opencv")]
 pub mod capture;
 mod mux;
@@ -150,9 +151,20 @@ impl Video {
         }
         // The demuxer is third-party code reading untrusted input: a panic in it becomes an
         // error naming the file.
-        let parsed = std::panic::catch_unwind(|| re_mp4::Mp4::read_bytes(&data));
+        // Its reads go through a budget: a malformed box tree can send it into an endless
+        // loop (see `bounded`).
+        let mut reader = bounded::Bounded::new(&data);
+        let parsed = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            re_mp4::Mp4::read(&mut reader, data.len() as u64)
+        }));
         let mp4 = match parsed {
             Ok(Ok(m)) => m,
+            Ok(Err(_)) if reader.exhausted() => {
+                return Err(container(
+                    path,
+                    "the MP4 box structure is malformed (the demuxer made no progress)",
+                ))
+            }
             Ok(Err(e)) => return Err(container(path, e.to_string())),
             Err(_) => return Err(container(path, "the MP4 parser failed on this file")),
         };

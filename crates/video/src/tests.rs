@@ -175,3 +175,26 @@ fn errors_name_the_file_and_never_panic() {
     assert!(e.to_string().contains("hevc.mp4"), "{e}");
     eprintln!("hevc: {e}");
 }
+
+/// Regression (fuzzing): a zero-sized child box inside the `avc1` sample entry sent the
+/// demuxer into an endless loop; now a clear error naming the file.
+#[test]
+fn zero_sized_box_in_the_sample_entry_is_an_error_not_a_hang() {
+    let dir = tempfile::tempdir().unwrap();
+    let src: Vec<Image> = (0..2).map(|k| pattern(32, 32, k)).collect();
+    let good = write(dir.path(), "good.mp4", &src, Matrix::Bt601);
+    let mut bytes = std::fs::read(&good).unwrap();
+    // The avcC box (avc1's child) becomes `free` with size 0.
+    let at = bytes.windows(4).position(|w| w == b"avcC").unwrap();
+    bytes[at - 4..at + 4].copy_from_slice(&[0, 0, 0, 0, b'f', b'r', b'e', b'e']);
+    let p = dir.path().join("zero_box.mp4");
+    std::fs::write(&p, &bytes).unwrap();
+    let t = std::time::Instant::now();
+    let e = Video::open(&p).err().unwrap();
+    assert!(
+        matches!(e, VideoError::Container { .. }) && e.to_string().contains("zero_box.mp4"),
+        "{e}"
+    );
+    assert!(e.to_string().contains("malformed"), "{e}");
+    assert!(t.elapsed().as_secs() < 5, "took {:?}", t.elapsed());
+}

@@ -95,6 +95,23 @@ fn map_exr_error(e: exr::error::Error) -> ImageError {
     }
 }
 
+/// The most bytes of samples one byte of an OpenEXR file can expand to, per compression, with
+/// a factor 2 to spare: uncompressed 1; RLE 128 bytes from 2; zlib (ZIP, and PIZ whose Huffman
+/// run-length codes do less) 1032:1; PXR24 zlib over 3-byte floats; B44A flat blocks 32 bytes
+/// in 3; DWA DC-only 8×8 blocks (64:1) then zlib. HTJ2K: no bound.
+fn max_expansion(c: exr::compression::Compression) -> Option<u128> {
+    use exr::compression::Compression::*;
+    Some(match c {
+        Uncompressed => 2,
+        RLE => 128,
+        ZIP1 | ZIP16 | PIZ => 2 * 1032,
+        PXR24 => 2 * 1032 * 4 / 3,
+        B44 | B44A => 2 * 11,
+        DWAA(_) | DWAB(_) => 2 * 64 * 1032,
+        HTJ2K32 | HTJ2K256 => return None,
+    })
+}
+
 /// Decode OpenEXR bytes (see the module documentation for channel selection and windows).
 pub fn decode(bytes: &[u8]) -> Result<Image, ImageError> {
     decode_layer(bytes, "")
@@ -134,6 +151,29 @@ pub fn decode_layer(bytes: &[u8], name: &str) -> Result<Image, ImageError> {
             .map_err(|e| err(format!("window too large: {e}")))?;
         if size.0 == 0 || size.1 == 0 {
             return Err(err("empty display window"));
+        }
+        // The decoder sizes the data window's samples before reading a block: refuse a window
+        // the file is too short to hold at its compression's best ratio.
+        let sample_bytes: u128 = h
+            .channels
+            .list
+            .iter()
+            .map(|c| c.sample_type.bytes_per_sample() as u128)
+            .sum::<u128>()
+            * h.layer_size.0 as u128
+            * h.layer_size.1 as u128;
+        if let Some(x) = max_expansion(h.compression) {
+            if sample_bytes > x * bytes.len() as u128 + (1 << 16) {
+                return Err(err(format!(
+                    "data window {}x{} ({} channels, {}) holds {sample_bytes} bytes of samples: \
+                     more than a {}-byte file can ({x}:1 at most)",
+                    h.layer_size.0,
+                    h.layer_size.1,
+                    h.channels.list.len(),
+                    h.compression,
+                    bytes.len()
+                )));
+            }
         }
     }
     let image = guard(Format::Exr, || {
@@ -646,6 +686,46 @@ mod tests {
             assert!((a - b).abs() <= a.abs() * 4.9e-4 + 6e-8, "{a} vs {b}");
         }
         assert_eq!(back.get(0, 0, 0), f16::from_f32(img.get(0, 0, 0)).to_f32());
+    }
+
+    /// Regression (fuzzing): a 544-byte file claiming a large data window made the decoder
+    /// allocate and fill 315 MB before finding no blocks (0.7 s, over the time bound under
+    /// load); now refused from the header. Highly compressible real data still decodes.
+    #[test]
+    fn data_window_larger_than_the_file_can_hold_is_refused_first() {
+        let small = Image::from_fn(4, 4, 3, |x, y, c| (x + y + c) as f32);
+        let mut bytes = encode_exr(&small, &ExrOptions::default()).unwrap();
+        // dataWindow is a box2i: xMin yMin xMax yMax (i32, little-endian).
+        let at = bytes
+            .windows(11)
+            .position(|w| w == b"dataWindow\0")
+            .unwrap();
+        let v = at + 11 + b"box2i\0".len() + 4;
+        for (k, value) in [0i32, 0, 16383, 16383].into_iter().enumerate() {
+            bytes[v + 4 * k..v + 4 * k + 4].copy_from_slice(&value.to_le_bytes());
+        }
+        let t = std::time::Instant::now();
+        let e = decode(&bytes).unwrap_err().to_string();
+        assert!(
+            e.contains("data window 16384x16384") && e.contains("more than a"),
+            "{e}"
+        );
+        assert!(t.elapsed().as_millis() < 100, "{:?}", t.elapsed());
+        // A constant 1024×1024 RGB float image: ZIP and PIZ compress it > 100:1.
+        let flat = Image::from_fn(1024, 1024, 3, |_, _, c| c as f32 * 0.25);
+        for compression in [ExrCompression::Zip, ExrCompression::Piz] {
+            let o = ExrOptions {
+                compression,
+                ..ExrOptions::default()
+            };
+            let b = encode_exr(&flat, &o).unwrap();
+            assert!(
+                b.len() * 100 < 1024 * 1024 * 12,
+                "{compression:?}: {} bytes",
+                b.len()
+            );
+            assert_eq!(decode(&b).unwrap().data, flat.data, "{compression:?}");
+        }
     }
 
     #[test]

@@ -116,3 +116,29 @@ fn groups_comments_and_degenerate_triangles() {
     assert_eq!(w.skipped, 1);
     assert_eq!(w.primitive_count(), 1);
 }
+
+/// Regression (fuzzing): thousands of nested `{` overflowed the stack of the recursive parser;
+/// now an error at the first brace past the limit. Run on a 2 MiB thread, the stack a node
+/// gets on the engine's workers.
+#[test]
+fn deep_nesting_is_an_error_not_a_stack_overflow() {
+    let r = std::thread::Builder::new()
+        .stack_size(2 << 20)
+        .spawn(|| {
+            let deep = format!("scene{{ object = {} }}", "{".repeat(50_000));
+            error_at(&deep)
+        })
+        .unwrap()
+        .join()
+        .unwrap();
+    let (line, col, message) = r;
+    assert_eq!((line, col), (1, 18 + MAX_DEPTH - 1), "{message}");
+    assert!(message.contains("nested deeper than 64"), "{message}");
+    // 64 levels are fine.
+    let ok = format!(
+        "scene{{ camera = view {{ from = {{0, 0, 0}}, at = {{0, 0, 1}}, up = {{0, 1, 0}} }}, x = {}1{} }}",
+        "{".repeat(60),
+        "}".repeat(60)
+    );
+    assert!(parse_scn(&ok).is_ok() || !error_at(&ok).2.contains("nested"));
+}

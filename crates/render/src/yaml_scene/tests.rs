@@ -245,3 +245,19 @@ fn textures_read_and_errors_point_at_them() {
         assert!(m.contains(what), "{m}");
     }
 }
+
+/// Regression (found in review, reproduced with the fuzz harness): tens of thousands of nested
+/// collections made a tree whose recursive drop overflowed a 2 MiB stack; now an error where
+/// the nesting crosses the limit.
+#[test]
+fn deep_nesting_is_an_error_not_a_stack_overflow() {
+    let (line, col, message) = std::thread::Builder::new()
+        .stack_size(2 << 20)
+        .spawn(|| error_at(&format!("camera:\n  size:\n    {}x", "- ".repeat(50_000))))
+        .unwrap()
+        .join()
+        .unwrap();
+    assert!(message.contains("nested deeper than 128"), "{message}");
+    assert_eq!(line, 3, "{message}");
+    assert!(col > 2 * 128, "{col}: {message}");
+}

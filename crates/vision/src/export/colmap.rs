@@ -461,8 +461,11 @@ pub fn frame_number(name: &str) -> Option<usize> {
     let base = name.rsplit(['/', '\\']).next().unwrap_or(name);
     let stem = base.rsplit_once('.').map_or(base, |(s, _)| s);
     let end = stem.rfind(|c: char| c.is_ascii_digit())? + 1;
-    let start = stem[..end]
-        .rfind(|c: char| !c.is_ascii_digit())
+    // Bytes, not chars: every byte of a multi-byte character is a non-digit, so the byte after
+    // the last one is a character boundary.
+    let start = stem.as_bytes()[..end]
+        .iter()
+        .rposition(|b| !b.is_ascii_digit())
         .map_or(0, |i| i + 1);
     stem[start..end].parse().ok()
 }
@@ -636,5 +639,10 @@ mod tests {
         assert_eq!(frame_number("cam2/img_0007.jpg"), Some(7));
         assert_eq!(frame_number("a.png"), None);
         assert_eq!(frame_number("0042"), Some(42));
+        // Regression (fuzzing): a multi-byte character before the digits panicked (slicing
+        // inside it).
+        assert_eq!(frame_number("frame.0002C\u{fffd}20.png"), Some(20));
+        assert_eq!(frame_number("naïve_é7.png"), Some(7));
+        assert_eq!(frame_number("日本12"), Some(12));
     }
 }

@@ -50,6 +50,14 @@ pub fn parse_marked_points(text: &str, file: &str) -> Result<MarkedPoints> {
         let n: usize = t2[1]
             .parse()
             .map_err(|_| parse_error(file, *l2, format!("bad point count `{}`", t2[1])))?;
+        // The count is checked against the lines left before it sizes anything.
+        if n > lines.len() - (i + 2) {
+            return Err(parse_error(
+                file,
+                *l2,
+                format!("frame {frame}: expected {n} points"),
+            ));
+        }
         let mut pts = Vec::with_capacity(n);
         for k in 0..n {
             let (lk, tk) = lines.get(i + 2 + k).ok_or_else(|| {
@@ -135,5 +143,18 @@ mod tests {
         )
         .unwrap_err();
         assert!(e.to_string().starts_with("m.txt:5:"), "{e}");
+    }
+
+    /// Regression (fuzzing): `Npoints 2147483647` reserved 34 GB before the lines were counted.
+    #[test]
+    fn a_huge_point_count_is_an_error_without_allocating() {
+        let e = parse_marked_points("Frame 68\nNpoints 2147483647\n1 2\n", "m.txt").unwrap_err();
+        let m = e.to_string();
+        assert!(
+            m.starts_with("m.txt:2:") && m.contains("expected 2147483647 points"),
+            "{m}"
+        );
+        let e = parse_marked_points("Frame 1\nNpoints 18446744073709551615\n", "m.txt");
+        assert!(e.unwrap_err().to_string().starts_with("m.txt:2:"));
     }
 }

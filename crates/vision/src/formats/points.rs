@@ -1,13 +1,15 @@
-//! Plain point lists: one point per line, `u v` for 2D (e.g. `calib_projs.txt`, the VGG
-//! `.corners`) and `X Y Z` for 3D (the n×3 matrix of the point-cloud calibration, book §8; the
-//! VGG `p3d`).
+//! Plain point lists: `u v` per line for 2D (e.g. `calib_projs.txt`, the VGG `.corners`), and
+//! for 3D the 3·n numbers of n points `X Y Z` in any whitespace layout — one point per line (the
+//! n×3 matrix of the point-cloud calibration, book §8; the VGG `p3d`) or one number per line, as
+//! the book's `singlecam` and `pclcalib` programs read and write `calib_points.txt` and
+//! `points3d.txt` (GSL's `gsl_matrix_fscanf`/`fprintf` of an n×3 matrix).
 
 use std::fmt::Write as _;
 use std::path::Path;
 
 use nalgebra::{Point2, Point3};
 
-use super::{data_lines, number, parse_error, read_text, write_text};
+use super::{data_lines, number, parse_error, read_text, tokens, write_text};
 use crate::error::Result;
 use crate::points::{Points2d, Points3d};
 
@@ -41,14 +43,29 @@ pub fn parse_points2d(text: &str, file: &str) -> Result<Points2d> {
     ))
 }
 
-/// Parse `X Y Z` lines.
+/// Parse 3·n numbers as n points `X Y Z`, in any whitespace layout (see the module doc); a count
+/// that is not a multiple of 3 is an error naming the count and the line of the incomplete point.
 pub fn parse_points3d(text: &str, file: &str) -> Result<Points3d> {
-    Ok(Points3d(
-        parse_rows::<3>(text, file)?
-            .into_iter()
-            .map(|r| Point3::new(r[0], r[1], r[2]))
-            .collect(),
-    ))
+    let toks = tokens(text);
+    if !toks.len().is_multiple_of(3) {
+        let first_left = toks[toks.len() - toks.len() % 3].0;
+        return Err(parse_error(
+            file,
+            first_left,
+            format!(
+                "expected 3 numbers (X Y Z) per point, found {} numbers: {} point(s) and {} left over",
+                toks.len(),
+                toks.len() / 3,
+                toks.len() % 3
+            ),
+        ));
+    }
+    let mut points = Vec::with_capacity(toks.len() / 3);
+    for p in toks.chunks_exact(3) {
+        let v = |k: usize| number(file, p[k].0, p[k].1);
+        points.push(Point3::new(v(0)?, v(1)?, v(2)?));
+    }
+    Ok(Points3d(points))
 }
 
 /// Read a 2D point list (the JSON form `[[u, v], …]` when the name ends in `.json`).
@@ -117,6 +134,64 @@ mod tests {
         let e = parse_points2d("1 2\n\n3 4 5\n", "q.txt").unwrap_err();
         assert!(e.to_string().starts_with("q.txt:3:"), "{e}");
         assert!(parse_points2d("1 nan\n", "q").is_err());
+    }
+
+    #[test]
+    fn points3d_in_any_layout() {
+        let p = Points3d(vec![
+            Point3::new(1.0, 2.0, 3.0),
+            Point3::new(-4.5, 0.0, 6e2),
+        ]);
+        for text in [
+            "1 2 3\n-4.5 0 6e2\n",
+            "1\n2\n3\n-4.5\n0\n600\n",
+            "1 2 3 -4.5 0 600",
+            "# X Y Z\n1 2\n3 -4.5\n\n0 600 # last\n",
+        ] {
+            assert_eq!(parse_points3d(text, "p").unwrap(), p, "{text:?}");
+        }
+        assert_eq!(parse_points3d("", "p").unwrap(), Points3d(vec![]));
+        let e = parse_points3d("1\n2\n3\n4\n5\n", "calib_points.txt").unwrap_err();
+        let m = e.to_string();
+        assert!(m.starts_with("calib_points.txt:4:"), "{m}");
+        assert!(m.contains("found 5 numbers"), "{m}");
+        let e = parse_points3d("1 2 3\n4\n", "p.txt")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("p.txt:2:") && e.contains("found 4 numbers"),
+            "{e}"
+        );
+        let e = parse_points3d("1 2 3\n4 inf 6\n", "p.txt")
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("p.txt:2:") && e.contains("`inf`"), "{e}");
+    }
+
+    /// The book's own 3-D point files (its companion repository's `matchmove/demo`): 3·n
+    /// numbers, one per line; `calib_points.txt` holds the 3-D positions of the six points
+    /// marked in `calib_projs.txt`.
+    #[test]
+    fn book_point_files_one_number_per_line() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/book-demo");
+        let (calib, p3) = (dir.join("calib_points.txt"), dir.join("points3d.txt"));
+        if !calib.exists() || !p3.exists() {
+            eprintln!(
+                "skipping: {} or {} not found",
+                calib.display(),
+                p3.display()
+            );
+            return;
+        }
+        let calib = read_points3d(&calib).unwrap();
+        assert_eq!(calib.len(), 6);
+        assert_eq!(calib.0[0], Point3::new(0.159812, 3.721392, 21.186454));
+        assert_eq!(calib.0[5], Point3::new(7.745401, -3.194971, 29.7623));
+        let projs = read_points2d(&dir.join("calib_projs.txt")).unwrap();
+        assert_eq!(projs.len(), calib.len());
+        let p = read_points3d(&p3).unwrap();
+        assert_eq!(p.len(), 3);
+        assert_eq!(p.0[2], Point3::new(7.733686, -3.205827, 29.644684));
     }
 
     #[test]

@@ -109,6 +109,9 @@ struct NativeFile {
 
 const NATIVE_FORMAT: &str = "vfxgraph-tracks";
 
+/// The most feature slots a tracks file may declare (either format).
+pub const MAX_SLOTS: usize = 10_000_000;
+
 impl Tracks {
     /// Every track seen in frame index `f`, as (id, position), by increasing slot.
     pub fn observations(&self, f: usize) -> Vec<(u64, [f64; 2])> {
@@ -129,12 +132,19 @@ impl Tracks {
             .map(|i| &self.tracks[i])
     }
 
-    /// Checks the invariants: ids increase, observations and losses lie inside the frame
-    /// range, slots are below `slots`, and a slot holds at most one track per frame.
+    /// Checks the invariants: at most [`MAX_SLOTS`] slots, ids increase, observations and
+    /// losses lie inside the frame range, slots are below `slots`, and a slot holds at most one
+    /// track per frame. The work and memory grow with the tracks, not with `slots` × frames
+    /// (both are numbers from a file).
     pub fn validate(&self) -> Result<(), KltError> {
         let bad = |m: String| Err(KltError::BadTracks(m));
         let n = self.frames.len();
-        let mut occupied = vec![false; n * self.slots];
+        if self.slots > MAX_SLOTS {
+            return bad(format!(
+                "{} feature slots (at most {MAX_SLOTS})",
+                self.slots
+            ));
+        }
         for (k, t) in self.tracks.iter().enumerate() {
             if k > 0 && self.tracks[k - 1].id >= t.id {
                 return bad(format!("track ids not increasing at id {}", t.id));
@@ -145,7 +155,10 @@ impl Tracks {
                     t.id, t.slot, self.slots
                 ));
             }
-            if t.end() > n {
+            if t.first
+                .checked_add(t.points.len())
+                .is_none_or(|end| end > n)
+            {
                 return bad(format!("track {} runs past the last frame", t.id));
             }
             if let Some(l) = t.lost {
@@ -153,18 +166,24 @@ impl Tracks {
                     return bad(format!("track {} lost at frame index {}", t.id, l.frame));
                 }
             }
-            for f in t.first..t.end() {
-                let c = &mut occupied[f * self.slots + t.slot];
-                if *c {
-                    return bad(format!(
-                        "slot {} holds two tracks in frame index {f}",
-                        t.slot
-                    ));
-                }
-                *c = true;
-            }
             if t.points.iter().flatten().any(|v| !v.is_finite()) {
                 return bad(format!("track {} has a non-finite point", t.id));
+            }
+        }
+        // Per slot, the tracks' frame ranges must not overlap.
+        let mut spans: Vec<(usize, usize, usize)> = self
+            .tracks
+            .iter()
+            .filter(|t| !t.points.is_empty())
+            .map(|t| (t.slot, t.first, t.end()))
+            .collect();
+        spans.sort_unstable();
+        for w in spans.windows(2) {
+            let ((slot, _, end), (next_slot, next_first, _)) = (w[0], w[1]);
+            if slot == next_slot && next_first < end {
+                return bad(format!(
+                    "slot {slot} holds two tracks in frame index {next_first}"
+                ));
             }
         }
         Ok(())
@@ -218,7 +237,7 @@ impl Tracks {
             .and_then(|r| r.trim_start().strip_prefix('='))
             .and_then(|r| r.trim().parse().ok())
             .ok_or_else(|| perr(ln, "expected `Features per frame = N`"))?;
-        if slots > 10_000_000 {
+        if slots > MAX_SLOTS {
             return Err(perr(ln, "too many features per frame"));
         }
         let mut frames = Vec::new();
@@ -432,6 +451,40 @@ mod tests {
         t.tracks[2].first = 1; // overlaps track 0 in slot 0
         assert!(t.validate().is_err());
         assert!(Tracks::from_native(&t.to_native()).is_err());
+    }
+
+    /// Regression (fuzzing): a native file's `slots` sized a frames × slots grid before
+    /// anything was checked (`"slots": 99999999999` asked for 400 GB); an index past the
+    /// frames overflowed `first + len`.
+    #[test]
+    fn native_files_with_huge_numbers_are_errors_without_allocating() {
+        let text = sample().to_native();
+        let huge = text.replace("\"slots\":2", "\"slots\":99999999999");
+        assert_ne!(huge, text);
+        let e = Tracks::from_native(&huge).unwrap_err().to_string();
+        assert!(
+            e.contains("99999999999 feature slots (at most 10000000)"),
+            "{e}"
+        );
+        let at_max = text.replace("\"slots\":2", "\"slots\":10000000");
+        assert_eq!(Tracks::from_native(&at_max).unwrap().slots, MAX_SLOTS);
+        let mut t = sample();
+        t.tracks[2].first = usize::MAX;
+        let e = Tracks::from_native(&t.to_native()).unwrap_err().to_string();
+        assert!(e.contains("track 2 runs past the last frame"), "{e}");
+        // The overlap test without the grid: same slot, overlapping ranges, either order.
+        let mut t = sample();
+        t.tracks[2].first = 1;
+        t.tracks[2].points = vec![[0.0, 0.0]];
+        let e = t.validate().unwrap_err().to_string();
+        assert!(
+            e.contains("slot 0 holds two tracks in frame index 1"),
+            "{e}"
+        );
+        let mut t = sample();
+        t.tracks[2].first = 2; // right after track 0 ends in slot 0: allowed
+        t.tracks[0].lost = None;
+        t.validate().unwrap();
     }
 
     #[test]
