@@ -662,6 +662,7 @@ fn seeds_colmap(_: &SeedDirs) -> Vec<Seed> {
             points: vec![[0.0, 0.0, 5.0], [1.0, -1.0, 6.0]],
             track_ids: vec![0, 1],
             errors: vec![0.5, 0.25],
+            inlier_frames: Vec::new(),
         }),
         tracks: None,
         colors: None,
@@ -795,7 +796,7 @@ fn seeds_mp4(_: &SeedDirs) -> Vec<Seed> {
             full_range,
             matrix_from_stream: true,
         };
-        if vfxgraph_video::write_mp4(&path, &frames, 24, 2, 30, color).is_ok() {
+        if vfxgraph_video::write_mp4(&path, &frames, 24.0, 2, 30, color).is_ok() {
             if let Ok(b) = std::fs::read(&path) {
                 s.push(generated(&format!("clip{k}.mp4"), b));
             }
