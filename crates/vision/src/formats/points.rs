@@ -168,32 +168,6 @@ mod tests {
         assert!(e.starts_with("p.txt:2:") && e.contains("`inf`"), "{e}");
     }
 
-    /// The book's own 3-D point files (its companion repository's `matchmove/demo`): 3·n
-    /// numbers, one per line; `calib_points.txt` holds the 3-D positions of the six points
-    /// marked in `calib_projs.txt`.
-    #[test]
-    fn book_point_files_one_number_per_line() {
-        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/book-demo");
-        let (calib, p3) = (dir.join("calib_points.txt"), dir.join("points3d.txt"));
-        if !calib.exists() || !p3.exists() {
-            eprintln!(
-                "skipping: {} or {} not found",
-                calib.display(),
-                p3.display()
-            );
-            return;
-        }
-        let calib = read_points3d(&calib).unwrap();
-        assert_eq!(calib.len(), 6);
-        assert_eq!(calib.0[0], Point3::new(0.159812, 3.721392, 21.186454));
-        assert_eq!(calib.0[5], Point3::new(7.745401, -3.194971, 29.7623));
-        let projs = read_points2d(&dir.join("calib_projs.txt")).unwrap();
-        assert_eq!(projs.len(), calib.len());
-        let p = read_points3d(&p3).unwrap();
-        assert_eq!(p.len(), 3);
-        assert_eq!(p.0[2], Point3::new(7.733686, -3.205827, 29.644684));
-    }
-
     #[test]
     fn book_calib_projs() {
         let Some(path) = vfxgraph_testdata::path("book-demo/calib_projs.txt") else {
