@@ -9,7 +9,7 @@
 use std::collections::BTreeMap;
 use std::fs;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 
 use serde_json::Value as Json;
 
@@ -30,13 +30,8 @@ fn tonemap_graph(dir: &Path) -> PathBuf {
     g
 }
 
-fn vfx(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_vfxgraph"))
-        .current_dir(dir)
-        .args(args)
-        .output()
-        .unwrap()
-}
+mod common;
+use common::vfx;
 
 /// What `vfxgraph run --json` said: exit code, each node's status and reason, stderr.
 struct Run {

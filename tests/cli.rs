@@ -3,7 +3,7 @@
 
 use std::fs;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use serde_json::Value as Json;
@@ -19,23 +19,8 @@ fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
-fn vfx(dir: &Path, args: &[&str]) -> Output {
-    let out = bin().current_dir(dir).args(args).output().unwrap();
-    out
-}
-
-fn run_json(dir: &Path, args: &[&str]) -> Vec<Json> {
-    let mut a = vec!["run", "--json"];
-    a.extend_from_slice(args);
-    let out = vfx(dir, &a);
-    assert!(
-        out.status.success(),
-        "vfxgraph {a:?} failed:\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: Json = serde_json::from_slice(&out.stdout).expect("json on stdout");
-    v["nodes"].as_array().unwrap().clone()
-}
+mod common;
+use common::{run_json, vfx};
 
 fn statuses<'a>(nodes: &'a [Json], status: &str) -> Vec<(&'a str, Option<i64>)> {
     nodes

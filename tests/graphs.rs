@@ -6,7 +6,7 @@
 
 use std::fs;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
 use serde_json::Value as Json;
 use vfxgraph_imaging::color::linear_to_srgb8;
@@ -17,15 +17,7 @@ fn repo() -> PathBuf {
 }
 
 mod common;
-use common::run_json;
-
-fn vfx(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_vfxgraph"))
-        .current_dir(dir)
-        .args(args)
-        .output()
-        .unwrap()
-}
+use common::{run_json, vfx};
 
 fn text(out: &Output) -> String {
     format!(
@@ -159,11 +151,21 @@ fn run_frames(
     cache: &str,
     sets: &[String],
 ) -> Vec<(String, Option<i64>, String)> {
-    let mut args = vec!["--frames", frames, "--cache", cache];
+    let mut args = vec![graph, "--frames", frames, "--cache", cache];
     for s in sets {
         args.extend(["--set", s.as_str()]);
     }
-    run_json(dir, graph, &args)
+    run_json(dir, &args)
+        .iter()
+        .map(|n| {
+            let id = n["id"].as_str().unwrap().to_string();
+            (
+                id,
+                n["frame"].as_i64(),
+                n["status"].as_str().unwrap().to_string(),
+            )
+        })
+        .collect()
 }
 
 /// The names of the files in `dir` that `keep` accepts, sorted.

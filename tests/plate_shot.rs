@@ -11,30 +11,11 @@
 //!
 //! Needs nothing from ../shared/data: the dome is the embedded graphs/data HDR.
 
-use std::path::Path;
-use std::process::Command;
-
 use nalgebra::Point3;
 use serde_json::Value as Json;
-use vfxgraph_vision::camera_path::aligned_pose_errors;
 use vfxgraph_vision::formats::{read_json, CameraPath};
-use vfxgraph_vision::Pose;
 
-fn copy_dir(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).unwrap();
-    for e in std::fs::read_dir(from).unwrap() {
-        let e = e.unwrap();
-        let name = e.file_name();
-        if name == ".vfxgraph" || name == "out" {
-            continue;
-        }
-        if e.path().is_dir() {
-            copy_dir(&e.path(), &to.join(&name));
-        } else {
-            std::fs::copy(e.path(), to.join(&name)).unwrap();
-        }
-    }
-}
+mod common;
 
 /// The true patch corners, in the order of the graph's `marks.points`.
 const CORNERS: [[f64; 3]; 4] = [
@@ -47,18 +28,8 @@ const CORNERS: [[f64; 3]; 4] = [
 #[test]
 fn plate_shot_solves_the_true_cameras_and_measures_the_patch() {
     let tmp = tempfile::tempdir().unwrap();
-    let g = tmp.path().join("graphs");
-    copy_dir(&Path::new(env!("CARGO_MANIFEST_DIR")).join("graphs"), &g);
-    let out = Command::new(env!("CARGO_BIN_EXE_vfxgraph"))
-        .current_dir(&g)
-        .args(["run", "--json", "plate_shot.yaml"])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let g = common::scratch_graphs(tmp.path());
+    common::run_json(&g, &["plate_shot.yaml"]);
     let o = g.join("out/plate_shot");
     let truth: CameraPath = read_json(&o.join("true_cameras.json")).unwrap();
     let solved: CameraPath = read_json(&o.join("solved_cameras.json")).unwrap();
@@ -69,30 +40,15 @@ fn plate_shot_solves_the_true_cameras_and_measures_the_patch() {
         frames,
         "every frame solved"
     );
-    let poses = |p: &CameraPath| {
-        p.frames
-            .iter()
-            .map(|f| f.pose.clone())
-            .collect::<Vec<Pose>>()
-    };
-    let (sim, rot, cen) = aligned_pose_errors(&poses(&solved), &poses(&truth)).unwrap();
+    let (sim, rot, cen) = common::aligned_errors(&solved, &truth);
     let max_rot = rot.iter().cloned().fold(0.0, f64::max);
     let max_cen = cen.iter().cloned().fold(0.0, f64::max);
     eprintln!("camera errors after similarity alignment: rotation max {max_rot:.4}°, centre max {max_cen:.4} (scene units; path ≈ 3 units long)");
     assert!(max_rot < 0.1, "rotation errors (°): {rot:?}");
     // The measured corners, mapped into the truth frame by the same similarity.
-    let report: Json =
-        serde_json::from_str(&std::fs::read_to_string(o.join("corners.json")).unwrap()).unwrap();
-    let pts = report["points"].as_array().unwrap();
+    let pts = common::aligned_points(&o.join("corners.json"), &sim);
     assert_eq!(pts.len(), 4);
-    for (p, want) in pts.iter().zip(CORNERS) {
-        let v: Vec<f64> = p
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|x| x.as_f64().unwrap())
-            .collect();
-        let q = sim.apply(&Point3::new(v[0], v[1], v[2]));
+    for (q, want) in pts.into_iter().zip(CORNERS) {
         let err = (q - Point3::from(want)).norm();
         eprintln!("corner {want:?}: measured {q:?}, error {err:.4}");
         assert!(
@@ -196,35 +152,15 @@ fn plate_shot_solves_the_true_cameras_and_measures_the_patch() {
         );
     }
     // Partial reruns (a second run in the same folder, from the cache).
-    let run = |args: &[&str]| -> Vec<(String, String)> {
-        let out = Command::new(env!("CARGO_BIN_EXE_vfxgraph"))
-            .current_dir(&g)
-            .args(["run", "--json", "plate_shot.yaml"])
-            .args(args)
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        let j: Json = serde_json::from_slice(&out.stdout).unwrap();
-        j["nodes"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|n| {
-                (
-                    n["id"].as_str().unwrap().to_string(),
-                    n["status"].as_str().unwrap().to_string(),
-                )
-            })
-            .collect()
+    let run = |args: &[&str]| -> Vec<Json> {
+        let mut a = vec!["plate_shot.yaml"];
+        a.extend_from_slice(args);
+        common::run_json(&g, &a)
     };
-    let ran = |st: &[(String, String)], id: &str| st.iter().any(|(i, s)| i == id && s == "ran");
+    let ran = |st: &[Json], id: &str| common::nodes_with(st, "ran").contains(id);
     let again = run(&[]);
     assert!(
-        again.iter().all(|(_, s)| s == "cached"),
+        again.iter().all(|n| n["status"] == "cached"),
         "second run: {again:?}"
     );
     let refit = run(&["--set", "fit.frame=10"]);

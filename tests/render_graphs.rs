@@ -6,37 +6,13 @@ use std::process::Command;
 
 use serde_json::Value as Json;
 
-fn copy_dir(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).unwrap();
-    for e in std::fs::read_dir(from).unwrap() {
-        let e = e.unwrap();
-        let name = e.file_name();
-        if name == ".vfxgraph" || name == "out" {
-            continue;
-        }
-        if e.path().is_dir() {
-            copy_dir(&e.path(), &to.join(&name));
-        } else {
-            std::fs::copy(e.path(), to.join(&name)).unwrap();
-        }
-    }
-}
+mod common;
+use common::copy_dir;
 
 fn run(dir: &Path, extra: &[&str]) -> Vec<Json> {
-    let mut args = vec!["run", "--json", "spheres_dome.yaml"];
+    let mut args = vec!["spheres_dome.yaml"];
     args.extend_from_slice(extra);
-    let out = Command::new(env!("CARGO_BIN_EXE_vfxgraph"))
-        .current_dir(dir)
-        .args(&args)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: Json = serde_json::from_slice(&out.stdout).unwrap();
-    v["nodes"].as_array().unwrap().clone()
+    common::run_json(dir, &args)
 }
 
 #[test]

@@ -1,11 +1,81 @@
-//! Helpers shared by the end-to-end tests: copying the example graphs into a scratch folder and
-//! running the CLI on them.
+//! Helpers shared by the end-to-end tests of the `vfxgraph` binary: running the CLI, copying
+//! the example graphs into a scratch folder, reading a measured-points report.
 #![allow(dead_code)]
 
+use std::collections::BTreeSet;
 use std::path::Path;
-use std::process::Command;
+use std::process::{Command, Output};
 
 use serde_json::Value as Json;
+
+/// Runs `vfxgraph ARGS…` in `dir`.
+pub fn vfx(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_vfxgraph"))
+        .current_dir(dir)
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+/// `vfxgraph run --json ARGS…` in `dir`, which must succeed; its node entries.
+pub fn run_json(dir: &Path, args: &[&str]) -> Vec<Json> {
+    let mut a = vec!["run", "--json"];
+    a.extend_from_slice(args);
+    let out = vfx(dir, &a);
+    assert!(
+        out.status.success(),
+        "vfxgraph {a:?} failed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: Json = serde_json::from_slice(&out.stdout).expect("json on stdout");
+    v["nodes"].as_array().unwrap().clone()
+}
+
+/// The ids of the nodes with at least one instance of `status` in a `run_json` result.
+pub fn nodes_with(nodes: &[Json], status: &str) -> BTreeSet<String> {
+    nodes
+        .iter()
+        .filter(|n| n["status"] == status)
+        .map(|n| n["id"].as_str().unwrap().to_string())
+        .collect()
+}
+
+/// A solved camera path against the true one after the similarity that best aligns them (a
+/// solve is defined up to one): the similarity, each frame's rotation error (°) and camera-centre
+/// error (true units).
+pub fn aligned_errors(
+    solved: &vfxgraph_vision::formats::CameraPath,
+    truth: &vfxgraph_vision::formats::CameraPath,
+) -> (vfxgraph_vision::camera_path::Similarity, Vec<f64>, Vec<f64>) {
+    let poses = |p: &vfxgraph_vision::formats::CameraPath| {
+        p.frames.iter().map(|f| f.pose.clone()).collect::<Vec<_>>()
+    };
+    vfxgraph_vision::camera_path::aligned_pose_errors(&poses(solved), &poses(truth)).unwrap()
+}
+
+/// The 3-D points of a `point_cloud_calibrate` report (`points`), mapped by `sim` (e.g. into
+/// the truth's frame).
+pub fn aligned_points(
+    report: &Path,
+    sim: &vfxgraph_vision::camera_path::Similarity,
+) -> Vec<nalgebra::Point3<f64>> {
+    let text = std::fs::read_to_string(report).unwrap();
+    let j: Json = serde_json::from_str(&text).unwrap();
+    j["points"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| {
+            let v: Vec<f64> = p
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|x| x.as_f64().unwrap())
+                .collect();
+            sim.apply(&nalgebra::Point3::new(v[0], v[1], v[2]))
+        })
+        .collect()
+}
 
 /// Copies a folder recursively, leaving out caches (`.vfxgraph`) and outputs (`out`).
 pub fn copy_dir(from: &Path, to: &Path) {
@@ -29,44 +99,4 @@ pub fn scratch_graphs(dir: &Path) -> std::path::PathBuf {
     let g = dir.join("graphs");
     copy_dir(&Path::new(env!("CARGO_MANIFEST_DIR")).join("graphs"), &g);
     g
-}
-
-/// `vfxgraph run --json GRAPH ARGS…` in `dir`: asserts success and returns (node id, frame,
-/// status) of every instance.
-pub fn run_json(dir: &Path, graph: &str, args: &[&str]) -> Vec<(String, Option<i64>, String)> {
-    let out = Command::new(env!("CARGO_BIN_EXE_vfxgraph"))
-        .current_dir(dir)
-        .args(["run", "--json", graph])
-        .args(args)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "vfxgraph run {graph} {args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let j: Json = serde_json::from_slice(&out.stdout).unwrap();
-    j["nodes"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|n| {
-            (
-                n["id"].as_str().unwrap().to_string(),
-                n["frame"].as_i64(),
-                n["status"].as_str().unwrap().to_string(),
-            )
-        })
-        .collect()
-}
-
-/// The ids of the nodes with at least one instance of `status` in a `run_json` result.
-pub fn nodes_with(
-    st: &[(String, Option<i64>, String)],
-    status: &str,
-) -> std::collections::BTreeSet<String> {
-    st.iter()
-        .filter(|(_, _, s)| s == status)
-        .map(|(id, _, _)| id.clone())
-        .collect()
 }
