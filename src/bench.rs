@@ -308,6 +308,7 @@ fn bench_plan(instances: usize, json: bool, registry: &Registry) -> Result<u8, S
         cache_dir: Some(dir.join(".vfxgraph")),
         force: vec![],
         cancel: None,
+        only: None,
     };
     let load =
         || graph::load(&graph_path, registry, &Overrides::default()).map_err(|e| e.to_string());

@@ -3,6 +3,7 @@
 
 mod bench;
 mod bench_shot;
+mod farm;
 mod interrupt;
 mod progress;
 mod report;
@@ -89,6 +90,12 @@ enum Command {
         #[command(subcommand)]
         action: CacheAction,
     },
+    /// Run exactly the named node instances, their inputs from the cache (one farm task).
+    Exec(farm::commands::ExecArgs),
+    /// Submit the uncached instances to a render farm (Slurm, or an OpenJD job template).
+    Submit(farm::commands::SubmitArgs),
+    /// Per node: instances cached, farm tasks running and queued, instances missing.
+    Status(farm::commands::StatusArgs),
     /// Benchmarks.
     Bench {
         #[command(subcommand)]
@@ -265,6 +272,7 @@ fn dispatch(cli: Cli, registry: &Registry) -> Result<u8, String> {
                 cache_dir: cache_dir(&graph.graph, &cache),
                 force,
                 cancel: Some(interrupted.clone()),
+                only: None,
             };
             let bars = progress::Bars::new(&g, quiet || json);
             let rep = exec::run(&g, registry, &opts, &bars).map_err(|e| e.to_string())?;
@@ -322,6 +330,7 @@ fn dispatch(cli: Cli, registry: &Registry) -> Result<u8, String> {
                 cache_dir: cache_dir(&graph.graph, &cache),
                 force,
                 cancel: None,
+                only: None,
             };
             let p = exec::plan(&g, &opts).map_err(|e| e.to_string())?;
             if json {
@@ -358,12 +367,16 @@ fn dispatch(cli: Cli, registry: &Registry) -> Result<u8, String> {
                 cache_dir: cache_dir(&graph.graph, &cache),
                 force: vec![],
                 cancel: None,
+                only: None,
             };
             let p = exec::plan(&g, &opts).map_err(|e| e.to_string())?;
             print!("{}", report::dot(&g, &p));
             Ok(0)
         }
         Command::Cache { action } => cache_command(action),
+        Command::Exec(a) => farm::commands::exec_command(a, registry, quiet),
+        Command::Submit(a) => farm::commands::submit_command(a, registry),
+        Command::Status(a) => farm::commands::status_command(a, registry),
         Command::Bench { what } => bench::run(what, registry),
     }
 }

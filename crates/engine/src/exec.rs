@@ -43,6 +43,19 @@ pub struct RunOptions {
     /// skipped, running nodes see [`Context::cancelled`](crate::Context::cancelled) and may
     /// stop early (a node that stops reports an error, so nothing partial is cached).
     pub cancel: Option<Arc<AtomicBool>>,
+    /// Run exactly these instances (`vfxgraph exec`, one farm task): every other instance
+    /// they read must already be in the cache. Such an input is never computed; a miss fails
+    /// naming it, and instances nobody selected are not visited. `None` runs the whole graph.
+    pub only: Option<Vec<Target>>,
+}
+
+/// A selection of instances of one node: all of them, or some frames of a per-frame node.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Target {
+    /// Node id.
+    pub node: String,
+    /// Frames (a per-frame node only); `None` selects every instance.
+    pub frames: Option<Vec<i64>>,
 }
 
 /// What happened to an instance in a run.
@@ -160,6 +173,22 @@ pub enum ExecError {
     /// `--force` names no node.
     #[error("--force {0}: no such node in the graph")]
     UnknownForce(String),
+    /// A target names no node.
+    #[error("no node `{0}` in the graph")]
+    UnknownNode(String),
+    /// A target's frame is not one of the graph's.
+    #[error("node `{node}`: frame {frame} is not in the graph's frames ({range})")]
+    FrameOutOfRange {
+        /// Node id.
+        node: String,
+        /// The frame asked for.
+        frame: i64,
+        /// The graph's frames.
+        range: String,
+    },
+    /// Frames were given for a node that runs once.
+    #[error("node `{0}` runs once, not per frame: frames do not apply to it")]
+    NotPerFrame(String),
 }
 
 /// A 64-bit seed for (graph seed, node id, frame): independent of scheduling.
@@ -201,6 +230,72 @@ struct Inst {
     upstream: Vec<usize>,
     /// Distinct instances that read this one.
     downstream: Vec<usize>,
+}
+
+/// What a run does with an instance.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Role {
+    /// Served from the cache or computed.
+    Compute,
+    /// An input of a selected instance: served from the cache only.
+    CacheOnly,
+    /// Not selected and not read by a selected instance: not visited.
+    Unneeded,
+}
+
+/// The role of each instance for a selection (`None`: everything computes).
+fn roles(graph: &Graph, insts: &[Inst], only: Option<&[Target]>) -> Result<Vec<Role>, ExecError> {
+    let Some(targets) = only else {
+        return Ok(vec![Role::Compute; insts.len()]);
+    };
+    let mut role = vec![Role::Unneeded; insts.len()];
+    for t in targets {
+        let node = graph
+            .index_of(&t.node)
+            .ok_or_else(|| ExecError::UnknownNode(t.node.clone()))?;
+        let frames = check_target_frames(graph, node, t)?;
+        for (i, inst) in insts.iter().enumerate().filter(|(_, x)| x.node == node) {
+            if frames
+                .as_ref()
+                .is_none_or(|fs| inst.frame.is_some_and(|f| fs.contains(&f)))
+            {
+                role[i] = Role::Compute;
+            }
+        }
+    }
+    // An instance's upstream comes before it in `insts`: one backward pass closes the set.
+    for i in (0..insts.len()).rev() {
+        if role[i] != Role::Unneeded {
+            for &u in &insts[i].upstream {
+                if role[u] == Role::Unneeded {
+                    role[u] = Role::CacheOnly;
+                }
+            }
+        }
+    }
+    Ok(role)
+}
+
+/// A target's frames, checked against the node's mode and the graph's frames.
+fn check_target_frames(
+    graph: &Graph,
+    node: usize,
+    t: &Target,
+) -> Result<Option<Vec<i64>>, ExecError> {
+    let Some(frames) = &t.frames else {
+        return Ok(None);
+    };
+    if !graph.nodes[node].per_frame {
+        return Err(ExecError::NotPerFrame(t.node.clone()));
+    }
+    if let Some(&frame) = frames.iter().find(|f| !graph.frames.frames().contains(f)) {
+        return Err(ExecError::FrameOutOfRange {
+            node: t.node.clone(),
+            frame,
+            range: graph.frames.to_string(),
+        });
+    }
+    Ok(Some(frames.clone()))
 }
 
 fn expand(graph: &Graph) -> (Vec<Inst>, Vec<std::ops::Range<usize>>) {
@@ -270,13 +365,15 @@ struct InstRecord {
     files: BTreeMap<String, String>,
 }
 
+/// The node-wide part of the last run's key components (`records/<node>/node.json`); each
+/// instance's part is a file of its own beside it (`records/<node>/<frame>.json`), so
+/// concurrent runs of different frames never rewrite one shared file.
 #[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
-struct NodeRecord {
+struct NodeMeta {
     node_type: String,
     version: u32,
     params: BTreeMap<String, String>,
     seed: Option<u64>,
-    instances: BTreeMap<String, InstRecord>,
 }
 
 fn frame_key(frame: Option<i64>) -> String {
@@ -294,7 +391,8 @@ struct Common<'a> {
     hasher: FileHasher,
     store: Option<Store>,
     forced: Vec<bool>,
-    old_records: Mutex<HashMap<usize, Option<NodeRecord>>>,
+    role: Vec<Role>,
+    old_records: Mutex<HashMap<usize, Option<NodeMeta>>>,
 }
 
 impl<'a> Common<'a> {
@@ -318,8 +416,10 @@ impl<'a> Common<'a> {
                 .ok_or_else(|| ExecError::UnknownForce(f.clone()))?;
             forced[i] = true;
         }
+        let role = roles(graph, &insts, opts.only.as_deref())?;
         Ok(Common {
             graph,
+            role,
             insts,
             hasher,
             store,
@@ -328,12 +428,32 @@ impl<'a> Common<'a> {
         })
     }
 
-    fn record_name(&self, node: usize) -> String {
+    /// The record folder of a node (per graph file and node id), relative to `records/`.
+    fn record_dir(&self, node: usize) -> String {
         let mut h = blake3::Hasher::new();
         h.update(self.graph.file.to_string_lossy().as_bytes());
         h.update(&[0]);
         h.update(self.graph.nodes[node].id.as_bytes());
-        format!("{}.json", &h.finalize().to_hex()[..32])
+        h.finalize().to_hex()[..32].to_string()
+    }
+
+    fn meta_record_name(&self, node: usize) -> String {
+        format!("{}/node.json", self.record_dir(node))
+    }
+
+    fn inst_record_name(&self, node: usize, frame: Option<i64>) -> String {
+        format!("{}/{}.json", self.record_dir(node), frame_key(frame))
+    }
+
+    /// The node-wide record of this run: what [`NodeMeta`] stores.
+    fn meta(&self, node: usize) -> NodeMeta {
+        let spec = self.graph.nodes[node].spec();
+        NodeMeta {
+            node_type: spec.name.to_string(),
+            version: spec.version,
+            params: self.param_strings(node),
+            seed: spec.seeded.then_some(self.graph.seed),
+        }
     }
 
     fn param_strings(&self, node: usize) -> BTreeMap<String, String> {
@@ -513,7 +633,7 @@ impl<'a> Common<'a> {
                 .or_insert_with(|| {
                     self.store
                         .as_ref()
-                        .and_then(|s| s.get_record::<NodeRecord>(&self.record_name(node)))
+                        .and_then(|s| s.get_record::<NodeMeta>(&self.meta_record_name(node)))
                 })
                 .clone()
         };
@@ -536,7 +656,10 @@ impl<'a> Common<'a> {
         if spec.seeded && old.seed != Some(self.graph.seed) {
             why.push("graph seed changed".into());
         }
-        if let Some(oi) = old.instances.get(&frame_key(self.insts[i].frame)) {
+        let old_inst = self.store.as_ref().and_then(|s| {
+            s.get_record::<InstRecord>(&self.inst_record_name(node, self.insts[i].frame))
+        });
+        if let Some(oi) = old_inst {
             for (port, d) in &parts.record.inputs {
                 if oi.inputs.get(port) != Some(d) {
                     let src = self.insts[i]
@@ -683,7 +806,12 @@ pub fn run(
         .iter()
         .map(|inst| State {
             pending: AtomicUsize::new(inst.upstream.len()),
-            consumers_left: AtomicUsize::new(inst.downstream.len()),
+            consumers_left: AtomicUsize::new(
+                inst.downstream
+                    .iter()
+                    .filter(|&&d| c.role[d] != Role::Unneeded)
+                    .count(),
+            ),
             done: OnceLock::new(),
             values: Mutex::new(BTreeMap::new()),
         })
@@ -707,7 +835,7 @@ pub fn run(
     pool.install(|| {
         rayon::scope(|s| {
             for i in 0..runner.c.insts.len() {
-                if runner.c.insts[i].upstream.is_empty() {
+                if runner.c.insts[i].upstream.is_empty() && runner.c.role[i] != Role::Unneeded {
                     runner.schedule(s, i);
                 }
             }
@@ -720,6 +848,7 @@ pub fn run(
         .insts
         .iter()
         .enumerate()
+        .filter(|(i, _)| runner.c.role[*i] != Role::Unneeded)
         .map(|(i, inst)| {
             let gn = &graph.nodes[inst.node];
             let d = runner.state[i].done.get();
@@ -755,7 +884,9 @@ impl<'a> Runner<'a> {
                 }
             }
             for &d in &self.c.insts[i].downstream {
-                if self.state[d].pending.fetch_sub(1, Ordering::AcqRel) == 1 {
+                if self.c.role[d] != Role::Unneeded
+                    && self.state[d].pending.fetch_sub(1, Ordering::AcqRel) == 1
+                {
                     self.schedule(s, d);
                 }
             }
@@ -860,6 +991,22 @@ impl<'a> Runner<'a> {
             }
             Err(m) => m,
         };
+        if self.c.role[i] == Role::CacheOnly {
+            let why = if miss.is_empty() { "no entry" } else { &miss };
+            self.finish(
+                i,
+                Done {
+                    status: Status::Failed,
+                    reason: format!(
+                        "an input of the selected instances is not in the cache ({why}); \
+                         it must run first (a missing farm dependency, or a cleaned cache)"
+                    ),
+                    seconds: 0.0,
+                    digests: BTreeMap::new(),
+                },
+            );
+            return;
+        }
         let reason = self.c.explain(i, &parts, &miss);
         self.observer.started(inst.node, inst.frame);
         let t = Instant::now();
@@ -1082,6 +1229,13 @@ impl<'a> Runner<'a> {
         // same bytes; anything else is reported rather than silently mixed.
         let up = &self.c.insts[j];
         let id = &self.c.graph.nodes[up.node].id;
+        if self.c.role[j] == Role::CacheOnly {
+            return Err(format!(
+                "the cached output `{port}` of `{id}`{} is missing from the cache, and only the \
+                 selected instances may run",
+                up.frame.map(|f| format!(" frame {f}")).unwrap_or_default()
+            ));
+        }
         tracing::info!("recomputing `{id}` (its cached output was lost)");
         let outputs = self.compute(j)?;
         let (v, bytes) = outputs
@@ -1111,36 +1265,32 @@ impl<'a> Runner<'a> {
             .insert(frame_key(inst.frame), record);
     }
 
+    /// Writes the key components of this run's instances: each record file is replaced
+    /// whole (atomically) and only when it changed; no file is merged with another run's.
     fn save_records(&self) {
         let Some(store) = &self.c.store else { return };
         let new = std::mem::take(&mut *self.new_records.lock().expect("records lock"));
         for (node, instances) in new {
-            let name = self.c.record_name(node);
-            let spec = self.c.graph.nodes[node].spec();
-            let mut rec = store
-                .get_record::<NodeRecord>(&name)
-                .filter(|r| r.node_type == spec.name)
-                .unwrap_or_default();
-            let params = self.c.param_strings(node);
-            let seed = spec.seeded.then_some(self.c.graph.seed);
-            let unchanged = rec.version == spec.version
-                && rec.params == params
-                && rec.seed == seed
-                && instances
-                    .iter()
-                    .all(|(k, v)| rec.instances.get(k) == Some(v));
-            if unchanged {
-                continue;
-            }
-            rec.node_type = spec.name.to_string();
-            rec.version = spec.version;
-            rec.params = params;
-            rec.seed = seed;
-            rec.instances.extend(instances);
-            if let Err(e) = store.put_record(&name, &rec) {
-                tracing::warn!("cannot save rerun record: {e}");
+            put_if_changed(store, &self.c.meta_record_name(node), &self.c.meta(node));
+            let dir = self.c.record_dir(node);
+            for (frame, rec) in instances {
+                put_if_changed(store, &format!("{dir}/{frame}.json"), &rec);
             }
         }
+    }
+}
+
+/// Replaces record `name` with `value` unless it already holds it (a failure is only logged:
+/// records explain reruns, they never decide them).
+fn put_if_changed<T>(store: &Store, name: &str, value: &T)
+where
+    T: Serialize + serde::de::DeserializeOwned + PartialEq,
+{
+    if store.get_record::<T>(name).as_ref() == Some(value) {
+        return;
+    }
+    if let Err(e) = store.put_record(name, value) {
+        tracing::warn!("cannot save rerun record: {e}");
     }
 }
 

@@ -1,11 +1,16 @@
 //! File helpers: atomic writes, and content hashing of files with a (path, size, mtime) memo.
+//!
+//! Both are safe for many processes on many hosts sharing one folder (NFS semantics: a rename
+//! within a folder is atomic, there are no locks across hosts): temporaries have names unique
+//! to the host, process and call, and the memo is one small file per input file, each
+//! replaced whole.
 
 use std::collections::HashMap;
 use std::fs;
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::Mutex;
+use std::sync::{Mutex, OnceLock};
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use serde::{Deserialize, Serialize};
@@ -14,14 +19,40 @@ use crate::artifact::Digest;
 
 static TMP_COUNTER: AtomicU64 = AtomicU64::new(0);
 
-/// A temporary name beside `path`, unique to this process and call.
-fn temp_beside(path: &Path) -> PathBuf {
+/// A name unique to this host, process and call: `host-pid-n`. Process ids repeat across the
+/// hosts of a farm writing into one shared folder; host names do not.
+pub fn unique_token() -> String {
+    static HOST: OnceLock<String> = OnceLock::new();
+    let host = HOST.get_or_init(|| {
+        let raw = fs::read_to_string("/proc/sys/kernel/hostname").unwrap_or_default();
+        let clean: String = raw
+            .trim()
+            .chars()
+            .map(|c| {
+                if c.is_ascii_alphanumeric() || c == '.' {
+                    c
+                } else {
+                    '_'
+                }
+            })
+            .collect();
+        if clean.is_empty() {
+            "host".into()
+        } else {
+            clean
+        }
+    });
     let n = TMP_COUNTER.fetch_add(1, Ordering::Relaxed);
+    format!("{host}-{}-{n}", std::process::id())
+}
+
+/// A temporary name beside `path`, unique to this host, process and call.
+fn temp_beside(path: &Path) -> PathBuf {
     let name = path
         .file_name()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_default();
-    path.with_file_name(format!(".{name}.tmp-{}-{n}", std::process::id()))
+    path.with_file_name(format!(".{name}.tmp-{}", unique_token()))
 }
 
 /// Writes `bytes` to `path` atomically: a temporary file in the same folder, then a rename.
@@ -56,8 +87,12 @@ pub fn hash_file(path: &Path) -> io::Result<Digest> {
     Ok(Digest(*h.finalize().as_bytes()))
 }
 
+/// One memoized file: `files/ab/<blake3 of the path>` holds it, replaced whole.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 struct MemoEntry {
+    /// The file (the entry's name is a hash of it; kept to rule out a collision).
+    #[serde(default)]
+    path: PathBuf,
     size: u64,
     mtime_ns: u128,
     digest: String,
@@ -66,11 +101,14 @@ struct MemoEntry {
 /// Hashes files by content, remembering (path, size, mtime) → digest so that unchanged files
 /// are not read again. A file modified within the last two seconds is not memoized (its mtime
 /// could still change within the same clock tick: git's "racy" case).
+///
+/// A persistent memo is a folder of one entry file per input file, each written atomically
+/// when its file is hashed: concurrent processes never merge or rewrite a shared file, and two
+/// of them memoizing one file write the same entry.
 #[derive(Debug, Default)]
 pub struct FileHasher {
     memo: Mutex<HashMap<PathBuf, MemoEntry>>,
-    dirty: std::sync::atomic::AtomicBool,
-    path: Option<PathBuf>,
+    dir: Option<PathBuf>,
 }
 
 impl FileHasher {
@@ -79,18 +117,44 @@ impl FileHasher {
         FileHasher::default()
     }
 
-    /// A hasher whose memo is loaded from (and saved to) `path`. A missing or corrupt memo
-    /// starts empty.
-    pub fn persistent(path: PathBuf) -> Self {
-        let memo = fs::read(&path)
-            .ok()
-            .and_then(|b| serde_json::from_slice::<HashMap<PathBuf, MemoEntry>>(&b).ok())
-            .unwrap_or_default();
+    /// A hasher whose memo entries live in the folder `dir` (created on the first write). A
+    /// missing or corrupt entry is a miss.
+    pub fn persistent(dir: PathBuf) -> Self {
         FileHasher {
-            memo: Mutex::new(memo),
-            dirty: Default::default(),
-            path: Some(path),
+            memo: Mutex::new(HashMap::new()),
+            dir: Some(dir),
         }
+    }
+
+    fn entry_path(&self, path: &Path) -> Option<PathBuf> {
+        let hex = blake3::hash(path.as_os_str().as_encoded_bytes()).to_hex();
+        self.dir
+            .as_ref()
+            .map(|d| d.join(&hex[..2]).join(&hex[..32]))
+    }
+
+    /// The memoized entry for `path`: this process's, else the shared folder's.
+    fn remembered(&self, path: &Path) -> Option<MemoEntry> {
+        if let Some(e) = self.memo.lock().expect("memo lock").get(path) {
+            return Some(e.clone());
+        }
+        let bytes = fs::read(self.entry_path(path)?).ok()?;
+        serde_json::from_slice::<MemoEntry>(&bytes)
+            .ok()
+            .filter(|e| e.path == path)
+    }
+
+    fn remember(&self, entry: MemoEntry) {
+        if let Some(p) = self.entry_path(&entry.path) {
+            if let Ok(bytes) = serde_json::to_vec(&entry) {
+                // A failure only costs re-hashing later.
+                let _ = atomic_write(&p, &bytes);
+            }
+        }
+        self.memo
+            .lock()
+            .expect("memo lock")
+            .insert(entry.path.clone(), entry);
     }
 
     /// The content digest of `path`.
@@ -108,7 +172,7 @@ impl FileHasher {
             .unwrap_or_default()
             .as_nanos();
         let size = meta.len();
-        if let Some(e) = self.memo.lock().expect("memo lock").get(path) {
+        if let Some(e) = self.remembered(path) {
             if e.size == size && e.mtime_ns == mtime_ns {
                 if let Some(d) = Digest::from_hex(&e.digest) {
                     return Ok(d);
@@ -120,34 +184,21 @@ impl FileHasher {
             .duration_since(mtime)
             .map(|age| age < Duration::from_secs(2))
             .unwrap_or(true);
-        let mut memo = self.memo.lock().expect("memo lock");
         if racy {
-            memo.remove(path);
+            self.memo.lock().expect("memo lock").remove(path);
         } else {
-            memo.insert(
-                path.to_path_buf(),
-                MemoEntry {
-                    size,
-                    mtime_ns,
-                    digest: digest.to_hex(),
-                },
-            );
+            self.remember(MemoEntry {
+                path: path.to_path_buf(),
+                size,
+                mtime_ns,
+                digest: digest.to_hex(),
+            });
         }
-        self.dirty.store(true, Ordering::Relaxed);
         Ok(digest)
     }
 
-    /// Saves the memo if it changed (atomically; a failure only costs re-hashing later).
-    pub fn save(&self) {
-        if let Some(path) = &self.path {
-            if self.dirty.load(Ordering::Relaxed) {
-                let memo = self.memo.lock().expect("memo lock");
-                if let Ok(bytes) = serde_json::to_vec(&*memo) {
-                    let _ = atomic_write(path, &bytes);
-                }
-            }
-        }
-    }
+    /// Kept for callers of the whole-file memo: entries are now written as they are made.
+    pub fn save(&self) {}
 }
 
 #[cfg(test)]

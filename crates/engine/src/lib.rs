@@ -24,9 +24,11 @@ pub mod yaml;
 
 pub use artifact::{ArtifactType, Digest, Value};
 pub use diagnostic::{Diagnostic, Diagnostics, ErrorKind, Span};
-pub use exec::{plan, run, Observer, PlanReport, PlanStatus, RunOptions, RunReport, Status};
+pub use exec::{
+    plan, run, Observer, PlanReport, PlanStatus, RunOptions, RunReport, Status, Target,
+};
 pub use frames::FrameSet;
 pub use graph::{load, Graph, LoadError, Overrides};
-pub use node::{Context, InputValue, Mode, Node, NodeError, NodeSpec, PortSpec};
+pub use node::{Context, InputValue, Mode, Node, NodeError, NodeSpec, PortSpec, Threads};
 pub use param::{ParamSpec, ParamType, ParamValue, Params, PathRole};
 pub use registry::Registry;

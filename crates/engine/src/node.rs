@@ -98,6 +98,19 @@ pub struct NodeSpec {
     pub mode: Mode,
     /// True if the node draws random numbers: its key then includes the graph seed and node id.
     pub seeded: bool,
+    /// How many cores an instance can use: a hint for schedulers outside the engine (a farm
+    /// gives an `All` task a whole machine, a `One` task one core). Never part of the key.
+    pub threads: Threads,
+}
+
+/// The cores one instance of a node type can keep busy.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Threads {
+    /// One (a reader, a writer, a cheap per-pixel operation).
+    One,
+    /// As many as the machine has (the default: nodes may parallelize inside).
+    #[default]
+    All,
 }
 
 impl NodeSpec {
@@ -112,6 +125,7 @@ impl NodeSpec {
             params: Vec::new(),
             mode: Mode::Either,
             seeded: false,
+            threads: Threads::All,
         }
     }
     /// Sets the version.
@@ -122,6 +136,11 @@ impl NodeSpec {
     /// Sets the mode.
     pub fn mode(mut self, m: Mode) -> Self {
         self.mode = m;
+        self
+    }
+    /// Sets the resource hint (see [`Threads`]).
+    pub fn threads(mut self, t: Threads) -> Self {
+        self.threads = t;
         self
     }
     /// Marks the node seeded.

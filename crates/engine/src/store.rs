@@ -5,25 +5,32 @@
 //!   objects/ab/<digest>   artifact bytes (LZ4-compressed when that pays), named by the
 //!                         digest of their uncompressed content
 //!   actions/ab/<key>      JSON: the output digests (and written files) of one node instance
-//!   records/<node>.json   the key components of each node's last run, to explain reruns
-//!   files.json            the (path, size, mtime) → digest memo of input files
+//!   records/<node>/       the key components of each node's last run, to explain reruns:
+//!                         node.json (type, version, params) and <frame>.json per instance
+//!   files/ab/<path hash>  the (path, size, mtime) → digest memo, one file per input file
 //!   tmp/                  temporaries, renamed into place when complete
 //! ```
 //!
 //! Every write is a temporary file renamed into place, and an action is written only after all
 //! its objects, so a crash (even SIGKILL) leaves either a complete entry or none. Reads verify
 //! the object's digest; a mismatch is treated as a miss and the object removed.
+//!
+//! Many processes on many hosts may share one cache (NFS semantics: rename within a folder is
+//! atomic, no locks across hosts). No file is ever read, modified and written back: objects
+//! are content-addressed (racing writers publish identical bytes), an action, record or memo
+//! entry is replaced whole by one rename, temporaries are named by host, process and counter,
+//! and an LRU touch only sets an action's mtime.
 
 use std::collections::{BTreeMap, HashSet};
 use std::fs;
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, SystemTime};
 
 use serde::{Deserialize, Serialize};
 
 use crate::artifact::{content_digest, Digest};
+use crate::fsutil::unique_token;
 
 /// An object whose payload is stored as is.
 const OBJECT_MAGIC: &[u8; 5] = b"VFXO1";
@@ -106,8 +113,6 @@ pub struct Store {
     root: PathBuf,
 }
 
-static TMP: AtomicU64 = AtomicU64::new(0);
-
 fn shard(dir: &Path, hex: &str) -> PathBuf {
     dir.join(&hex[..2]).join(hex)
 }
@@ -142,19 +147,15 @@ impl Store {
         &self.root
     }
 
-    /// Where the file-hash memo lives.
+    /// Where the file-hash memo lives (a folder of one entry per file).
     pub fn file_memo_path(&self) -> PathBuf {
-        self.root.join("files.json")
+        self.root.join("files")
     }
 
     /// Writes `bytes` to `dest` through a temporary in `tmp/`, renamed into place when complete;
     /// on any failure (a full disk) the temporary is removed and the error names `dest`.
     fn write_atomic(&self, dest: &Path, bytes: &[&[u8]]) -> io::Result<()> {
-        let n = TMP.fetch_add(1, Ordering::Relaxed);
-        let tmp = self
-            .root
-            .join("tmp")
-            .join(format!("{}-{n}", std::process::id()));
+        let tmp = self.root.join("tmp").join(unique_token());
         let r = (|| {
             let mut f = fs::File::create(&tmp)?;
             for b in bytes {
@@ -254,7 +255,8 @@ impl Store {
         let _ = fs::remove_file(self.action_path(key));
     }
 
-    /// Marks an action as used now (for least-recently-used collection).
+    /// Marks an action as used now (for least-recently-used collection): only its mtime is
+    /// set (one metadata update; concurrent touches and a concurrent replace are harmless).
     pub fn touch_action(&self, key: &Digest) {
         if let Ok(f) = fs::File::options().append(true).open(self.action_path(key)) {
             let _ = f.set_modified(SystemTime::now());
@@ -376,14 +378,15 @@ impl Store {
 
     /// Deletes everything in the cache.
     pub fn clear(&self) -> io::Result<()> {
-        for sub in ["objects", "actions", "records", "tmp"] {
+        for sub in ["objects", "actions", "records", "files", "tmp"] {
             let p = self.root.join(sub);
             if p.exists() {
                 fs::remove_dir_all(&p)?;
             }
             fs::create_dir_all(&p)?;
         }
-        let _ = fs::remove_file(self.file_memo_path());
+        // The single-file memo of earlier versions.
+        let _ = fs::remove_file(self.root.join("files.json"));
         Ok(())
     }
 

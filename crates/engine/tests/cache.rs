@@ -7,7 +7,7 @@ use std::fs;
 use std::time::{Duration, SystemTime};
 
 use common::{ran_cached, registry, Scratch};
-use vfxgraph_engine::{exec, PlanStatus, RunOptions, Status};
+use vfxgraph_engine::{exec, PlanStatus, RunOptions, Status, Target};
 
 const CHAIN: &str = "version: 1
 nodes:
@@ -401,6 +401,7 @@ fn no_cache_runs_everything_and_writes_nothing() {
         cache_dir: None,
         force: vec![],
         cancel: None,
+        only: None,
     };
     let r = exec::run(&g, &registry(), &o, &exec::Quiet).unwrap();
     assert!(r.nodes.iter().all(|n| n.status == Status::Ran));
@@ -424,4 +425,103 @@ fn force_reruns_one_node() {
     assert_eq!(ran, vec!["s"], "same output bytes: dependants stay cached");
     o.force = vec!["nope".into()];
     assert!(exec::run(&s.graph(&g), &registry(), &o, &exec::Quiet).is_err());
+}
+
+fn only(targets: &[(&str, Option<Vec<i64>>)]) -> Option<Vec<Target>> {
+    Some(
+        targets
+            .iter()
+            .map(|(n, f)| Target {
+                node: n.to_string(),
+                frames: f.clone(),
+            })
+            .collect(),
+    )
+}
+
+/// `exec`'s selection: exactly the named instances run, their inputs come from the cache only
+/// (a miss fails naming the upstream instance), the rest is not visited; the entries equal a
+/// whole run's.
+#[test]
+fn selected_instances_run_alone_on_cached_inputs() {
+    let s = Scratch::new();
+    write_inputs(&s);
+    let g = s.graph(FILES);
+    let reg = registry();
+    let mut o = s.opts();
+    // Nothing cached: frame 2 of `twice` needs `read` frame 2, which is not run for it.
+    o.only = only(&[("twice", Some(vec![2]))]);
+    let r = exec::run(&g, &reg, &o, &exec::Quiet).unwrap();
+    assert!(r.failed());
+    let read2 = r.nodes.iter().find(|n| n.id == "read").unwrap();
+    assert_eq!((read2.frame, read2.status), (Some(2), Status::Failed));
+    assert!(
+        read2.reason.contains("not in the cache"),
+        "{}",
+        read2.reason
+    );
+    let twice2 = r.nodes.iter().find(|n| n.id == "twice").unwrap();
+    assert_eq!(twice2.status, Status::Skipped);
+    assert!(
+        twice2.reason.contains("`read` frame 2"),
+        "{}",
+        twice2.reason
+    );
+    assert_eq!(
+        r.nodes.len(),
+        2,
+        "only the selection and its inputs are visited"
+    );
+    // Run `read` frames 1-4 alone, then `twice` in two chunks, then `total`.
+    for sel in [
+        only(&[("read", None)]),
+        only(&[("twice", Some(vec![1, 2]))]),
+        only(&[("twice", Some(vec![3, 4]))]),
+        only(&[("total", None)]),
+    ] {
+        o.only = sel;
+        let r = exec::run(&g, &reg, &o, &exec::Quiet).unwrap();
+        assert!(!r.failed(), "{:?}", r.nodes);
+        assert!(r
+            .nodes
+            .iter()
+            .all(|n| n.status != Status::Ran
+                || o.only.as_ref().unwrap().iter().any(|t| t.node == n.id)));
+    }
+    assert_eq!(ran_cached(&s.run(FILES), "total"), (0, 1));
+    // The same entries as a whole run in a fresh cache.
+    let whole = Scratch::new();
+    write_inputs(&whole);
+    whole.run(FILES);
+    let keys = |dir: &std::path::Path| {
+        let mut k: Vec<_> = vfxgraph_engine::store::Store::open(dir)
+            .unwrap()
+            .list()
+            .into_iter()
+            .map(|e| (e.key, e.entry.outputs))
+            .collect();
+        k.sort_by(|a, b| a.0.cmp(&b.0));
+        k
+    };
+    assert_eq!(keys(&s.path(".vfxgraph")), keys(&whole.path(".vfxgraph")));
+}
+
+#[test]
+fn bad_selections_are_errors() {
+    let s = Scratch::new();
+    write_inputs(&s);
+    let g = s.graph(FILES);
+    let mut o = s.opts();
+    for (sel, msg) in [
+        (only(&[("nope", None)]), "no node `nope`"),
+        (
+            only(&[("twice", Some(vec![9]))]),
+            "frame 9 is not in the graph's frames",
+        ),
+        (only(&[("total", Some(vec![1]))]), "`total` runs once"),
+    ] {
+        o.only = sel;
+        let e = exec::run(&g, &registry(), &o, &exec::Quiet).err().unwrap();
+        assert!(e.to_string().contains(msg), "{e}");
+    }
 }

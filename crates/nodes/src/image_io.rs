@@ -5,7 +5,7 @@
 use vfxgraph_engine::node::has_frame_pattern;
 use vfxgraph_engine::{
     ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, PathRole, PortSpec,
-    Registry,
+    Registry, Threads,
 };
 use vfxgraph_imaging::{read_image, write_image};
 
@@ -73,6 +73,7 @@ pub fn register(r: &mut Registry) {
             "write_image_sequence",
             "Writes one image file per frame; the path holds a frame pattern (`%04d` or `####`).",
         )
+        .threads(Threads::One)
         .mode(Mode::PerFrame)
         .param(ParamSpec::required(
             "path",

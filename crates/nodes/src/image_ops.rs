@@ -2,7 +2,7 @@
 
 use vfxgraph_engine::{
     ArtifactType, Context, NodeError, NodeSpec, ParamSpec, ParamType, ParamValue, PortSpec,
-    Registry,
+    Registry, Threads,
 };
 use vfxgraph_imaging::{exposure, tonemap, Image, Operator};
 
@@ -21,6 +21,7 @@ pub fn register(r: &mut Registry) {
             "exposure",
             "Scales linear light by 2^stops (photographic exposure, book §10.2); alpha is kept.",
         )
+        .threads(Threads::One)
         .param(ParamSpec::optional(
             "stops",
             STOPS,
@@ -38,6 +39,7 @@ pub fn register(r: &mut Registry) {
              `reinhard` applies L/(1+L) on luminance (Reinhard et al. 2002). Write the result \
              to PNG/JPEG for the sRGB curve.",
         )
+        .threads(Threads::One)
         .param(ParamSpec::optional(
             "operator",
             ParamType::Enum(&["srgb", "reinhard"]),

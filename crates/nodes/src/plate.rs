@@ -7,7 +7,7 @@
 use nalgebra::{Point2, Point3, Vector3};
 use vfxgraph_engine::{
     ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, ParamValue, PortSpec,
-    Registry,
+    Registry, Threads,
 };
 use vfxgraph_vision::camera_path::{orbit_path, Orbit};
 use vfxgraph_vision::formats::{MarkedFrame, MarkedPoints};
@@ -47,6 +47,7 @@ pub fn register(r: &mut Registry) {
              y down). Frames `first_frame`… `first_frame + frames − 1`. Outputs the path (with \
              K: focal `focal` px, principal point at the image centre) and K alone.",
         )
+        .threads(Threads::One)
         .mode(Mode::Once)
         .param(ParamSpec::optional(
             "frames",

@@ -12,7 +12,7 @@ use vfxgraph_engine::artifact::codec::{put_bytes, put_u64, Reader};
 use vfxgraph_engine::artifact::{decode_json, encode_json};
 use vfxgraph_engine::{
     ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, ParamValue, PathRole,
-    PortSpec, Registry,
+    PortSpec, Registry, Threads,
 };
 use vfxgraph_render::dome::Dome;
 use vfxgraph_render::light::LightSampling;
@@ -90,6 +90,7 @@ pub fn register(r: &mut Registry) {
              matches the book's images. Only the scene file is hashed for the cache: after \
              editing an OBJ or dome image in place, use --force (see README, known gaps).",
         )
+        .threads(Threads::One)
         .mode(Mode::Once)
         .param(ParamSpec::required(
             "path",

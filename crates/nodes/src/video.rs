@@ -9,7 +9,7 @@ use std::time::SystemTime;
 
 use vfxgraph_engine::{
     ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, ParamValue, PathRole,
-    PortSpec, Registry,
+    PortSpec, Registry, Threads,
 };
 use vfxgraph_imaging::{tonemap, Image, Operator};
 use vfxgraph_video::{write_mp4, ColorInfo, Matrix, Video, VideoError};
@@ -57,6 +57,7 @@ pub fn register(r: &mut Registry) {
              as a PNG is, or Reinhard for HDR) and sRGB-encoded. Frames must be one even \
              size. The write is atomic.",
         )
+        .threads(Threads::One)
         .mode(Mode::Once)
         .param(ParamSpec::required(
             "path",

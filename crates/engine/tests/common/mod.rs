@@ -364,6 +364,7 @@ impl Scratch {
             cache_dir: Some(self.path(".vfxgraph")),
             force: vec![],
             cancel: None,
+            only: None,
         }
     }
     pub fn run(&self, text: &str) -> RunReport {

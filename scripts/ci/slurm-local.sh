@@ -1,0 +1,119 @@
+#!/usr/bin/env bash
+# A one-node Slurm cluster on this machine, for the farm tests (tests/farm.rs) and benchmarks:
+#   scripts/ci/slurm-local.sh start   # munged (if not running), slurmctld, slurmd; waits idle
+#   scripts/ci/slurm-local.sh stop    # stops only the daemons this script started
+#   scripts/ci/slurm-local.sh env     # prints `export SLURM_CONF=…` for the shell
+# Idempotent. Runs as root without systemd (Debian's slurm-wlm + munge). Everything it writes
+# (slurm.conf, state, spool, logs, pid files, the job completion log) is in
+# $VFXGRAPH_SLURM_DIR (default /tmp/vfxgraph-slurm); /etc/slurm is not touched, so every
+# Slurm command needs SLURM_CONF=$VFXGRAPH_SLURM_DIR/slurm.conf (`env` prints it).
+# VFXGRAPH_SLURM_CPUS sets the node's CPUs (task slots; default nproc); `start` after a change
+# restarts the daemons with the new value.
+set -euo pipefail
+dir="${VFXGRAPH_SLURM_DIR:-/tmp/vfxgraph-slurm}"
+conf="$dir/slurm.conf"
+host="$(hostname -s)"
+cpus="${VFXGRAPH_SLURM_CPUS:-$(nproc)}"
+export SLURM_CONF="$conf"
+
+alive() { [ -f "$1" ] && kill -0 "$(cat "$1")" 2>/dev/null; }
+
+write_conf() {
+  mkdir -p "$dir"/{state,spool,log}
+  cat > "$conf.new" <<CONF
+ClusterName=vfxgraph
+SlurmctldHost=$host
+SlurmUser=root
+SlurmdUser=root
+AuthType=auth/munge
+StateSaveLocation=$dir/state
+SlurmdSpoolDir=$dir/spool
+SlurmctldPidFile=$dir/slurmctld.pid
+SlurmdPidFile=$dir/slurmd.pid
+SlurmctldLogFile=$dir/log/slurmctld.log
+SlurmdLogFile=$dir/log/slurmd.log
+ProctrackType=proctrack/linuxproc
+TaskPlugin=task/none
+SelectType=select/cons_tres
+SelectTypeParameters=CR_CPU
+SchedulerType=sched/backfill
+ReturnToService=2
+MpiDefault=none
+JobAcctGatherType=jobacct_gather/none
+AccountingStorageType=accounting_storage/none
+JobCompType=jobcomp/filetxt
+JobCompLoc=$dir/log/jobcomp.log
+MinJobAge=600
+MaxArraySize=10001
+NodeName=$host CPUs=$cpus State=UNKNOWN
+PartitionName=farm Nodes=$host Default=YES MaxTime=INFINITE State=UP
+CONF
+  if ! cmp -s "$conf.new" "$conf" 2>/dev/null; then
+    if alive "$dir/slurmctld.pid" || alive "$dir/slurmd.pid"; then stop_slurm; fi
+    mv "$conf.new" "$conf"
+  else
+    rm -f "$conf.new"
+  fi
+}
+
+start_munge() {
+  if runuser -u munge -- munge -n </dev/null >/dev/null 2>&1 && pgrep -x munged >/dev/null; then
+    return
+  fi
+  for d in /run/munge /var/log/munge /var/lib/munge /etc/munge; do
+    mkdir -p "$d"
+    chown munge:munge "$d"
+  done
+  chmod 0755 /run/munge
+  chmod 0700 /var/log/munge /var/lib/munge /etc/munge
+  if [ ! -s /etc/munge/munge.key ]; then
+    dd if=/dev/urandom of=/etc/munge/munge.key bs=1024 count=1 status=none
+    chown munge:munge /etc/munge/munge.key
+    chmod 0400 /etc/munge/munge.key
+  fi
+  runuser -u munge -- munged
+  touch "$dir/started-munged"
+}
+
+stop_slurm() {
+  for d in slurmd slurmctld; do
+    if alive "$dir/$d.pid"; then
+      kill "$(cat "$dir/$d.pid")"
+      for _ in $(seq 50); do alive "$dir/$d.pid" || break; sleep 0.1; done
+    fi
+    rm -f "$dir/$d.pid"
+  done
+}
+
+start() {
+  write_conf
+  start_munge
+  alive "$dir/slurmctld.pid" || slurmctld -f "$conf"
+  alive "$dir/slurmd.pid" || slurmd -f "$conf"
+  for _ in $(seq 100); do
+    state="$(sinfo -h -N -o %t 2>/dev/null | head -n1 || true)"
+    case "$state" in
+      idle|mix|alloc) echo "slurm: node $host ($cpus CPUs) $state; export SLURM_CONF=$conf"; return 0 ;;
+      down*|drain*) scontrol update nodename="$host" state=resume 2>/dev/null || true ;;
+    esac
+    sleep 0.2
+  done
+  echo "slurm did not come up; logs in $dir/log" >&2
+  exit 1
+}
+
+stop() {
+  stop_slurm
+  if [ -f "$dir/started-munged" ]; then
+    if [ -f /run/munge/munged.pid ]; then kill "$(cat /run/munge/munged.pid)" 2>/dev/null || true; fi
+    rm -f "$dir/started-munged"
+  fi
+  echo "slurm: stopped"
+}
+
+case "${1:-}" in
+  start) start ;;
+  stop) stop ;;
+  env) echo "export SLURM_CONF=$conf" ;;
+  *) echo "usage: $0 start|stop|env" >&2; exit 2 ;;
+esac

@@ -1,0 +1,286 @@
+//! Render farms: a graph's uncached instances compiled into farm jobs (`vfxgraph submit`),
+//! and a graph's progress on a shared cache (`vfxgraph status`).
+//!
+//! Every farm task is one `vfxgraph exec` of one node over one chunk of frames, reading its
+//! inputs from the shared cache and writing its results there; the farm's dependencies follow
+//! the graph's edges. The engine knows nothing of farms: this module only reads its plan.
+//!
+//! - [`FarmPlan`] (here): jobs, chunks and dependencies, farm-neutral.
+//! - [`slurm`]: `sbatch` scripts and submission.
+//! - [`openjd`]: an Open Job Description job template.
+//! - [`status`]: per-node progress from the cache (and `squeue`).
+
+pub mod commands;
+pub mod openjd;
+pub mod slurm;
+pub mod status;
+
+use std::path::{Path, PathBuf};
+
+use vfxgraph_engine::exec::{PlanReport, PlanStatus};
+use vfxgraph_engine::{FrameSet, Graph, Threads};
+
+/// How a job waits for one of its producers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Wait {
+    /// Chunk k waits for the producer's chunk k (both per-frame, same chunks).
+    PerChunk,
+    /// The job waits for the whole producer job.
+    Whole,
+}
+
+/// One chunk of a job: an array index (the chunk's position in the graph's frames) and the
+/// frames of it that must run.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Chunk {
+    /// Position of the chunk among the graph's chunks.
+    pub index: usize,
+    /// Uncached frames in it (empty for a node that runs once).
+    pub frames: Vec<i64>,
+}
+
+/// One farm job: the uncached instances of one node.
+#[derive(Clone, Debug)]
+pub struct Job {
+    /// Node id.
+    pub node: String,
+    /// True for a per-frame node (an array of chunks), false for a node that runs once.
+    pub per_frame: bool,
+    /// The chunks to run (one, with no frames, for a once node).
+    pub chunks: Vec<Chunk>,
+    /// Producers (indices into [`FarmPlan::jobs`]) and how to wait for each.
+    pub deps: Vec<(usize, Wait)>,
+    /// The node type's resource hint.
+    pub threads: Threads,
+}
+
+impl Job {
+    /// The frames of all chunks, compactly (`1-4,9`), or `once`.
+    pub fn frames_label(&self) -> String {
+        if self.per_frame {
+            let all: Vec<i64> = self.chunks.iter().flat_map(|c| c.frames.clone()).collect();
+            FrameSet::from_frames(all).to_string()
+        } else {
+            "once".into()
+        }
+    }
+}
+
+/// What a farm task needs besides its node and frames: the same for every task.
+#[derive(Clone, Debug)]
+pub struct TaskContext {
+    /// The vfxgraph binary the tasks run (absolute).
+    pub exe: PathBuf,
+    /// The graph file (absolute).
+    pub graph: PathBuf,
+    /// The shared cache (absolute).
+    pub cache: PathBuf,
+    /// `--set` overrides, passed to every task.
+    pub set: Vec<String>,
+    /// The graph's frame range override (`--frames` of submit), passed as `exec --range`.
+    pub range: Option<String>,
+    /// The graph's name in job names (its file stem).
+    pub graph_name: String,
+}
+
+impl TaskContext {
+    /// The `vfxgraph exec` arguments of a task of `node`, with `frames` (a frame list, or
+    /// `None` for a node that runs once) and `threads` cores.
+    pub fn exec_args(&self, node: &str, frames: Option<&str>, jobs: Option<&str>) -> Vec<String> {
+        let mut a = vec![
+            "exec".to_string(),
+            self.graph.display().to_string(),
+            "--node".into(),
+            node.into(),
+            "--cache".into(),
+            self.cache.display().to_string(),
+        ];
+        if let Some(f) = frames {
+            a.extend(["--frames".into(), f.into()]);
+        }
+        if let Some(r) = &self.range {
+            a.extend(["--range".into(), r.clone()]);
+        }
+        for s in &self.set {
+            a.extend(["--set".into(), s.clone()]);
+        }
+        if let Some(j) = jobs {
+            a.extend(["--jobs".into(), j.into()]);
+        }
+        a
+    }
+}
+
+/// The jobs of a submission, in graph (topological) order.
+#[derive(Clone, Debug, Default)]
+pub struct FarmPlan {
+    /// Jobs; a job's producers come before it.
+    pub jobs: Vec<Job>,
+}
+
+impl FarmPlan {
+    /// The jobs for every instance the plan does not find cached, frames cut into chunks of
+    /// `chunk` consecutive frames of the graph's range.
+    pub fn new(graph: &Graph, plan: &PlanReport, chunk: usize) -> FarmPlan {
+        let chunk = chunk.max(1);
+        let all = graph.frames.frames();
+        let mut job_of: Vec<Option<usize>> = vec![None; graph.nodes.len()];
+        let mut jobs: Vec<Job> = Vec::new();
+        for (n, node) in graph.nodes.iter().enumerate() {
+            let todo: Vec<Option<i64>> = plan
+                .nodes
+                .iter()
+                .filter(|l| l.id == node.id && l.status != PlanStatus::Cached)
+                .map(|l| l.frame)
+                .collect();
+            if todo.is_empty() {
+                continue;
+            }
+            let chunks = if node.per_frame {
+                chunks_of(all, &todo, chunk)
+            } else {
+                vec![Chunk {
+                    index: 0,
+                    frames: vec![],
+                }]
+            };
+            let mut job = Job {
+                node: node.id.clone(),
+                per_frame: node.per_frame,
+                chunks,
+                deps: Vec::new(),
+                threads: node.spec().threads,
+            };
+            job.deps = dependencies(graph, n, &job, &jobs, &job_of);
+            job_of[n] = Some(jobs.len());
+            jobs.push(job);
+        }
+        FarmPlan { jobs }
+    }
+
+    /// Number of tasks over all jobs.
+    pub fn task_count(&self) -> usize {
+        self.jobs.iter().map(|j| j.chunks.len()).sum()
+    }
+}
+
+/// The chunks (of `size` consecutive frames of `all`) holding any of the frames `todo`.
+fn chunks_of(all: &[i64], todo: &[Option<i64>], size: usize) -> Vec<Chunk> {
+    all.chunks(size)
+        .enumerate()
+        .filter_map(|(index, frames)| {
+            let run: Vec<i64> = frames
+                .iter()
+                .copied()
+                .filter(|f| todo.contains(&Some(*f)))
+                .collect();
+            (!run.is_empty()).then_some(Chunk { index, frames: run })
+        })
+        .collect()
+}
+
+/// How job `job` (node `n`) waits for each producer that has a job: per chunk when both are
+/// per-frame, the edge reads one element, and every chunk of `job` has its producer chunk;
+/// else the whole producer.
+fn dependencies(
+    graph: &Graph,
+    n: usize,
+    job: &Job,
+    jobs: &[Job],
+    job_of: &[Option<usize>],
+) -> Vec<(usize, Wait)> {
+    let mut deps: Vec<(usize, Wait)> = Vec::new();
+    for e in &graph.nodes[n].inputs {
+        let Some(p) = job_of[e.from] else { continue };
+        let producer = &jobs[p];
+        let per_chunk = !e.whole_sequence
+            && job.per_frame
+            && producer.per_frame
+            && job
+                .chunks
+                .iter()
+                .all(|c| producer.chunks.iter().any(|pc| pc.index == c.index));
+        let wait = if per_chunk {
+            Wait::PerChunk
+        } else {
+            Wait::Whole
+        };
+        match deps.iter_mut().find(|(j, _)| *j == p) {
+            Some(d) => d.1 = d.1.max(wait),
+            None => deps.push((p, wait)),
+        }
+    }
+    deps
+}
+
+/// An absolute form of `p` (relative to the current folder), for paths other hosts read.
+pub fn absolute(p: &Path) -> Result<PathBuf, String> {
+    std::path::absolute(p).map_err(|e| format!("cannot resolve {}: {e}", p.display()))
+}
+
+/// Checks that the cache folder exists or can be made and is writable by this user: a farm
+/// whose tasks cannot write there would fail every task. Nothing is submitted otherwise.
+pub fn check_cache_writable(cache: &Path) -> Result<(), String> {
+    std::fs::create_dir_all(cache.join("tmp"))
+        .map_err(|e| format!("cache folder {} cannot be created: {e}", cache.display()))?;
+    let probe = cache
+        .join("tmp")
+        .join(format!("probe-{}", vfxgraph_engine::fsutil::unique_token()));
+    std::fs::write(&probe, b"probe")
+        .map_err(|e| format!("cache folder {} is not writable: {e}", cache.display()))?;
+    let _ = std::fs::remove_file(&probe);
+    Ok(())
+}
+
+/// The full path of program `name` on `PATH`, or an error saying how to get it.
+pub fn find_program(name: &str, hint: &str) -> Result<PathBuf, String> {
+    let path = std::env::var_os("PATH").unwrap_or_default();
+    std::env::split_paths(&path)
+        .map(|d| d.join(name))
+        .find(|p| p.is_file())
+        .ok_or_else(|| format!("`{name}` is not installed (not found on PATH): {hint}"))
+}
+
+/// A string quoted for a POSIX shell.
+pub fn sh_quote(s: &str) -> String {
+    if !s.is_empty()
+        && s.chars()
+            .all(|c| c.is_ascii_alphanumeric() || "-_./=:,+@%".contains(c))
+    {
+        s.to_string()
+    } else {
+        format!("'{}'", s.replace('\'', r"'\''"))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn chunks_keep_their_index_and_only_uncached_frames() {
+        let all: Vec<i64> = (1..=10).collect();
+        let todo = [Some(2), Some(3), Some(9)];
+        let c = chunks_of(&all, &todo, 4);
+        assert_eq!(
+            c,
+            vec![
+                Chunk {
+                    index: 0,
+                    frames: vec![2, 3]
+                },
+                Chunk {
+                    index: 2,
+                    frames: vec![9]
+                }
+            ]
+        );
+    }
+
+    #[test]
+    fn quoting() {
+        assert_eq!(sh_quote("a/b-1.yaml"), "a/b-1.yaml");
+        assert_eq!(sh_quote("it's x"), r"'it'\''s x'");
+        assert_eq!(sh_quote(""), "''");
+    }
+}

@@ -1,0 +1,70 @@
+//! Open Job Description (what AWS Deadline Cloud runs): a `jobtemplate-2023-09` job template
+//! in JSON with one step per node. A per-frame step's tasks are a chunked `Frame` parameter
+//! (`CHUNK[INT]`, the `TASK_CHUNKING` extension) over the node's uncached frames; steps depend
+//! on the steps of their producers (OpenJD dependencies are whole-step). The vfxgraph binary,
+//! the graph and the cache are job parameters, so a farm maps them to its own paths.
+
+use serde_json::{json, Value};
+
+use super::{FarmPlan, Job, TaskContext};
+
+/// The job template of `plan`, chunks of `chunk` frames.
+pub fn template(ctx: &TaskContext, plan: &FarmPlan, chunk: usize) -> Value {
+    let path_param = |name: &str, kind: &str, flow: &str, default: String, what: &str| {
+        json!({
+            "name": name, "type": "PATH", "objectType": kind, "dataFlow": flow,
+            "default": default, "description": what,
+        })
+    };
+    json!({
+        "specificationVersion": "jobtemplate-2023-09",
+        "extensions": ["TASK_CHUNKING"],
+        "name": format!("vfxgraph {}", ctx.graph_name),
+        "parameterDefinitions": [
+            path_param("Vfxgraph", "FILE", "IN", ctx.exe.display().to_string(),
+                "the vfxgraph binary the tasks run"),
+            path_param("Graph", "FILE", "IN", ctx.graph.display().to_string(),
+                "the graph file"),
+            path_param("Cache", "DIRECTORY", "INOUT", ctx.cache.display().to_string(),
+                "the shared cache folder"),
+        ],
+        "steps": plan.jobs.iter().map(|j| step(ctx, plan, j, chunk)).collect::<Vec<_>>(),
+    })
+}
+
+fn step(ctx: &TaskContext, plan: &FarmPlan, job: &Job, chunk: usize) -> Value {
+    let mut args = TaskContext {
+        graph: "{{Param.Graph}}".into(),
+        cache: "{{Param.Cache}}".into(),
+        ..ctx.clone()
+    }
+    .exec_args(
+        &job.node,
+        job.per_frame.then_some("{{Task.Param.Frame}}"),
+        None,
+    );
+    if job.threads == vfxgraph_engine::Threads::One {
+        args.extend(["--jobs".into(), "1".into()]);
+    }
+    let mut s = json!({
+        "name": job.node,
+        "description": format!("{}/{}/{}", ctx.graph_name, job.node, job.frames_label()),
+        "script": {"actions": {"onRun": {"command": "{{Param.Vfxgraph}}", "args": args}}},
+    });
+    if job.per_frame {
+        s["parameterSpace"] = json!({"taskParameterDefinitions": [{
+            "name": "Frame",
+            "type": "CHUNK[INT]",
+            "range": job.frames_label(),
+            "chunks": {"defaultTaskCount": chunk.max(1), "rangeConstraint": "NONCONTIGUOUS"},
+        }]});
+    }
+    if !job.deps.is_empty() {
+        s["dependencies"] = job
+            .deps
+            .iter()
+            .map(|(p, _)| json!({"dependsOn": plan.jobs[*p].node}))
+            .collect();
+    }
+    s
+}
