@@ -269,7 +269,10 @@ fn write_openjd(
         .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
     let steps: Vec<&str> = farm.jobs.iter().map(|j| j.node.as_str()).collect();
     if json {
-        let v = serde_json::json!({"farm": "openjd", "template": path, "steps": steps});
+        let v = serde_json::json!({
+            "farm": "openjd", "template": path, "steps": steps,
+            "parameters": super::openjd::parameters(ctx),
+        });
         println!(
             "{}",
             serde_json::to_string_pretty(&v).map_err(|e| e.to_string())?
@@ -277,10 +280,21 @@ fn write_openjd(
     } else {
         println!("wrote {} ({} step(s))", path.display(), steps.len());
         println!("check it:   openjd check {}", path.display());
+        let p = super::openjd::parameters(ctx);
+        let params: Vec<String> = ["Vfxgraph", "Graph", "Cache"]
+            .iter()
+            .map(|k| {
+                format!(
+                    "-p {k}={}",
+                    super::sh_quote(p[k].as_str().unwrap_or_default())
+                )
+            })
+            .collect();
         println!(
-            "run it here: openjd run {} --step {} --run-dependencies",
+            "run it here: openjd run {} --step {} --run-dependencies {}",
             path.display(),
-            steps.last().copied().unwrap_or_default()
+            steps.last().copied().unwrap_or_default(),
+            params.join(" ")
         );
     }
     Ok(0)

@@ -10,10 +10,12 @@ use super::{FarmPlan, Job, TaskContext};
 
 /// The job template of `plan`, chunks of `chunk` frames.
 pub fn template(ctx: &TaskContext, plan: &FarmPlan, chunk: usize) -> Value {
-    let path_param = |name: &str, kind: &str, flow: &str, default: String, what: &str| {
+    // No defaults: OpenJD resolves a PATH default against the template's folder, and these
+    // are the farm's own paths (see [`parameters`]).
+    let path_param = |name: &str, kind: &str, flow: &str, what: &str| {
         json!({
             "name": name, "type": "PATH", "objectType": kind, "dataFlow": flow,
-            "default": default, "description": what,
+            "description": what,
         })
     };
     json!({
@@ -21,14 +23,20 @@ pub fn template(ctx: &TaskContext, plan: &FarmPlan, chunk: usize) -> Value {
         "extensions": ["TASK_CHUNKING"],
         "name": format!("vfxgraph {}", ctx.graph_name),
         "parameterDefinitions": [
-            path_param("Vfxgraph", "FILE", "IN", ctx.exe.display().to_string(),
-                "the vfxgraph binary the tasks run"),
-            path_param("Graph", "FILE", "IN", ctx.graph.display().to_string(),
-                "the graph file"),
-            path_param("Cache", "DIRECTORY", "INOUT", ctx.cache.display().to_string(),
-                "the shared cache folder"),
+            path_param("Vfxgraph", "FILE", "IN", "the vfxgraph binary the tasks run"),
+            path_param("Graph", "FILE", "IN", "the graph file"),
+            path_param("Cache", "DIRECTORY", "INOUT", "the shared cache folder"),
         ],
         "steps": plan.jobs.iter().map(|j| step(ctx, plan, j, chunk)).collect::<Vec<_>>(),
+    })
+}
+
+/// The job parameters of this submission (`openjd run -p K=V`, or a farm's submitter).
+pub fn parameters(ctx: &TaskContext) -> Value {
+    json!({
+        "Vfxgraph": ctx.exe.display().to_string(),
+        "Graph": ctx.graph.display().to_string(),
+        "Cache": ctx.cache.display().to_string(),
     })
 }
 

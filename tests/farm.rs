@@ -1,0 +1,625 @@
+//! Render farms (issue 16) on a real one-node Slurm cluster (`scripts/ci/slurm-local.sh
+//! start`) and a real `openjd run`: the small shot `graphs/farm_shot.yaml` (per-frame renders,
+//! grade and EXR writes, a whole-sequence MP4) submitted and compared with a local run, the
+//! per-chunk dependencies read from Slurm's start times, a task killed halfway and resubmitted,
+//! and bad input. Under `CI=true` a missing Slurm or openjd fails; elsewhere the test prints a
+//! notice and returns.
+//!
+//! The Slurm tests share one cluster (and one of them takes its partition down for a moment),
+//! so they run one at a time (`CLUSTER`).
+
+use std::collections::BTreeMap;
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
+
+use serde_json::Value as Json;
+use vfxgraph_engine::store::Store;
+use vfxgraph_engine::Digest;
+
+static CLUSTER: Mutex<()> = Mutex::new(());
+
+fn repo() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn ci() -> bool {
+    std::env::var("CI").is_ok_and(|v| v == "true" || v == "1")
+}
+
+/// A required tool is absent: a failure under CI, a notice elsewhere.
+fn absent(what: &str) -> bool {
+    assert!(!ci(), "{what} is required under CI=true");
+    eprintln!("notice: {what} is absent; this test is skipped (under CI=true it fails)");
+    false
+}
+
+/// The Slurm config the local cluster writes, unless SLURM_CONF names another.
+fn slurm_conf() -> String {
+    std::env::var("SLURM_CONF").unwrap_or_else(|_| {
+        let dir = std::env::var("VFXGRAPH_SLURM_DIR").unwrap_or("/tmp/vfxgraph-slurm".into());
+        format!("{dir}/slurm.conf")
+    })
+}
+
+fn slurm(args: &[&str], prog: &str) -> Output {
+    Command::new(prog)
+        .env("SLURM_CONF", slurm_conf())
+        .args(args)
+        .output()
+        .unwrap_or_else(|e| panic!("cannot run {prog}: {e}"))
+}
+
+/// True when a Slurm cluster answers (`sinfo`).
+fn slurm_up() -> bool {
+    let ok = Command::new("sinfo")
+        .env("SLURM_CONF", slurm_conf())
+        .arg("-h")
+        .output()
+        .is_ok_and(|o| o.status.success());
+    ok || absent("a Slurm cluster (scripts/ci/slurm-local.sh start)")
+}
+
+/// `graphs/farm_shot.yaml` with its scene and dome copied into a fresh folder.
+fn shot(dir: &Path) -> PathBuf {
+    fs::create_dir_all(dir.join("g/scenes")).unwrap();
+    fs::create_dir_all(dir.join("g/data")).unwrap();
+    for f in ["plate.yaml", "cube.obj"] {
+        fs::copy(
+            repo().join("graphs/scenes").join(f),
+            dir.join("g/scenes").join(f),
+        )
+        .unwrap();
+    }
+    fs::copy(
+        repo().join("graphs/data/studio_small_03_1k.hdr"),
+        dir.join("g/data/studio_small_03_1k.hdr"),
+    )
+    .unwrap();
+    let g = dir.join("g/farm_shot.yaml");
+    fs::copy(repo().join("graphs/farm_shot.yaml"), &g).unwrap();
+    g
+}
+
+/// `vfxgraph ARGS` in the graph's folder, with the cluster's config.
+fn vfx(graph: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_vfxgraph"))
+        .current_dir(graph.parent().unwrap())
+        .env("SLURM_CONF", slurm_conf())
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn ok_json(graph: &Path, args: &[&str]) -> Json {
+    let out = vfx(graph, args);
+    assert!(
+        out.status.success(),
+        "vfxgraph {args:?} failed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("json on stdout")
+}
+
+/// The reference: a local `vfxgraph run` of the shot (with `set` overrides) in `dir`.
+fn reference(dir: &Path, set: &[&str]) -> PathBuf {
+    let g = shot(dir);
+    let mut args = vec!["run", "-q", "farm_shot.yaml", "--cache", "cache"];
+    for s in set {
+        args.extend(["--set", s]);
+    }
+    let out = vfx(&g, &args);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    g
+}
+
+/// Every output file's bytes, by name.
+fn outputs(graph: &Path) -> BTreeMap<String, Vec<u8>> {
+    let dir = graph.parent().unwrap().join("out/farm_shot");
+    fs::read_dir(&dir)
+        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
+        .map(|e| e.unwrap())
+        .filter(|e| !e.file_name().to_string_lossy().starts_with('.'))
+        .map(|e| {
+            (
+                e.file_name().to_string_lossy().into_owned(),
+                fs::read(e.path()).unwrap(),
+            )
+        })
+        .collect()
+}
+
+/// A cached entry: key, output digests, written-file digests.
+type Entry = (String, Vec<String>, Vec<String>);
+
+/// Every cached entry: (node, frame) → (key, output digests, written-file digests); every
+/// object it names must read back verified (a corrupt or half-written one would not).
+
+fn entries(cache: &Path) -> BTreeMap<(String, Option<i64>), Entry> {
+    let store = Store::open(cache).unwrap();
+    let mut out = BTreeMap::new();
+    for e in store.list() {
+        let digests: Vec<String> = e.entry.outputs.iter().map(|o| o.digest.clone()).collect();
+        for d in &digests {
+            let d = Digest::from_hex(d).unwrap();
+            assert!(
+                store.get_object(&d).is_some(),
+                "object {d:?} of {} corrupt",
+                e.key
+            );
+        }
+        let files = e.entry.files.iter().map(|f| f.digest.clone()).collect();
+        let k = (e.entry.node_id.clone(), e.entry.frame);
+        assert!(
+            out.insert(k.clone(), (e.key, digests, files)).is_none(),
+            "{k:?} twice"
+        );
+    }
+    out
+}
+
+/// Waits until no job of the graph is queued or running (a guard against a stuck cluster,
+/// not a measurement: 10 minutes).
+fn wait_idle() {
+    let t = Instant::now();
+    loop {
+        let out = slurm(&["-h", "-o", "%j"], "squeue");
+        let text = String::from_utf8_lossy(&out.stdout);
+        if !text.lines().any(|l| l.starts_with("farm_shot/")) {
+            return;
+        }
+        assert!(
+            t.elapsed() < Duration::from_secs(600),
+            "jobs still queued:\n{text}"
+        );
+        std::thread::sleep(Duration::from_millis(200));
+    }
+}
+
+fn submit(graph: &Path, extra: &[&str]) -> Vec<Json> {
+    let mut args = vec![
+        "submit",
+        "farm_shot.yaml",
+        "--farm",
+        "slurm",
+        "--cache",
+        "cache",
+    ];
+    args.extend_from_slice(extra);
+    args.push("--json");
+    ok_json(graph, &args)["jobs"].as_array().unwrap().clone()
+}
+
+fn status(graph: &Path, extra: &[&str]) -> Vec<Json> {
+    let mut args = vec!["status", "farm_shot.yaml", "--cache", "cache", "--json"];
+    args.extend_from_slice(extra);
+    ok_json(graph, &args)["nodes"].as_array().unwrap().clone()
+}
+
+fn assert_same_as(graph: &Path, reference: &Path) {
+    assert_eq!(outputs(graph), outputs(reference), "output files differ");
+    let (a, b) = (
+        entries(&graph.parent().unwrap().join("cache")),
+        entries(&reference.parent().unwrap().join("cache")),
+    );
+    assert_eq!(a.len(), 27, "every instance cached");
+    assert_eq!(a, b, "cached keys and digests differ from the local run");
+}
+
+#[test]
+fn slurm_submission_equals_a_local_run_and_resubmits_nothing() {
+    let _lock = CLUSTER.lock().unwrap_or_else(|e| e.into_inner());
+    if !slurm_up() {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let r = reference(&tmp.path().join("local"), &[]);
+    let g = shot(&tmp.path().join("farm"));
+    let jobs = submit(&g, &["--chunk", "3"]);
+    let tasks: Vec<(String, u64)> = jobs
+        .iter()
+        .map(|j| {
+            (
+                j["node"].as_str().unwrap().into(),
+                j["tasks"].as_u64().unwrap(),
+            )
+        })
+        .collect();
+    let expect = [
+        ("path", 1),
+        ("plate_scene", 1),
+        ("plate", 3),
+        ("graded", 3),
+        ("exr", 3),
+    ];
+    let mut expect: Vec<(String, u64)> = expect.iter().map(|(n, t)| (n.to_string(), *t)).collect();
+    expect.push(("movie".into(), 1));
+    assert_eq!(tasks, expect);
+    let dep = |n: &str| {
+        jobs.iter().find(|j| j["node"] == n).unwrap()["dependency"]
+            .as_str()
+            .unwrap()
+            .to_string()
+    };
+    assert!(dep("graded").starts_with("aftercorr:"), "{}", dep("graded"));
+    assert!(dep("exr").starts_with("aftercorr:"), "{}", dep("exr"));
+    assert!(dep("movie").starts_with("afterok:"), "{}", dep("movie"));
+    wait_idle();
+    assert_same_as(&g, &r);
+    assert!(
+        submit(&g, &[]).is_empty(),
+        "a second submit submits nothing"
+    );
+    for n in status(&g, &[]) {
+        assert_eq!(n["missing"], 0, "{n}");
+        assert_eq!(n["cached"], n["instances"], "{n}");
+        assert_eq!(n["running_tasks"], 0, "{n}");
+    }
+    // A log per task.
+    let logs: Vec<_> = fs::read_dir(g.parent().unwrap().join("cache/farm"))
+        .unwrap()
+        .flat_map(|d| fs::read_dir(d.unwrap().path().join("logs")).unwrap())
+        .collect();
+    assert_eq!(logs.len(), 12);
+}
+
+/// Start and end times (s) of each finished task from Slurm's job completion log:
+/// (job id, array task) → (start, end).
+fn task_times(job: &str) -> BTreeMap<u64, (String, String)> {
+    let dir = slurm_conf().trim_end_matches("slurm.conf").to_string();
+    let text = fs::read_to_string(format!("{dir}log/jobcomp.log")).unwrap();
+    let field = |line: &str, k: &str| {
+        line.split(' ')
+            .find_map(|w| w.strip_prefix(&format!("{k}=")).map(str::to_string))
+    };
+    text.lines()
+        .filter(|l| field(l, "ArrayJobId").as_deref() == Some(job))
+        .filter(|l| field(l, "JobState").as_deref() == Some("COMPLETED"))
+        .map(|l| {
+            (
+                field(l, "ArrayTaskId").unwrap().parse().unwrap(),
+                (field(l, "StartTime").unwrap(), field(l, "EndTime").unwrap()),
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn per_frame_dependencies_are_per_chunk() {
+    let _lock = CLUSTER.lock().unwrap_or_else(|e| e.into_inner());
+    if !slurm_up() {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let g = shot(tmp.path());
+    // Hold the partition so nothing starts, make the render's chunk 0 the slow one (held),
+    // then let the farm go.
+    let part = |state: &str| {
+        let o = slurm(
+            &["update", "partitionname=farm", &format!("state={state}")],
+            "scontrol",
+        );
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    };
+    part("down");
+    let jobs = submit(&g, &["--chunk", "2"]);
+    let id = |n: &str| {
+        jobs.iter().find(|j| j["node"] == n).unwrap()["job_id"]
+            .as_str()
+            .unwrap()
+            .to_string()
+    };
+    let (plate, graded) = (id("plate"), id("graded"));
+    let held = slurm(&["hold", &format!("{plate}_0")], "scontrol");
+    part("up");
+    assert!(
+        held.status.success(),
+        "{}",
+        String::from_utf8_lossy(&held.stderr)
+    );
+    // Graded chunks 1-3 finish while render chunk 0 is still held.
+    let t = Instant::now();
+    while task_times(&graded).len() < 3 {
+        assert!(
+            t.elapsed() < Duration::from_secs(300),
+            "graded chunks 1-3 did not run"
+        );
+        std::thread::sleep(Duration::from_millis(200));
+    }
+    let q = slurm(&["-h", "-r", "-j", &plate, "-o", "%i %T"], "squeue");
+    let q = String::from_utf8_lossy(&q.stdout).to_string();
+    assert!(
+        q.contains(&format!("{plate}_0 PENDING")),
+        "render chunk 0 still held: {q}"
+    );
+    assert!(
+        !task_times(&graded).contains_key(&0),
+        "graded chunk 0 waits for render chunk 0"
+    );
+    let released = slurm(&["release", &format!("{plate}_0")], "scontrol");
+    assert!(released.status.success());
+    wait_idle();
+    let (p, gr) = (task_times(&plate), task_times(&graded));
+    // Slurm's times: the consumer's chunks 1-3 ended before the producer's chunk 0 started;
+    // its chunk 0 started only after the producer's chunk 0 ended.
+    for k in 1..=3 {
+        assert!(
+            gr[&k].1 <= p[&0].0,
+            "graded {k} {:?} vs render 0 {:?}",
+            gr[&k],
+            p[&0]
+        );
+    }
+    assert!(
+        gr[&0].0 >= p[&0].1,
+        "graded 0 {:?} vs render 0 {:?}",
+        gr[&0],
+        p[&0]
+    );
+    eprintln!("render chunk 0 ran {:?}; graded chunks {gr:?}", p[&0]);
+    assert!(status(&g, &[]).iter().all(|n| n["missing"] == 0));
+}
+
+#[test]
+fn a_killed_task_leaves_no_half_entry_and_resubmission_runs_only_what_is_missing() {
+    let _lock = CLUSTER.lock().unwrap_or_else(|e| e.into_inner());
+    if !slurm_up() {
+        return;
+    }
+    // Heavier renders so a task is caught running: 4 frames per chunk.
+    let set = ["plate.spp=64"];
+    let tmp = tempfile::tempdir().unwrap();
+    let r = reference(&tmp.path().join("local"), &set);
+    let g = shot(&tmp.path().join("farm"));
+    let jobs = submit(&g, &["--chunk", "4", "--set", set[0]]);
+    let plate = jobs.iter().find(|j| j["node"] == "plate").unwrap()["job_id"]
+        .as_str()
+        .unwrap()
+        .to_string();
+    let task = format!("{plate}_1");
+    let t = Instant::now();
+    loop {
+        let q = slurm(&["-h", "-r", "-j", &plate, "-o", "%i %T"], "squeue");
+        let q = String::from_utf8_lossy(&q.stdout).to_string();
+        if q.contains(&format!("{task} RUNNING")) {
+            break;
+        }
+        assert!(
+            q.contains(&task),
+            "render chunk 1 ended before it could be killed: {q}"
+        );
+        assert!(t.elapsed() < Duration::from_secs(300));
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    assert!(slurm(&[&task], "scancel").status.success());
+    wait_idle();
+    // No half entry: every entry's objects verify (`entries`); the render's chunk 0 is whole,
+    // of its killed chunk 1 (frames 5-8) only the frames finished before the kill; the farm
+    // cancelled the dependants of the killed task (the grade's, the writer's chunk 1 and the
+    // whole-sequence movie) and nothing else.
+    let e = entries(&g.parent().unwrap().join("cache"));
+    let has = |n: &str, f: i64| e.contains_key(&(n.to_string(), Some(f)));
+    assert!((1..=4).all(|f| has("plate", f) && has("graded", f) && has("exr", f)));
+    let st = status(&g, &["--set", set[0]]);
+    let miss = |n: &str| {
+        st.iter().find(|x| x["id"] == n).unwrap()["missing"]
+            .as_u64()
+            .unwrap()
+    };
+    assert!((1..=4).contains(&miss("plate")), "{st:?}");
+    assert_eq!(
+        (miss("graded"), miss("exr"), miss("movie")),
+        (4, 4, 1),
+        "{st:?}"
+    );
+    let again = submit(&g, &["--chunk", "4", "--set", set[0]]);
+    let tasks = |n: &str| {
+        again
+            .iter()
+            .find(|j| j["node"] == n)
+            .map(|j| j["tasks"].as_u64().unwrap())
+    };
+    assert_eq!(tasks("path"), None, "cached nodes are not resubmitted");
+    assert_eq!(tasks("plate"), Some(1), "only the killed chunk: {again:?}");
+    assert_eq!(tasks("graded"), Some(1));
+    wait_idle();
+    assert_same_as(&g, &r);
+}
+
+#[test]
+fn bad_input_is_a_clear_error_and_submits_nothing() {
+    let tmp = tempfile::tempdir().unwrap();
+    let g = shot(tmp.path());
+    let err = |args: &[&str], path: Option<&str>| {
+        let mut c = Command::new(env!("CARGO_BIN_EXE_vfxgraph"));
+        c.current_dir(g.parent().unwrap()).args(args);
+        if let Some(p) = path {
+            c.env("PATH", p);
+        }
+        let o = c.output().unwrap();
+        assert!(!o.status.success(), "{args:?} succeeded");
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    let e = err(
+        &["exec", "farm_shot.yaml", "--node", "nope", "--cache", "c"],
+        None,
+    );
+    assert!(e.contains("farm_shot.yaml: no node `nope`"), "{e}");
+    let e = err(
+        &[
+            "exec",
+            "farm_shot.yaml",
+            "--node",
+            "plate",
+            "--frames",
+            "9",
+            "--cache",
+            "c",
+        ],
+        None,
+    );
+    assert!(
+        e.contains("node `plate`: frame 9 is not in the graph's frames (1-8)"),
+        "{e}"
+    );
+    // An input not in the cache: named, with its frame, and nothing computed.
+    let e = err(
+        &[
+            "exec",
+            "farm_shot.yaml",
+            "--node",
+            "graded",
+            "--frames",
+            "3",
+            "--cache",
+            "c",
+        ],
+        None,
+    );
+    assert!(
+        e.contains(
+            "node `path` (synthetic_camera_path) failed: an input of the selected instances \
+             is not in the cache"
+        ) && e.contains("node `plate_scene` (read_scene) failed"),
+        "{e}"
+    );
+    assert!(Store::open(&g.parent().unwrap().join("c"))
+        .unwrap()
+        .list()
+        .is_empty());
+    // No sbatch on PATH.
+    let e = err(
+        &[
+            "submit",
+            "farm_shot.yaml",
+            "--farm",
+            "slurm",
+            "--cache",
+            "c2",
+        ],
+        Some("/nonexistent"),
+    );
+    assert!(e.contains("`sbatch` is not installed"), "{e}");
+    assert!(!g.parent().unwrap().join("c2").exists(), "nothing written");
+    // A cache that cannot be created (under a file).
+    fs::write(g.parent().unwrap().join("file"), "x").unwrap();
+    let e = err(
+        &[
+            "submit",
+            "farm_shot.yaml",
+            "--farm",
+            "openjd",
+            "--cache",
+            "file/c",
+        ],
+        None,
+    );
+    assert!(e.contains("cache folder file/c cannot be created"), "{e}");
+}
+
+/// The openjd CLI: `VFXGRAPH_OPENJD`, else the venv `.ci/run` makes, else `PATH`.
+fn openjd() -> Option<PathBuf> {
+    let venv = std::env::var("HOME")
+        .map(|h| PathBuf::from(h).join(".cache/vfxgraph/pyenv-farm/bin/openjd"))
+        .ok();
+    let found = std::env::var_os("VFXGRAPH_OPENJD")
+        .map(PathBuf::from)
+        .or(venv.filter(|p| p.is_file()))
+        .or_else(|| {
+            Command::new("openjd")
+                .arg("--help")
+                .output()
+                .ok()
+                .filter(|o| o.status.success())
+                .map(|_| "openjd".into())
+        });
+    if found.is_none() {
+        absent("openjd-cli (pip install openjd-cli)");
+    }
+    found
+}
+
+#[test]
+fn openjd_template_checks_and_runs_to_the_local_result() {
+    let Some(openjd) = openjd() else { return };
+    let tmp = tempfile::tempdir().unwrap();
+    let r = reference(&tmp.path().join("local"), &[]);
+    let g = shot(&tmp.path().join("farm"));
+    let v = ok_json(
+        &g,
+        &[
+            "submit",
+            "farm_shot.yaml",
+            "--farm",
+            "openjd",
+            "--chunk",
+            "3",
+            "--cache",
+            "cache",
+            "--json",
+        ],
+    );
+    let template = v["template"].as_str().unwrap().to_string();
+    let steps: Vec<String> = v["steps"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s.as_str().unwrap().into())
+        .collect();
+    assert_eq!(
+        steps,
+        ["path", "plate_scene", "plate", "graded", "exr", "movie"]
+    );
+    let run = |args: &[&str]| {
+        let o = Command::new(&openjd)
+            .args(args)
+            .current_dir(g.parent().unwrap())
+            .output()
+            .unwrap();
+        assert!(
+            o.status.success(),
+            "openjd {args:?}:\n{}\n{}",
+            String::from_utf8_lossy(&o.stdout),
+            String::from_utf8_lossy(&o.stderr)
+        );
+    };
+    run(&["check", &template]);
+    let params: Vec<String> = v["parameters"]
+        .as_object()
+        .unwrap()
+        .iter()
+        .map(|(k, x)| format!("{k}={}", x.as_str().unwrap()))
+        .collect();
+    // The two sinks with their dependencies (the second finds its producers cached).
+    for sink in ["movie", "exr"] {
+        let mut args = vec!["run", &template, "--step", sink, "--run-dependencies"];
+        for p in &params {
+            args.extend(["-p", p.as_str()]);
+        }
+        run(&args);
+    }
+    assert_same_as(&g, &r);
+    let again = ok_json(
+        &g,
+        &[
+            "submit",
+            "farm_shot.yaml",
+            "--farm",
+            "openjd",
+            "--cache",
+            "cache",
+            "--json",
+        ],
+    );
+    assert_eq!(
+        again["steps"].as_array().unwrap().len(),
+        0,
+        "nothing left to run"
+    );
+}
