@@ -60,7 +60,7 @@ fn global_params(spec: NodeSpec) -> NodeSpec {
     ))
     .param(floats(
         "outlier_thresholds",
-        &[3.0],
+        &[3.0, 1.5],
         "outlier thresholds of the successive global adjustment rounds, pixels",
     ))
     .param(float(

@@ -43,11 +43,15 @@ pub fn register(r: &mut Registry) {
     r.register_node(FnNode::new(
         klt_spec(
             "klt_track",
+            1.0,
             "KLT feature tracking (book ch. 6): Shi–Tomasi corners in the first frame, pyramidal \
                  Lucas–Kanade frame to frame, disposal of features that leave the image, become \
                  untrackable or whose window residual exceeds `max_residual` (6.5), and refill of \
                  lost slots with new corners that keep `min_distance` from live features. Tracks \
-                 luminance on a 0–255 sRGB-encoded scale.",
+                 luminance on a 0–255 sRGB-encoded scale. The defaults add to the book a \
+                 noise-adaptive residual threshold, a forward–backward check and drift \
+                 correction, so grainy footage tracks; `noise_factor: 0, fb_threshold: 0, \
+                 drift_correction: 0` is the book's tracker.",
         ),
         run_klt_track,
     ));
@@ -117,7 +121,9 @@ pub fn register(r: &mut Registry) {
 
 /// The spec shared by `klt_track` and its OpenCV cross-check `klt_track_opencv`: the same
 /// params, defaults and ports.
-pub(crate) fn klt_spec(name: &'static str, doc: &'static str) -> NodeSpec {
+/// The spec of `klt_track` and of `klt_track_opencv`, which differ in their default drift
+/// correction (OpenCV's tracker has none).
+pub(crate) fn klt_spec(name: &'static str, drift_default: f64, doc: &'static str) -> NodeSpec {
     let pos = |min: f64, max: f64| ParamType::Float { min, max };
     NodeSpec::new(name, doc)
         .mode(Mode::Once)
@@ -173,9 +179,16 @@ pub(crate) fn klt_spec(name: &'static str, doc: &'static str) -> NodeSpec {
             "a feature whose window RMS residual (0–255 gray levels) exceeds this is lost",
         ))
         .param(ParamSpec::optional(
+            "noise_factor",
+            pos(0.0, 1e6),
+            ParamValue::Float(3.0),
+            "…or this many times the frame pair's measured noise √(σa² + σb²) when larger \
+             (grainy footage); 0 = max_residual only (the book)",
+        ))
+        .param(ParamSpec::optional(
             "fb_threshold",
             pos(0.0, 1e9),
-            ParamValue::Float(0.0),
+            ParamValue::Float(1.0),
             "forward–backward check: lost if tracking back misses the start by more than \
              this many pixels; 0 = off",
         ))
@@ -194,7 +207,7 @@ pub(crate) fn klt_spec(name: &'static str, doc: &'static str) -> NodeSpec {
         .param(ParamSpec::optional(
             "drift_correction",
             pos(0.0, 1e3),
-            ParamValue::Float(0.0),
+            ParamValue::Float(drift_default),
             "re-align each step to the feature's first window and keep that position when it \
              moves less than this many pixels (no drift along long tracks); 0 = off, the \
              book's frame-to-frame tracker",
@@ -226,6 +239,7 @@ pub(crate) fn tracker_params(ctx: &Context<'_>) -> TrackerParams {
             ..LkParams::default()
         },
         max_residual: p.f64("max_residual") as f32,
+        noise_factor: p.f64("noise_factor") as f32,
         fb_threshold: (fb > 0.0).then_some(fb),
         replace_lost: p.bool("replace_lost"),
         border: p.f64("border") as f32,

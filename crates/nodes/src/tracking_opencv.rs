@@ -48,6 +48,7 @@ pub fn register(r: &mut Registry) {
     r.register_node(FnNode::new(
         klt_spec(
             "klt_track_opencv",
+            0.0,
             "klt_track with OpenCV's goodFeaturesToTrack + calcOpticalFlowPyrLK (what the book \
              used) in place of ours, same params and output, to cross-check klt_track in a \
              graph. Differences: max_residual is compared with OpenCV's mean absolute window \
@@ -104,6 +105,8 @@ struct CvTracker {
     size: (usize, usize),
     tracks: Tracks,
     live: Vec<Option<usize>>,
+    /// The previous frame's measured noise (`noise_factor` > 0), as `klt_track`.
+    prev_sigma: f32,
 }
 
 impl CvTracker {
@@ -126,6 +129,7 @@ impl CvTracker {
                 tracks: Vec::new(),
             },
             live: vec![None; slots],
+            prev_sigma: 0.0,
         })
     }
 
@@ -251,6 +255,13 @@ impl CvTracker {
 
     fn push(&mut self, frame: i64, gray: &GrayImage) -> Result<(), String> {
         let img = to_mat(gray)?;
+        let sigma = if self.params.noise_factor > 0.0 {
+            vfxgraph_vision::klt::noise_sigma(gray)
+        } else {
+            0.0
+        };
+        let max_residual = self.params.residual_threshold(self.prev_sigma, sigma);
+        self.prev_sigma = sigma;
         let size = (gray.width, gray.height);
         let fi = self.tracks.frames.len();
         if let Some(prev) = self.prev.take() {
@@ -282,7 +293,7 @@ impl CvTracker {
                         });
                     } else if p.x < m || p.y < m || p.x > w - 1.0 - m || p.y > h - 1.0 - m {
                         lost[k] = Some(LostReason::LeftImage);
-                    } else if err.get(k).unwrap_or(f32::INFINITY) > self.params.max_residual {
+                    } else if err.get(k).unwrap_or(f32::INFINITY) > max_residual {
                         lost[k] = Some(LostReason::Residual);
                     }
                 }
@@ -361,11 +372,19 @@ mod tests {
     use super::*;
     use crate::testing::{params, spec};
 
-    /// Runs a tracking node on `(frame, image)` pairs with `set` params.
+    /// Runs a tracking node on `(frame, image)` pairs with `set` params over the book's
+    /// tracker (no noise-adaptive threshold, forward–backward check or drift correction: what
+    /// both nodes implement alike).
     fn track(node: &str, frames: &[(i64, Image)], set: &[(&str, ParamValue)]) -> Tracks {
         let dir = tempfile::tempdir().unwrap();
         let s = spec(node);
-        let p = params(&s, set);
+        let mut all = vec![
+            ("noise_factor", ParamValue::Float(0.0)),
+            ("fb_threshold", ParamValue::Float(0.0)),
+            ("drift_correction", ParamValue::Float(0.0)),
+        ];
+        all.extend_from_slice(set);
+        let p = params(&s, &all);
         let seq: Vec<(i64, Value)> = frames
             .iter()
             .map(|(f, img)| (*f, Value::new(ImageArt(img.clone()))))

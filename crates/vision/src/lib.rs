@@ -27,6 +27,7 @@ pub mod error;
 pub mod export;
 pub mod formats;
 pub mod klt;
+pub mod lens;
 pub mod matchmove;
 pub mod modeling;
 pub mod normalize;

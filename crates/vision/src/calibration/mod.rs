@@ -10,7 +10,9 @@ pub mod tsai;
 
 pub use dlt::{dlt, dlt_unnormalized};
 pub use factor::factor_camera;
-pub use resection::{resect_known_k, resect_ransac, DltEstimator, PoseEstimate, Resection};
+pub use resection::{
+    refine_known_k, resect_known_k, resect_ransac, DltEstimator, PoseEstimate, Resection,
+};
 pub use restricted::{calibrate_restricted, refine_camera, IntrinsicsModel, ReprojectionProblem};
 pub use tsai::{tsai, tsai_refine, TsaiEstimator};
 

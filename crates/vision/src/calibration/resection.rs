@@ -103,12 +103,27 @@ pub fn resect_known_k<R: Rng + ?Sized>(
 ) -> Result<PoseEstimate> {
     k.validate()?;
     let res = resect_ransac(points3d, points2d, params, rng)?;
-    let factored = factor_camera(&res.p)?;
+    let mut est = refine_known_k(points3d, points2d, k, &res, params.threshold)?;
+    est.iterations = res.iterations;
+    Ok(est)
+}
+
+/// The known-K camera of a RANSAC resection's consensus: the consensus DLT factored with K′
+/// replaced by `k`, then Levenberg–Marquardt on the pose over the inliers, whose set is
+/// re-marked at `threshold` pixels with the refined camera (twice at most).
+pub fn refine_known_k(
+    points3d: &[Point3<f64>],
+    points2d: &[Point2<f64>],
+    k: &Intrinsics,
+    consensus: &Resection,
+    threshold: f64,
+) -> Result<PoseEstimate> {
+    let factored = factor_camera(&consensus.p)?;
     let mut camera = Camera {
         intrinsics: k.clone(),
         pose: factored.pose,
     };
-    let mut inliers = res.inliers;
+    let mut inliers = consensus.inliers.clone();
     let lm = LmOptions {
         max_iterations: 50,
         ..LmOptions::default()
@@ -130,7 +145,7 @@ pub fn resect_known_k<R: Rng + ?Sized>(
         let flags: Vec<bool> = points3d
             .iter()
             .zip(points2d)
-            .map(|(p, x)| camera.reprojection_error(p, x) <= params.threshold)
+            .map(|(p, x)| camera.reprojection_error(p, x) <= threshold)
             .collect();
         if flags == inliers || flags.iter().filter(|&&f| f).count() < DLT_MIN_POINTS {
             break;
@@ -142,7 +157,7 @@ pub fn resect_known_k<R: Rng + ?Sized>(
         camera,
         inliers,
         num_inliers,
-        iterations: res.iterations,
+        iterations: 0,
     })
 }
 

@@ -17,7 +17,9 @@ use rayon::prelude::*;
 
 /// Parameters of the sequence tracker (book 6.4–6.5). Defaults: the book's 150 features,
 /// minimum distance 10, quality 1e-5, OpenCV's LK defaults, a residual threshold of 12 gray
-/// levels RMS, no forward–backward check, lost features replaced.
+/// levels RMS raised to 3 × the frame pair's measured noise, lost features replaced, and —
+/// not in the book, so that grainy footage tracks as well as clean — a 1 px forward–backward
+/// check and 1 px drift correction. [`TrackerParams::book`] is the book's tracker.
 #[derive(Clone, Debug, PartialEq)]
 pub struct TrackerParams {
     /// Corner detection; `max_corners` is the number of feature slots (the book's N).
@@ -27,6 +29,11 @@ pub struct TrackerParams {
     /// A feature whose window residual (RMS, 0–255 gray levels) exceeds this is lost (book
     /// 6.5); infinity disables the test.
     pub max_residual: f32,
+    /// The residual threshold of a step from frame a to frame b is at least this many times
+    /// √(σa² + σb²), the frames' measured noise ([`super::noise::noise_sigma`]): the RMS
+    /// difference of two windows that match except for noise. 0 = the fixed `max_residual` only
+    /// (the book). On clean footage (σ ≈ 2) 3 × √2 σ stays below 12 and nothing changes.
+    pub noise_factor: f32,
     /// If set, each tracked feature is tracked back and lost when it does not come back
     /// within this many pixels of where it started.
     pub fb_threshold: Option<f32>,
@@ -51,10 +58,34 @@ impl Default for TrackerParams {
             corners: CornerParams::default(),
             lk: LkParams::default(),
             max_residual: 12.0,
-            fb_threshold: None,
+            noise_factor: 3.0,
+            fb_threshold: Some(1.0),
             replace_lost: true,
             border: 10.0,
+            drift_correction: Some(1.0),
+        }
+    }
+}
+
+impl TrackerParams {
+    /// The book's tracker (6.7): the fixed residual threshold of 12 gray levels, frame-to-frame
+    /// LK only (no forward–backward check, no drift correction).
+    pub fn book() -> TrackerParams {
+        TrackerParams {
+            noise_factor: 0.0,
+            fb_threshold: None,
             drift_correction: None,
+            ..TrackerParams::default()
+        }
+    }
+
+    /// The residual threshold of a step between frames of noise `sigma_a` and `sigma_b`.
+    pub fn residual_threshold(&self, sigma_a: f32, sigma_b: f32) -> f32 {
+        let adaptive = self.noise_factor * sigma_a.hypot(sigma_b);
+        if adaptive > self.max_residual {
+            adaptive
+        } else {
+            self.max_residual
         }
     }
 }
@@ -70,6 +101,8 @@ pub struct Tracker {
     live: Vec<Option<usize>>,
     /// Per track, its first window (with drift correction).
     templates: Vec<Option<Template>>,
+    /// The previous frame's measured noise (with `noise_factor` > 0).
+    prev_sigma: f32,
 }
 
 impl Tracker {
@@ -77,6 +110,7 @@ impl Tracker {
     pub fn new(params: TrackerParams) -> Result<Tracker, KltError> {
         params.lk.validate()?;
         if params.max_residual.is_nan()
+            || !(params.noise_factor >= 0.0 && params.noise_factor < 1e6)
             || params.fb_threshold.is_some_and(|t| t.is_nan() || t < 0.0)
             || !(params.border >= 0.0 && params.border < 1e6)
             || params
@@ -84,7 +118,7 @@ impl Tracker {
                 .is_some_and(|d| !(d > 0.0 && d.is_finite()))
         {
             return Err(KltError::BadParam(
-                "max_residual, fb_threshold and border must be numbers ≥ 0".into(),
+                "max_residual, noise_factor, fb_threshold and border must be numbers ≥ 0".into(),
             ));
         }
         let slots = params.corners.max_corners;
@@ -99,6 +133,7 @@ impl Tracker {
             },
             live: vec![None; slots],
             templates: Vec::new(),
+            prev_sigma: 0.0,
         })
     }
 
@@ -170,6 +205,13 @@ impl Tracker {
             None => Pyramid { levels: Vec::new() },
         };
         pyr.rebuild(img, lk.levels, lk.pad())?;
+        let sigma = if self.params.noise_factor > 0.0 {
+            super::noise::noise_sigma(img)
+        } else {
+            0.0
+        };
+        let max_residual = self.params.residual_threshold(self.prev_sigma, sigma);
+        self.prev_sigma = sigma;
         let fi = self.tracks.frames.len();
         if let Some(prev) = &self.prev {
             if prev.size() != pyr.size() {
@@ -190,7 +232,7 @@ impl Tracker {
                 if r.lost.is_none() && (x < m || y < m || x > w - 1.0 - m || y > h - 1.0 - m) {
                     r.lost = Some(LostReason::LeftImage);
                 }
-                if r.lost.is_none() && r.residual > self.params.max_residual {
+                if r.lost.is_none() && r.residual > max_residual {
                     r.lost = Some(LostReason::Residual);
                 }
             }
@@ -209,7 +251,6 @@ impl Tracker {
             if let Some(bound) = self.params.drift_correction {
                 let ks: Vec<Option<usize>> = slots.iter().map(|&s| self.live[s]).collect();
                 let templates = &self.templates;
-                let max_residual = self.params.max_residual;
                 let accepted: Vec<Option<(usize, nalgebra::Matrix3<f64>)>> = res
                     .par_iter_mut()
                     .zip(&ks)
