@@ -17,6 +17,7 @@ pub mod frames;
 pub mod fsutil;
 pub mod graph;
 pub mod node;
+pub mod options;
 pub mod param;
 pub mod registry;
 pub mod store;

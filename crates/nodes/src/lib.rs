@@ -92,3 +92,46 @@ pub(crate) fn output_path(ctx: &Context<'_>, param: &str) -> Result<std::path::P
     }
     Ok(path)
 }
+
+#[cfg(test)]
+mod tests {
+    use crate::testing::check_defaults;
+
+    /// Every node type whose params come from an options struct, and that struct: the nodes
+    /// of a family are listed here when the family is converted.
+    type Check = fn(&str);
+    const OPTIONS: &[(&str, Check)] = &[
+        (
+            "matchmove",
+            check_defaults::<vfxgraph_vision::matchmove::MatchmoveOptions>,
+        ),
+        ("relax", check_defaults::<crate::matchmove::RelaxParams>),
+        (
+            "global_bundle_adjust",
+            check_defaults::<crate::matchmove::GlobalParams>,
+        ),
+        (
+            "write_cameras",
+            check_defaults::<crate::matchmove::WriteCamerasParams>,
+        ),
+    ];
+
+    /// Walks every node type: those with an options struct declare exactly its defaults.
+    #[test]
+    fn declared_defaults_are_the_options_structs_defaults() {
+        let r = crate::registry();
+        let mut checked = 0;
+        for node in r.nodes() {
+            let name = node.spec().name;
+            if let Some((_, check)) = OPTIONS.iter().find(|(n, _)| *n == name) {
+                check(name);
+                checked += 1;
+            }
+        }
+        assert_eq!(
+            checked,
+            OPTIONS.len(),
+            "every listed node type is registered"
+        );
+    }
+}

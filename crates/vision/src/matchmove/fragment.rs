@@ -17,18 +17,25 @@ use super::fragments::Fragment;
 use super::pair::{best_pair, PairOptions};
 use super::{bundle_adjust_indexed, reprojection_error, through, triangulate_views};
 use crate::calibration::resect_known_k;
+use vfxgraph_params::Options;
+
 use crate::camera::{Intrinsics, Pose};
 use crate::error::{Result, VisionError};
 use crate::klt::Tracks;
 use crate::ransac::RansacParams;
 
 /// The refinement cycles' constants.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Options)]
 #[serde(default)]
+#[param(check)]
 pub struct RefineOptions {
-    /// Re-triangulation tolerances, pixels, one cycle each (book: 10, 5, 3).
+    /// re-triangulation tolerances of the refinement cycles, px (§7.9)
+    ///
+    /// One cycle each (book: 10, 5, 3).
+    #[param(name = "refine_tolerances")]
     pub tolerances: Vec<f64>,
     /// Most Levenberg–Marquardt iterations per bundle adjustment.
+    #[param(skip)]
     pub ba_iterations: usize,
 }
 
@@ -42,6 +49,11 @@ impl Default for RefineOptions {
 }
 
 impl RefineOptions {
+    /// Every tolerance is positive.
+    pub fn check(&self) -> std::result::Result<(), String> {
+        vfxgraph_params::all_positive("refine_tolerances", &self.tolerances)
+    }
+
     /// The last (tightest) tolerance: what counts as an inlier in the reports.
     pub fn final_tolerance(&self) -> f64 {
         self.tolerances.last().copied().unwrap_or(3.0)

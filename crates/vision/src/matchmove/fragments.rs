@@ -13,19 +13,28 @@
 
 use serde::{Deserialize, Serialize};
 
+use vfxgraph_params::Options;
+
 use super::through;
 use crate::error::{Result, VisionError};
 use crate::klt::Tracks;
 
 /// The cutting rule's constants.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Options)]
 #[serde(default)]
 pub struct FragmentOptions {
-    /// A fragment has more than this many frames (book: 60)…
+    /// a fragment has more frames than this (§7.11)
+    ///
+    /// Book: 60.
+    #[param(range = 2..=100_000)]
     pub min_frames: usize,
-    /// …and its features moved this much on average since its base frame, pixels (book: 20).
+    /// …and its features moved this much since its base frame, px (§7.11)
+    ///
+    /// On average, pixels (book: 20).
+    #[param(range = 0.0..=1e5)]
     pub min_displacement: f64,
-    /// Cut early rather than keep fewer features than this through the fragment.
+    /// cut a fragment early rather than keep fewer features through it
+    #[param(range = 6..=100_000)]
     pub min_features: usize,
 }
 

@@ -9,6 +9,7 @@
 use nalgebra::Vector3;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use vfxgraph_params::{Choice, Options};
 
 use super::{bundle_adjust_indexed, reprojection_error, triangulate_views};
 use crate::bundle::Loss;
@@ -17,7 +18,7 @@ use crate::error::{Result, VisionError};
 use crate::klt::Tracks;
 
 /// The robust loss of the adjustment.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Choice)]
 #[serde(rename_all = "lowercase")]
 pub enum RobustLoss {
     /// Plain least squares.
@@ -29,23 +30,32 @@ pub enum RobustLoss {
 }
 
 /// The global adjustment's constants.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Options)]
 #[serde(default)]
+#[param(check)]
 pub struct GlobalOptions {
-    /// Robust loss.
+    /// robust loss of the global bundle adjustment
     pub loss: RobustLoss,
-    /// Its scale, pixels.
+    /// where the robust loss starts to down-weight, pixels
+    #[param(range = 1e-6..=1e3)]
     pub loss_scale: f64,
-    /// Outlier thresholds of the successive rounds, pixels; one adjustment per round, plus the
-    /// first one at `triangulation_tolerance`. Default 3 then 1.5 px: the second round drops
-    /// the observations a grainy plate's tracker mislocated by 1.5–3 px (on the Blender dev plate
-    /// it halves the worst rotation error, 0.12° → 0.07°).
+    /// outlier thresholds of the successive global adjustment rounds, pixels
+    ///
+    /// One adjustment per round, plus the first one at `triangulation_tolerance`. Default 3
+    /// then 1.5 px: the second round drops the observations a grainy plate's tracker mislocated
+    /// by 1.5–3 px (on the Blender dev plate it halves the worst rotation error, 0.12° → 0.07°).
+    #[param(name = "outlier_thresholds")]
     pub thresholds: Vec<f64>,
-    /// Initial triangulation: observations farther than this are outliers, pixels.
+    /// first triangulation of every track: observations farther than this are outliers, px
+    #[param(range = 1e-3..=1e4)]
     pub triangulation_tolerance: f64,
-    /// Tracks with fewer inlier observations in posed frames get no point.
+    /// tracks with fewer inlier observations get no point
+    ///
+    /// Inlier observations in posed frames.
+    #[param(range = 2..=100_000)]
     pub min_observations: usize,
-    /// Most Levenberg–Marquardt iterations per adjustment.
+    /// Levenberg–Marquardt steps per adjustment
+    #[param(range = 1..=10_000)]
     pub max_iterations: usize,
 }
 
@@ -63,6 +73,11 @@ impl Default for GlobalOptions {
 }
 
 impl GlobalOptions {
+    /// Every threshold is positive.
+    pub fn check(&self) -> std::result::Result<(), String> {
+        vfxgraph_params::all_positive("outlier_thresholds", &self.thresholds)
+    }
+
     /// The last outlier threshold (the first triangulation's tolerance when there are no
     /// rounds): what counts as an inlier of the adjusted solve.
     pub fn final_threshold(&self) -> f64 {

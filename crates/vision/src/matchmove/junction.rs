@@ -19,24 +19,40 @@ use serde::{Deserialize, Serialize};
 
 use super::fragment::FragmentSolution;
 use super::reprojection_error;
+use vfxgraph_params::Options;
+
 use crate::camera::{Intrinsics, Pose};
 use crate::error::{Result, VisionError};
 use crate::klt::Tracks;
 use crate::optimize::brent_minimize;
 
 /// The scale search's constants.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Options)]
 #[serde(default)]
+#[param(check)]
 pub struct ScaleOptions {
-    /// Smallest relative scale tried (the book's ε).
+    /// smallest relative scale tried (§7.12)
+    ///
+    /// The book's ε.
+    #[param(name = "scale_min", range = 1e-9..=1e9)]
     pub min_scale: f64,
-    /// Largest relative scale tried (book: 100).
+    /// largest relative scale tried (§7.12)
+    ///
+    /// Book: 100.
+    #[param(name = "scale_max", range = 1e-9..=1e9)]
     pub max_scale: f64,
-    /// Ratio of the geometric progression (book: 1.01).
+    /// ratio of the scale progression (§7.12)
+    ///
+    /// Of the geometric progression (book: 1.01).
+    #[param(name = "scale_step", range = 1.000_001..=10.0)]
     pub step: f64,
-    /// A point agrees with a scale if its error is below this in every frame, pixels (book: 20).
+    /// a point agrees with a scale if its error is below this in every frame, px
+    ///
+    /// Book: 20.
+    #[param(name = "scale_tolerance", range = 1e-3..=1e5)]
     pub tolerance: f64,
     /// Fewer agreeing points than this is an error.
+    #[param(skip)]
     pub min_points: usize,
 }
 
@@ -49,6 +65,16 @@ impl Default for ScaleOptions {
             tolerance: 20.0,
             min_points: 3,
         }
+    }
+}
+
+impl ScaleOptions {
+    /// The range of scales is not empty.
+    pub fn check(&self) -> std::result::Result<(), String> {
+        if self.min_scale >= self.max_scale {
+            return Err("`scale_min` must be below `scale_max`".into());
+        }
+        Ok(())
     }
 }
 

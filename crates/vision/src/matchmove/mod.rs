@@ -59,22 +59,32 @@ pub type TrackPoints = Vec<Option<Vector3<f64>>>;
 pub type Structure = (Poses, TrackPoints);
 
 /// Every constant of the matchmove, with the book's values as defaults.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, vfxgraph_params::Options)]
 #[serde(default)]
 pub struct MatchmoveOptions {
     /// Fragment cutting (§7.11).
+    #[param(flatten)]
     pub fragments: FragmentOptions,
     /// Best-pair search (§7.2–7.6).
+    #[param(flatten)]
     pub pair: PairOptions,
     /// Refinement cycles (§7.9).
+    #[param(flatten)]
     pub refine: RefineOptions,
     /// Scale search between fragments (§7.12).
+    #[param(flatten)]
     pub scale: ScaleOptions,
-    /// Final robust bundle adjustment of the whole sequence (not in the book; `None` skips it).
+    /// finish with a robust bundle adjustment of the whole sequence
+    ///
+    /// Not in the book; `None` skips it.
+    #[param(toggle = "global_adjust")]
     pub global: Option<GlobalOptions>,
     /// Seed of every random choice (RANSAC samples); each fragment derives its own stream.
+    #[param(skip)]
     pub seed: u64,
-    /// Compute the book-style score of [`score`] into the report.
+    /// score the cameras against every track into the report
+    ///
+    /// The book-style score of [`score`].
     pub score: bool,
 }
 

@@ -24,6 +24,8 @@ use serde::{Deserialize, Serialize};
 
 use super::fragments::{mean_displacement, Fragment};
 use super::{derive_seed, through};
+use vfxgraph_params::Options;
+
 use crate::calibration::{factor_camera, refine_known_k, resect_ransac};
 use crate::camera::Intrinsics;
 use crate::error::{Result, VisionError};
@@ -32,29 +34,50 @@ use crate::ransac::RansacParams;
 use crate::two_view::{reconstruct_two_view, EpipolarResidual, TwoViewOptions};
 
 /// The best-pair search's constants.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Options)]
 #[serde(default)]
 pub struct PairOptions {
-    /// Only pairs whose features moved more than this on average, pixels (book: 4).
+    /// candidate pairs moved more than this on average, px (§7.2)
+    ///
+    /// Book: 4.
+    #[param(name = "pair_min_displacement", range = 0.0..=1e5)]
     pub min_displacement: f64,
-    /// Candidate frames: every `stride`-th frame of the fragment and its last (book: 1).
+    /// candidate frames of the pair search: every n-th (the book: 1, every pair)
+    ///
+    /// Every `stride`-th frame of the fragment and its last.
+    #[param(name = "pair_stride", range = 1..=10_000)]
     pub stride: usize,
-    /// Sampson-distance threshold of the RANSAC on F, pixels.
+    /// Sampson-distance threshold of the RANSAC on F, px
+    #[param(range = 1e-3..=1e3)]
     pub epipolar_threshold: f64,
-    /// Most RANSAC iterations on F (book: 60 fixed; ours stop adaptively below this).
+    /// most RANSAC iterations on F (adaptive below this)
+    ///
+    /// The book: 60 fixed.
+    #[param(range = 1..=1_000_000)]
     pub ransac_iterations: usize,
-    /// Resection (6-point DLT) RANSAC threshold, pixels (book: 15).
+    /// resection (6-point DLT) RANSAC threshold, px (§7.3)
+    ///
+    /// Book: 15.
+    #[param(range = 1e-3..=1e4)]
     pub resection_tolerance: f64,
-    /// Largest entry difference between a frame's DLT K' and the known K (book: 100).
+    /// intrinsics-consistency test: largest entry difference of a frame's DLT K' from K
+    ///
+    /// Book: 100.
+    #[param(range = 0.0..=1e6)]
     pub max_k_difference: f64,
-    /// A frame whose DLT fails that test passes when the known K, with the pose refined, keeps
-    /// this fraction of the DLT's inliers (not in the book: [`known_k_inliers`]); above 1 the
-    /// book's test alone decides.
+    /// a frame failing that test passes if the known K keeps this fraction of its inliers
+    ///
+    /// The consensus pose refined with K fixed (not in the book: [`known_k_inliers`]), for
+    /// nearly planar sets where the DLT's K′ is unreliable; above 1 the book's test alone
+    /// decides.
+    #[param(range = 0.0..=2.0)]
     pub known_k_inlier_ratio: f64,
     /// A pair with fewer inliers than this is not a candidate.
+    #[param(skip)]
     pub min_inliers: usize,
     /// A pair whose points' median parallax angle is below this (degrees) has no usable
     /// baseline: counted with the pure rotations (not in the book, whose footage always moved).
+    #[param(skip)]
     pub min_parallax_deg: f64,
 }
 

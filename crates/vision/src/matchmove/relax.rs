@@ -17,6 +17,8 @@ use nalgebra::{Matrix2x3, Matrix3, Matrix6, Vector3, Vector6};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use vfxgraph_params::Options;
+
 use super::{reprojection_error, triangulate_views};
 use crate::camera::{Intrinsics, Pose};
 use crate::error::{Result, VisionError};
@@ -24,24 +26,46 @@ use crate::klt::Tracks;
 use crate::rotation::axis_angle_to_r;
 
 /// The relaxation's constants (book values as defaults).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Options)]
 #[serde(default)]
 pub struct RelaxOptions {
-    /// Tracks longer than this many frames become homologous points (book: 45).
+    /// tracks longer than this become homologous points
+    ///
+    /// Book: 45 frames.
+    #[param(range = 2..=100_000)]
     pub min_run: usize,
-    /// A frame agrees with a triangulation if its error is below this, pixels (book: 10).
+    /// a frame agrees with a point's triangulation below this error, px
+    ///
+    /// Book: 10.
+    #[param(range = 1e-3..=1e4)]
     pub agree_tolerance: f64,
-    /// Rounds (book: 9).
+    /// rounds
+    ///
+    /// Book: 9.
+    #[param(range = 0..=1000)]
     pub rounds: usize,
-    /// Point/camera cycles per round (book: 10).
+    /// point/camera cycles per round
+    ///
+    /// Book: 10.
+    #[param(range = 1..=1000)]
     pub cycles: usize,
-    /// Inlier tolerance of the first round, pixels (book: 10).
+    /// inlier tolerance of the first round, px
+    ///
+    /// Book: 10.
+    #[param(range = 1e-3..=1e4)]
     pub initial_tolerance: f64,
-    /// Its decrease per round, pixels (book: 1).
+    /// its decrease per round, px
+    ///
+    /// Book: 1.
+    #[param(range = 0.0..=1e4)]
     pub tolerance_step: f64,
-    /// Levenberg–Marquardt iterations per point or camera optimization.
+    /// LM iterations per point or camera optimization
+    #[param(range = 1..=1000)]
     pub lm_iterations: usize,
-    /// Candidate frames of the pair search: every `pair_stride`-th frame of a track (book: 1).
+    /// pair search over every n-th frame of a track
+    ///
+    /// The candidate frames of the pair search (book: 1).
+    #[param(range = 1..=10_000)]
     pub pair_stride: usize,
 }
 

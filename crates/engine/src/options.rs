@@ -1,0 +1,200 @@
+//! Options structs as node parameters: a node type declares the params of an options struct
+//! (`#[derive(vfxgraph_params::Options)]`, which lives with its algorithm and knows nothing of
+//! the engine) with [`NodeSpec::options`], and its run reads the struct back with
+//! [`Context::options`]. Name, type, range, default and doc are written once, on the struct.
+
+use vfxgraph_params::{Kind, Options, ParamDesc, Source, Value};
+
+use crate::node::{Context, NodeError, NodeSpec};
+use crate::param::{ParamSpec, ParamType, ParamValue, Params, PathRole};
+
+impl From<Value> for ParamValue {
+    fn from(v: Value) -> Self {
+        match v {
+            Value::Bool(b) => ParamValue::Bool(b),
+            Value::Int(i) => ParamValue::Int(i),
+            Value::Float(x) => ParamValue::Float(x),
+            Value::Str(s) => ParamValue::Str(s),
+            Value::List(l) => ParamValue::List(l.into_iter().map(Into::into).collect()),
+        }
+    }
+}
+
+impl From<&ParamValue> for Value {
+    fn from(v: &ParamValue) -> Self {
+        match v {
+            ParamValue::Bool(b) => Value::Bool(*b),
+            ParamValue::Int(i) => Value::Int(*i),
+            ParamValue::Float(x) => Value::Float(*x),
+            ParamValue::Str(s) => Value::Str(s.clone()),
+            ParamValue::List(l) => Value::List(l.iter().map(Into::into).collect()),
+        }
+    }
+}
+
+impl From<vfxgraph_params::PathRole> for PathRole {
+    fn from(r: vfxgraph_params::PathRole) -> Self {
+        match r {
+            vfxgraph_params::PathRole::Input => PathRole::Input,
+            vfxgraph_params::PathRole::Output => PathRole::Output,
+        }
+    }
+}
+
+impl From<Kind> for ParamType {
+    fn from(k: Kind) -> Self {
+        match k {
+            Kind::Bool => ParamType::Bool,
+            Kind::Int { min, max } => ParamType::Int { min, max },
+            Kind::Float { min, max } => ParamType::Float { min, max },
+            Kind::Str => ParamType::Str,
+            Kind::Enum(c) => ParamType::Enum(c),
+            Kind::Path(r) => ParamType::Path(r.into()),
+            Kind::PathList(r) => ParamType::PathList(r.into()),
+            Kind::FloatList { len } => ParamType::FloatList { len },
+        }
+    }
+}
+
+impl From<ParamDesc> for ParamSpec {
+    fn from(d: ParamDesc) -> Self {
+        ParamSpec {
+            name: d.name,
+            ty: d.kind.into(),
+            default: d.default.map(Into::into),
+            doc: d.doc,
+            affects_output: !d.cosmetic,
+        }
+    }
+}
+
+impl Source for Params {
+    fn value(&self, name: &str) -> Option<Value> {
+        self.get(name).map(Into::into)
+    }
+}
+
+impl NodeSpec {
+    /// Adds the params of options struct `T`, in its field order.
+    pub fn options<T: Options>(mut self) -> Self {
+        for d in T::params() {
+            self = self.param(d.into());
+        }
+        self
+    }
+}
+
+impl Context<'_> {
+    /// Reads options struct `T` from the node's params (checked by `T`'s `check`).
+    pub fn options<T: Options>(&self) -> Result<T, NodeError> {
+        T::read(self.params()).map_err(NodeError::msg)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::collections::BTreeMap;
+    use vfxgraph_params::{Choice, Options};
+
+    #[derive(Clone, Copy, Debug, PartialEq, Choice)]
+    enum Loss {
+        None,
+        SoftL1,
+    }
+
+    /// The test's options.
+    #[derive(Debug, PartialEq, Options)]
+    #[param(check)]
+    struct Opts {
+        /// how many
+        ///
+        /// (not in the param doc)
+        #[param(range = 1..=10)]
+        count: usize,
+        /// a scale
+        #[param(range = 0.5..=, name = "scale_factor")]
+        scale: f64,
+        /// the loss
+        loss: Loss,
+        #[param(skip)]
+        seed: u64,
+        /// refine
+        #[param(toggle = "refine")]
+        inner: Option<Inner>,
+    }
+
+    impl Default for Opts {
+        fn default() -> Self {
+            Opts {
+                count: 3,
+                scale: 1.5,
+                loss: Loss::SoftL1,
+                seed: 7,
+                inner: Some(Inner::default()),
+            }
+        }
+    }
+
+    impl Opts {
+        fn check(&self) -> Result<(), String> {
+            if self.count == 4 {
+                return Err("`count` must not be 4".into());
+            }
+            Ok(())
+        }
+    }
+
+    #[derive(Debug, PartialEq, Options)]
+    struct Inner {
+        /// the values
+        values: Vec<f64>,
+    }
+
+    impl Default for Inner {
+        fn default() -> Self {
+            Inner { values: vec![1.0] }
+        }
+    }
+
+    #[test]
+    fn an_options_struct_is_a_node_spec_and_reads_back() {
+        let spec = NodeSpec::new("t", "test").options::<Opts>();
+        let names: Vec<&str> = spec.params.iter().map(|p| p.name).collect();
+        assert_eq!(names, ["count", "scale_factor", "loss", "refine", "values"]);
+        let p = &spec.params[0];
+        assert_eq!(p.ty, ParamType::Int { min: 1, max: 10 });
+        assert_eq!(p.default, Some(ParamValue::Int(3)));
+        assert_eq!(p.doc, "how many");
+        assert_eq!(
+            spec.params[1].ty,
+            ParamType::Float {
+                min: 0.5,
+                max: f64::INFINITY
+            }
+        );
+        assert_eq!(spec.params[2].ty, ParamType::Enum(&["none", "soft_l1"]));
+        assert_eq!(
+            spec.params[2].default,
+            Some(ParamValue::Str("soft_l1".into()))
+        );
+        assert_eq!(spec.params[3].default, Some(ParamValue::Bool(true)));
+
+        let mut values: BTreeMap<String, ParamValue> = spec
+            .params
+            .iter()
+            .map(|p| (p.name.to_string(), p.default.clone().unwrap()))
+            .collect();
+        let params = Params::new(values.clone());
+        assert_eq!(Opts::read(&params).unwrap(), Opts::default());
+        values.insert("refine".into(), ParamValue::Bool(false));
+        values.insert("loss".into(), ParamValue::Str("none".into()));
+        values.insert("count".into(), ParamValue::Int(4));
+        let e = Opts::read(&Params::new(values.clone())).unwrap_err();
+        assert_eq!(e, "`count` must not be 4");
+        values.insert("count".into(), ParamValue::Int(5));
+        let o = Opts::read(&Params::new(values)).unwrap();
+        assert_eq!((o.count, o.loss, o.seed, o.inner), (5, Loss::None, 7, None));
+        assert_eq!(Loss::from_choice("none"), Some(Loss::None));
+    }
+}

@@ -1,0 +1,287 @@
+//! # vfxgraph-params
+//!
+//! A parameter is declared once, where the algorithm lives: an options struct's field is its
+//! name, its Rust type is the parameter's type, `Default` is its default, the field's doc comment
+//! is its documentation and `#[param(range = MIN..=MAX)]` its range. `#[derive(Options)]` turns
+//! the struct into [`ParamDesc`]s and a reader ([`Options::read`]); `#[derive(Choice)]` turns a
+//! unit-only enum into an enum parameter (its variants in snake case), so a choice is never
+//! spelled twice and has no fallback arm.
+//!
+//! The crate has no dependencies (the derive aside) and knows nothing of the engine: the
+//! algorithm crates (vision, render, imaging) derive [`Options`] on their structs, and the engine
+//! turns [`ParamDesc`] into its own parameter specs and its checked values into a [`Source`].
+//! COLMAP's option manager binds command-line names to the fields of its option structs the same
+//! way; Meshroom's node descriptions list each parameter once.
+//!
+//! Field attributes (`#[param(...)]`, comma-separated):
+//! - `range = MIN..=MAX`: the numeric range (either side may be omitted: `0.0..=`).
+//! - `name = "..."`: the parameter's name when it is not the field's.
+//! - `doc = "..."`: the documentation when it is not the doc comment's first paragraph.
+//! - `skip`: not a parameter (its value is the default's).
+//! - `flatten`: the field is itself an [`Options`] struct whose parameters are listed here.
+//! - `toggle = "name"` (on an `Option<T>` field, `T: Options`): a boolean parameter `name`
+//!   (documented by the field's doc comment) whose default is `Default`'s `is_some()`; when true
+//!   the field is `Some(T::read(..))`, else `None`. `T`'s parameters follow, after the struct's
+//!   other fields.
+//! - `cosmetic`: does not enter the cache key (labels, verbosity).
+//!
+//! Struct attribute `#[param(check)]`: [`Options::read`] ends with the struct's inherent
+//! `fn check(&self) -> Result<(), String>`.
+
+pub use vfxgraph_params_derive::{Choice, Options};
+
+/// Whether a path parameter names a file the node reads or one it writes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PathRole {
+    /// Read (hashed into the cache key).
+    Input,
+    /// Written.
+    Output,
+}
+
+/// A parameter's type.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Kind {
+    /// `true` / `false`.
+    Bool,
+    /// An integer in `[min, max]`.
+    Int {
+        /// Smallest allowed.
+        min: i64,
+        /// Largest allowed.
+        max: i64,
+    },
+    /// A finite float in `[min, max]`.
+    Float {
+        /// Smallest allowed.
+        min: f64,
+        /// Largest allowed.
+        max: f64,
+    },
+    /// Any string.
+    Str,
+    /// One of the listed strings.
+    Enum(&'static [&'static str]),
+    /// A file path.
+    Path(PathRole),
+    /// A list of file paths.
+    PathList(PathRole),
+    /// A list of floats, of a fixed length or any.
+    FloatList {
+        /// Required length, if fixed.
+        len: Option<usize>,
+    },
+}
+
+/// A parameter value.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Value {
+    /// `true` / `false`.
+    Bool(bool),
+    /// An integer.
+    Int(i64),
+    /// A float.
+    Float(f64),
+    /// A string (also paths and enum choices).
+    Str(String),
+    /// A list of values.
+    List(Vec<Value>),
+}
+
+/// One declared parameter.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ParamDesc {
+    /// Its name.
+    pub name: &'static str,
+    /// Its type.
+    pub kind: Kind,
+    /// Its default (from the struct's `Default`); `None`: required.
+    pub default: Option<Value>,
+    /// One line of documentation.
+    pub doc: &'static str,
+    /// True for params that must not enter the cache key.
+    pub cosmetic: bool,
+}
+
+/// Checked parameter values by name (the engine's are one).
+pub trait Source {
+    /// The value of parameter `name`, if it has one.
+    fn value(&self, name: &str) -> Option<Value>;
+}
+
+/// A map is a source (for tests and for callers without an engine).
+impl Source for std::collections::BTreeMap<String, Value> {
+    fn value(&self, name: &str) -> Option<Value> {
+        self.get(name).cloned()
+    }
+}
+
+/// An options struct whose fields are parameters (`#[derive(Options)]`).
+pub trait Options: Sized {
+    /// The parameters, in field order (a `toggle`'s parameters last).
+    fn params() -> Vec<ParamDesc>;
+    /// Reads every parameter from `src` and checks the result (`#[param(check)]`). An error
+    /// names the parameter or says what is wrong with the combination.
+    fn read(src: &dyn Source) -> Result<Self, String>;
+}
+
+/// A Rust type that can be one parameter.
+pub trait Field: Sized {
+    /// The parameter type, within the field's `range` (bounds as written, converted).
+    fn kind(min: Option<f64>, max: Option<f64>) -> Kind;
+    /// The value of `self`.
+    fn to_value(&self) -> Value;
+    /// Reads a value; `None` when it is of another kind or does not fit.
+    fn from_value(v: Value) -> Option<Self>;
+}
+
+/// A unit-only enum that is an enum parameter (`#[derive(Choice)]`).
+pub trait Choice: Sized + Copy + 'static {
+    /// The choices, in declaration order.
+    const CHOICES: &'static [&'static str];
+    /// The choice's name.
+    fn choice(&self) -> &'static str;
+    /// The variant named `name`.
+    fn from_choice(name: &str) -> Option<Self>;
+}
+
+/// Reads parameter `name` of `src` as a `T`, with an error naming it.
+pub fn read_field<T: Field>(src: &dyn Source, name: &str) -> Result<T, String> {
+    let v = src
+        .value(name)
+        .ok_or_else(|| format!("parameter `{name}` has no value"))?;
+    let shown = format!("{v:?}");
+    T::from_value(v).ok_or_else(|| format!("parameter `{name}`: {shown} does not fit"))
+}
+
+macro_rules! int_field {
+    ($lo:expr; $($t:ty),*) => {$(
+        impl Field for $t {
+            fn kind(min: Option<f64>, max: Option<f64>) -> Kind {
+                Kind::Int {
+                    min: min.map_or($lo, |m| m as i64),
+                    max: max.map_or(i64::MAX, |m| m as i64),
+                }
+            }
+            fn to_value(&self) -> Value {
+                Value::Int(*self as i64)
+            }
+            fn from_value(v: Value) -> Option<Self> {
+                match v {
+                    Value::Int(i) => <$t>::try_from(i).ok(),
+                    _ => None,
+                }
+            }
+        }
+    )*};
+}
+int_field!(i64::MIN; i64, i32);
+int_field!(0; u64, u32, usize);
+
+impl Field for f64 {
+    fn kind(min: Option<f64>, max: Option<f64>) -> Kind {
+        Kind::Float {
+            min: min.unwrap_or(f64::NEG_INFINITY),
+            max: max.unwrap_or(f64::INFINITY),
+        }
+    }
+    fn to_value(&self) -> Value {
+        Value::Float(*self)
+    }
+    fn from_value(v: Value) -> Option<Self> {
+        match v {
+            Value::Float(x) => Some(x),
+            Value::Int(i) => Some(i as f64),
+            _ => None,
+        }
+    }
+}
+
+impl Field for f32 {
+    fn kind(min: Option<f64>, max: Option<f64>) -> Kind {
+        f64::kind(min, max)
+    }
+    fn to_value(&self) -> Value {
+        Value::Float(f64::from(*self))
+    }
+    fn from_value(v: Value) -> Option<Self> {
+        f64::from_value(v).map(|x| x as f32)
+    }
+}
+
+impl Field for bool {
+    fn kind(_: Option<f64>, _: Option<f64>) -> Kind {
+        Kind::Bool
+    }
+    fn to_value(&self) -> Value {
+        Value::Bool(*self)
+    }
+    fn from_value(v: Value) -> Option<Self> {
+        match v {
+            Value::Bool(b) => Some(b),
+            _ => None,
+        }
+    }
+}
+
+impl Field for String {
+    fn kind(_: Option<f64>, _: Option<f64>) -> Kind {
+        Kind::Str
+    }
+    fn to_value(&self) -> Value {
+        Value::Str(self.clone())
+    }
+    fn from_value(v: Value) -> Option<Self> {
+        match v {
+            Value::Str(s) => Some(s),
+            _ => None,
+        }
+    }
+}
+
+fn floats(v: Value) -> Option<Vec<f64>> {
+    match v {
+        Value::List(items) => items.into_iter().map(f64::from_value).collect(),
+        _ => None,
+    }
+}
+
+impl Field for Vec<f64> {
+    fn kind(_: Option<f64>, _: Option<f64>) -> Kind {
+        Kind::FloatList { len: None }
+    }
+    fn to_value(&self) -> Value {
+        Value::List(self.iter().map(|x| Value::Float(*x)).collect())
+    }
+    fn from_value(v: Value) -> Option<Self> {
+        floats(v)
+    }
+}
+
+impl<const N: usize> Field for [f64; N] {
+    fn kind(_: Option<f64>, _: Option<f64>) -> Kind {
+        Kind::FloatList { len: Some(N) }
+    }
+    fn to_value(&self) -> Value {
+        Value::List(self.iter().map(|x| Value::Float(*x)).collect())
+    }
+    fn from_value(v: Value) -> Option<Self> {
+        floats(v)?.try_into().ok()
+    }
+}
+
+/// [`Field::from_value`] of a [`Choice`] (the derive's `Field` impl calls it).
+pub fn choice_from_value<C: Choice>(v: Value) -> Option<C> {
+    match v {
+        Value::Str(s) => C::from_choice(&s),
+        _ => None,
+    }
+}
+
+/// Checks that every value of a list is positive (a common `check` rule), naming the param.
+pub fn all_positive(name: &str, values: &[f64]) -> Result<(), String> {
+    if values.iter().any(|t| t.is_nan() || *t <= 0.0) {
+        return Err(format!("`{name}` must all be positive"));
+    }
+    Ok(())
+}
