@@ -329,11 +329,7 @@ impl<'a> Common<'a> {
     }
 
     fn record_name(&self, node: usize) -> String {
-        let mut h = blake3::Hasher::new();
-        h.update(self.graph.file.to_string_lossy().as_bytes());
-        h.update(&[0]);
-        h.update(self.graph.nodes[node].id.as_bytes());
-        format!("{}.json", &h.finalize().to_hex()[..32])
+        record_name(self.graph, node)
     }
 
     fn param_strings(&self, node: usize) -> BTreeMap<String, String> {
@@ -1142,6 +1138,33 @@ impl<'a> Runner<'a> {
             }
         }
     }
+}
+
+/// The name of the rerun record of `graph`'s node `node` in the store's `records/`.
+fn record_name(graph: &Graph, node: usize) -> String {
+    let mut h = blake3::Hasher::new();
+    h.update(graph.file.to_string_lossy().as_bytes());
+    h.update(&[0]);
+    h.update(graph.nodes[node].id.as_bytes());
+    format!("{}.json", &h.finalize().to_hex()[..32])
+}
+
+/// The action entry of the last run that resolved node `node`'s instance at `frame` (`None`
+/// for a node that runs once), if that entry is still in the store: the outputs a viewer shows
+/// (`vfxgraph serve`). It is the last *run*'s, which a later edit of the graph may have made
+/// stale; [`plan`] says whether it still is the current one.
+pub fn last_run_entry(
+    graph: &Graph,
+    store: &Store,
+    node: usize,
+    frame: Option<i64>,
+) -> Option<ActionEntry> {
+    let rec: NodeRecord = store.get_record(&record_name(graph, node))?;
+    if rec.node_type != graph.nodes[node].spec().name {
+        return None;
+    }
+    let key = Digest::from_hex(&rec.instances.get(&frame_key(frame))?.key)?;
+    store.get_action(&key)
 }
 
 /// The default cache folder for a graph file: `.vfxgraph/` beside it.
