@@ -253,7 +253,7 @@ function renderPanel() {
   for (const p of last) (lastReasons[p.status + ': ' + p.reason] = lastReasons[p.status + ': ' + p.reason] || []).push(p.frame);
   const fr = (l) => (l[0] === null ? '' : ` (frames ${l.length > 6 ? l.slice(0, 6).join(', ') + ', …' : l.join(', ')})`);
   const params = n.params.map((p) => {
-    const range = p.min !== null || p.max !== null ? ` [${p.min ?? '-∞'}, ${p.max ?? '∞'}]` : '';
+    const range = ''; // the type's text already says the range
     const input = p.choices
       ? `<select data-param="${esc(p.name)}">${p.choices.map((c) => `<option ${p.value === JSON.stringify(c) ? 'selected' : ''}>${esc(c)}</option>`).join('')}</select>`
       : `<input data-param="${esc(p.name)}" value="${esc(p.value ?? '')}" placeholder="${esc(p.default ?? '')}">`;
