@@ -96,6 +96,23 @@ enum Command {
     Submit(farm::commands::SubmitArgs),
     /// Per node: instances cached, farm tasks running and queued, instances missing.
     Status(farm::commands::StatusArgs),
+    /// The studio in a browser: the graph live, its frames, the point-cloud definer, the solve.
+    Serve {
+        /// The graph file (YAML); served even when it does not load (with its diagnostics).
+        graph: PathBuf,
+        /// Port (0: any free port; the URL is printed).
+        #[arg(long, default_value_t = 8080)]
+        port: u16,
+        /// Address to listen on (another than 127.0.0.1 exposes the graph's folder).
+        #[arg(long, default_value = "127.0.0.1")]
+        bind: std::net::IpAddr,
+        /// Cache folder (default: .vfxgraph/ beside the graph file).
+        #[arg(long, value_name = "DIR")]
+        cache: Option<PathBuf>,
+        /// Worker threads of runs (default: one per core).
+        #[arg(short, long)]
+        jobs: Option<usize>,
+    },
     /// Benchmarks.
     Bench {
         #[command(subcommand)]
@@ -371,6 +388,26 @@ fn dispatch(cli: Cli, registry: &Registry) -> Result<u8, String> {
             };
             let p = exec::plan(&g, &opts).map_err(|e| e.to_string())?;
             print!("{}", report::dot(&g, &p));
+            Ok(0)
+        }
+        Command::Serve {
+            graph,
+            port,
+            bind,
+            cache,
+            jobs,
+        } => {
+            let cache_dir = cache.unwrap_or_else(|| default_cache_dir(&graph));
+            vfxgraph_serve::serve(
+                vfxgraph_serve::ServeOptions {
+                    graph,
+                    cache_dir,
+                    bind,
+                    port,
+                    jobs,
+                },
+                vfxgraph_nodes::registry(),
+            )?;
             Ok(0)
         }
         Command::Cache { action } => cache_command(action),

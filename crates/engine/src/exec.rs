@@ -430,11 +430,7 @@ impl<'a> Common<'a> {
 
     /// The record folder of a node (per graph file and node id), relative to `records/`.
     fn record_dir(&self, node: usize) -> String {
-        let mut h = blake3::Hasher::new();
-        h.update(self.graph.file.to_string_lossy().as_bytes());
-        h.update(&[0]);
-        h.update(self.graph.nodes[node].id.as_bytes());
-        h.finalize().to_hex()[..32].to_string()
+        record_dir(self.graph, node)
     }
 
     fn meta_record_name(&self, node: usize) -> String {
@@ -1292,6 +1288,35 @@ where
     if let Err(e) = store.put_record(name, value) {
         tracing::warn!("cannot save rerun record: {e}");
     }
+}
+
+/// The record folder of `graph`'s node `node` (per graph file and node id), relative to the
+/// store's `records/`.
+fn record_dir(graph: &Graph, node: usize) -> String {
+    let mut h = blake3::Hasher::new();
+    h.update(graph.file.to_string_lossy().as_bytes());
+    h.update(&[0]);
+    h.update(graph.nodes[node].id.as_bytes());
+    h.finalize().to_hex()[..32].to_string()
+}
+
+/// The action entry of the last run that resolved node `node`'s instance at `frame` (`None`
+/// for a node that runs once), if that entry is still in the store: the outputs a viewer shows
+/// (`vfxgraph serve`). It is the last *run*'s, which a later edit of the graph may have made
+/// stale; [`plan`] says whether it still is the current one.
+pub fn last_run_entry(
+    graph: &Graph,
+    store: &Store,
+    node: usize,
+    frame: Option<i64>,
+) -> Option<ActionEntry> {
+    let dir = record_dir(graph, node);
+    let meta: NodeMeta = store.get_record(&format!("{dir}/node.json"))?;
+    if meta.node_type != graph.nodes[node].spec().name {
+        return None;
+    }
+    let rec: InstRecord = store.get_record(&format!("{dir}/{}.json", frame_key(frame)))?;
+    store.get_action(&Digest::from_hex(&rec.key)?)
 }
 
 /// The default cache folder for a graph file: `.vfxgraph/` beside it.

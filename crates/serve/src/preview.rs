@@ -1,0 +1,366 @@
+//! Artifact decoding for the viewers — the one module that knows the node catalog's artifact
+//! types. An output of the last run is found through the engine's rerun record
+//! ([`vfxgraph_engine::exec::last_run_entry`]), read from the store (verified) and decoded by
+//! the registry; images (`image`, a layer of `layers`) become 8-bit previews encoded here on
+//! the server, JSON-encoded artifacts (cameras, points, tracks, marks, reports) are passed on
+//! as they are stored.
+//!
+//! Previews: exposure (stops) times the linear value, then the sRGB transfer curve or a plain
+//! clamp (linear view), 8 bits per channel, encoded as PNG with fast compression (exact: the
+//! page reads pixels back from it) or JPEG (smaller, for scrubbing large plates). Decoded
+//! images and encoded previews are kept in small in-memory LRU caches, so scrubbing frames a
+//! second time costs no decode.
+
+use std::collections::VecDeque;
+use std::sync::{Arc, Mutex};
+
+use image::codecs::jpeg::JpegEncoder;
+use image::codecs::png::{CompressionType, FilterType, PngEncoder};
+use image::{ExtendedColorType, ImageEncoder};
+use vfxgraph_engine::artifact::DynArtifact;
+use vfxgraph_engine::exec::last_run_entry;
+use vfxgraph_engine::store::Store;
+use vfxgraph_engine::{Digest, Graph, Registry};
+use vfxgraph_imaging::color::linear_to_srgb8;
+use vfxgraph_imaging::Image;
+use vfxgraph_nodes::artifacts::ImageArt;
+
+use crate::safety::ApiError;
+
+/// Artifact types whose canonical encoding is JSON (served as they are stored).
+pub const JSON_TYPES: &[&str] = &[
+    "camera_path",
+    "camera",
+    "intrinsics",
+    "points2d",
+    "points3d",
+    "point_cloud",
+    "indices",
+    "report",
+    "tracks",
+    "marks",
+];
+
+/// Artifact types shown in the frame viewer.
+pub const IMAGE_TYPES: &[&str] = &["image", "layers"];
+
+/// A small LRU map (most recent at the back).
+struct Lru<V> {
+    cap: usize,
+    items: VecDeque<(String, V)>,
+}
+
+impl<V: Clone> Lru<V> {
+    fn new(cap: usize) -> Self {
+        Lru {
+            cap,
+            items: VecDeque::new(),
+        }
+    }
+    fn get(&mut self, key: &str) -> Option<V> {
+        let i = self.items.iter().position(|(k, _)| k == key)?;
+        let item = self.items.remove(i)?;
+        let v = item.1.clone();
+        self.items.push_back(item);
+        Some(v)
+    }
+    fn put(&mut self, key: String, v: V) {
+        self.items.retain(|(k, _)| *k != key);
+        self.items.push_back((key, v));
+        while self.items.len() > self.cap {
+            self.items.pop_front();
+        }
+    }
+}
+
+/// Decoded artifacts (by digest) and encoded previews (by digest and view settings).
+pub struct PreviewCache {
+    decoded: Mutex<Lru<Arc<dyn DynArtifact>>>,
+    encoded: Mutex<Lru<Arc<Vec<u8>>>>,
+}
+
+impl Default for PreviewCache {
+    fn default() -> Self {
+        PreviewCache {
+            decoded: Mutex::new(Lru::new(6)),
+            encoded: Mutex::new(Lru::new(512)),
+        }
+    }
+}
+
+/// How to show an image.
+#[derive(Clone, Debug)]
+pub struct View {
+    /// Exposure in stops (×2^stops before the transfer curve).
+    pub exposure: f32,
+    /// sRGB transfer curve (else a linear clamp).
+    pub srgb: bool,
+    /// JPEG instead of PNG.
+    pub jpeg: bool,
+}
+
+/// One stored output of the last run: its type and digest.
+pub struct Output {
+    /// Artifact type name.
+    pub ty: String,
+    /// Content digest.
+    pub digest: Digest,
+}
+
+/// Finds output `port` of node `node_id` at `frame` in the last run's entry.
+pub fn find_output(
+    graph: &Graph,
+    store: &Store,
+    node_id: &str,
+    port: &str,
+    frame: Option<i64>,
+) -> Result<Output, ApiError> {
+    let node = graph
+        .index_of(node_id)
+        .ok_or_else(|| ApiError::not_found(format!("no node `{node_id}` in the graph")))?;
+    let gn = &graph.nodes[node];
+    if !gn.spec().outputs.iter().any(|p| p.name == port) {
+        return Err(ApiError::not_found(format!(
+            "node `{node_id}` has no output `{port}`"
+        )));
+    }
+    let frame = if graph.instances_of(gn) > 1 || gn.per_frame {
+        let f = frame
+            .ok_or_else(|| ApiError::bad(format!("`{node_id}` is per-frame: give a frame")))?;
+        if !graph.frames.frames().contains(&f) {
+            return Err(ApiError::not_found(format!(
+                "frame {f} is not in the graph's range"
+            )));
+        }
+        Some(f)
+    } else {
+        None
+    };
+    let entry = last_run_entry(graph, store, node, frame).ok_or_else(|| {
+        ApiError::not_found(format!(
+            "`{node_id}`{} has no cached output yet (run the graph)",
+            frame.map(|f| format!(" frame {f}")).unwrap_or_default()
+        ))
+    })?;
+    let out = entry
+        .outputs
+        .iter()
+        .find(|o| o.port == port)
+        .ok_or_else(|| ApiError::not_found(format!("`{node_id}.{port}` was not stored")))?;
+    let digest = Digest::from_hex(&out.digest)
+        .ok_or_else(|| ApiError::internal("a corrupt digest in the cache entry"))?;
+    Ok(Output {
+        ty: out.ty.clone(),
+        digest,
+    })
+}
+
+impl PreviewCache {
+    /// The decoded artifact of `out` (verified read from the store).
+    pub fn artifact(
+        &self,
+        store: &Store,
+        registry: &Registry,
+        out: &Output,
+    ) -> Result<Arc<dyn DynArtifact>, ApiError> {
+        let key = out.digest.to_hex();
+        if let Some(a) = self
+            .decoded
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .get(&key)
+        {
+            return Ok(a);
+        }
+        let (ty, bytes) = store.get_object(&out.digest).ok_or_else(|| {
+            ApiError::not_found("the output's object is no longer in the cache (run again)")
+        })?;
+        let art = registry
+            .decode(&ty, &bytes)
+            .map_err(|e| ApiError::internal(format!("cannot decode the `{ty}` object: {e}")))?;
+        self.decoded
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .put(key, art.clone());
+        Ok(art)
+    }
+
+    /// The encoded preview of `out` (layer `layer` of a `layers` artifact).
+    pub fn preview(
+        &self,
+        store: &Store,
+        registry: &Registry,
+        out: &Output,
+        layer: Option<&str>,
+        view: &View,
+    ) -> Result<Arc<Vec<u8>>, ApiError> {
+        let key = format!(
+            "{}|{}|{}|{}|{}",
+            out.digest.to_hex(),
+            layer.unwrap_or(""),
+            view.exposure,
+            view.srgb,
+            view.jpeg
+        );
+        if let Some(b) = self
+            .encoded
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .get(&key)
+        {
+            return Ok(b);
+        }
+        let art = self.artifact(store, registry, out)?;
+        let img = image_of(art.as_ref(), layer)?;
+        let bytes = Arc::new(encode_preview(img, view)?);
+        self.encoded
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .put(key, bytes.clone());
+        Ok(bytes)
+    }
+}
+
+/// The layer names of an image artifact (`None` for a plain image).
+pub fn layer_names(art: &dyn DynArtifact) -> Option<Vec<String>> {
+    art.as_any()
+        .downcast_ref::<vfxgraph_nodes::shot::LayersArt>()
+        .map(|l| l.0.iter().map(|(n, _)| n.clone()).collect())
+}
+
+/// The image of an `image` artifact, or the named (default: first) layer of a `layers` one.
+pub fn image_of<'a>(art: &'a dyn DynArtifact, layer: Option<&str>) -> Result<&'a Image, ApiError> {
+    if let Some(i) = art.as_any().downcast_ref::<ImageArt>() {
+        return Ok(&i.0);
+    }
+    if let Some(l) = art
+        .as_any()
+        .downcast_ref::<vfxgraph_nodes::shot::LayersArt>()
+    {
+        let found = match layer {
+            Some(name) => l.0.iter().find(|(n, _)| n == name),
+            None => l.0.first(),
+        };
+        return found.map(|(_, img)| img).ok_or_else(|| {
+            ApiError::not_found(format!(
+                "no layer `{}` (layers: {})",
+                layer.unwrap_or(""),
+                l.0.iter()
+                    .map(|(n, _)| n.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ))
+        });
+    }
+    Err(ApiError::bad(format!(
+        "a `{}` is not an image",
+        art.type_name()
+    )))
+}
+
+/// 8-bit RGB (or grey) bytes of `img` under `view`.
+pub fn display_bytes(img: &Image, view: &View) -> (Vec<u8>, ExtendedColorType) {
+    let gain = 2f32.powf(view.exposure);
+    let to8 = |v: f32| -> u8 {
+        let v = v * gain;
+        if view.srgb {
+            linear_to_srgb8(v)
+        } else if v.is_nan() {
+            0
+        } else {
+            (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
+        }
+    };
+    let cc = img.color_channels();
+    let (out_c, ty) = if cc >= 3 {
+        (3, ExtendedColorType::Rgb8)
+    } else {
+        (1, ExtendedColorType::L8)
+    };
+    let mut out = Vec::with_capacity(img.width * img.height * out_c);
+    for px in img.data.chunks_exact(img.channels.max(1)) {
+        for &v in &px[..out_c] {
+            out.push(to8(v));
+        }
+    }
+    (out, ty)
+}
+
+/// Encodes the preview of `img`.
+pub fn encode_preview(img: &Image, view: &View) -> Result<Vec<u8>, ApiError> {
+    if img.width == 0 || img.height == 0 {
+        return Err(ApiError::bad("the image is empty"));
+    }
+    let (bytes, ty) = display_bytes(img, view);
+    let mut out = Vec::new();
+    let (w, h) = (img.width as u32, img.height as u32);
+    let r = if view.jpeg {
+        JpegEncoder::new_with_quality(&mut out, 90).write_image(&bytes, w, h, ty)
+    } else {
+        PngEncoder::new_with_quality(&mut out, CompressionType::Fast, FilterType::Sub)
+            .write_image(&bytes, w, h, ty)
+    };
+    r.map_err(|e| ApiError::internal(format!("cannot encode the preview: {e}")))?;
+    Ok(out)
+}
+
+/// The linear values of pixel (x, y), or a 400 outside the image.
+pub fn pixel(img: &Image, x: i64, y: i64) -> Result<Vec<f32>, ApiError> {
+    if x < 0 || y < 0 || x as usize >= img.width || y as usize >= img.height {
+        return Err(ApiError::bad(format!(
+            "pixel ({x}, {y}) is outside the {}×{} image",
+            img.width, img.height
+        )));
+    }
+    Ok(img.pixel(x as usize, y as usize).to_vec())
+}
+
+/// The stored JSON of a JSON-encoded artifact.
+pub fn json_bytes(art: &dyn DynArtifact) -> Result<Vec<u8>, ApiError> {
+    if !JSON_TYPES.contains(&art.type_name()) {
+        return Err(ApiError::bad(format!(
+            "a `{}` has no JSON form",
+            art.type_name()
+        )));
+    }
+    let mut out = Vec::new();
+    art.encode_into(&mut out);
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn exposure_and_transfer() {
+        let img = Image::from_vec(2, 1, 3, vec![0.25, 0.5, 1.0, 0.0, 2.0, f32::NAN]).unwrap();
+        let lin = View {
+            exposure: 0.0,
+            srgb: false,
+            jpeg: false,
+        };
+        let (b, _) = display_bytes(&img, &lin);
+        assert_eq!(b, vec![64, 128, 255, 0, 255, 0]);
+        let up = View {
+            exposure: 1.0,
+            ..lin.clone()
+        };
+        let (b, _) = display_bytes(&img, &up);
+        assert_eq!(&b[..3], &[128, 255, 255]);
+        let srgb = View { srgb: true, ..lin };
+        let (b, _) = display_bytes(&img, &srgb);
+        assert_eq!(b[0], linear_to_srgb8(0.25));
+        assert!(b[0] > 64, "sRGB lifts the mid-tones");
+        let png = encode_preview(&img, &srgb).unwrap();
+        assert_eq!(&png[1..4], b"PNG");
+    }
+
+    #[test]
+    fn pixel_bounds() {
+        let img = Image::from_vec(2, 1, 1, vec![0.5, 0.75]).unwrap();
+        assert_eq!(pixel(&img, 1, 0).unwrap(), vec![0.75]);
+        assert!(pixel(&img, 2, 0).is_err());
+        assert!(pixel(&img, -1, 0).is_err());
+    }
+}

@@ -1,0 +1,357 @@
+//! The HTTP API without a browser: the router answered in-process (tower `oneshot`). Refused
+//! requests (traversal, oversized bodies, malformed params and marks) get a 4xx and change
+//! nothing; a graph that does not load is served with its diagnostics; a run from the API
+//! stores outputs whose previews and pixels are served; the book's marks round-trip to its file.
+
+use std::path::Path;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use axum::body::Body;
+use axum::http::{Request, StatusCode};
+use http_body_util::BodyExt;
+use serde_json::{json, Value};
+use tower::ServiceExt;
+use vfxgraph_serve::{router, Studio};
+
+const GRAPH: &str = "version: 1
+frames: 1,2
+nodes:
+  plate:
+    type: read_image_sequence
+    params: {path: plate.%04d.pfm}
+  grade:
+    type: exposure
+    inputs: {image: plate.sequence}
+    params: {stops: 1}
+  marks:
+    type: read_marks
+    params: {path: marks.txt}
+";
+
+fn studio(dir: &Path, graph: &str) -> Arc<Studio> {
+    std::fs::write(dir.join("g.yaml"), graph).unwrap();
+    for f in [1, 2] {
+        let img = vfxgraph_imaging::Image::from_fn(4, 3, 3, |x, y, c| {
+            (x + 10 * y + 100 * c) as f32 / 1000.0 + f as f32
+        });
+        vfxgraph_imaging::write_image(&dir.join(format!("plate.{f:04}.pfm")), &img).unwrap();
+    }
+    std::fs::write(dir.join("marks.txt"), "Frame 1\nNpoints 1\n1 2\n\n").unwrap();
+    let s = Arc::new(Studio::open(
+        dir.join("g.yaml"),
+        dir.join(".vfxgraph"),
+        Arc::new(vfxgraph_nodes::registry()),
+        Some(1),
+    ));
+    s.refresh_plan();
+    s
+}
+
+async fn call(
+    s: &Arc<Studio>,
+    method: &str,
+    uri: &str,
+    body: Option<Vec<u8>>,
+) -> (StatusCode, Vec<u8>) {
+    let req = Request::builder()
+        .method(method)
+        .uri(uri)
+        .header("content-type", "application/json")
+        .body(body.map_or_else(Body::empty, Body::from))
+        .unwrap();
+    let resp = router(s.clone()).oneshot(req).await.unwrap();
+    let status = resp.status();
+    let bytes = resp
+        .into_body()
+        .collect()
+        .await
+        .unwrap()
+        .to_bytes()
+        .to_vec();
+    (status, bytes)
+}
+
+async fn get_json(s: &Arc<Studio>, uri: &str) -> (StatusCode, Value) {
+    let (st, b) = call(s, "GET", uri, None).await;
+    (st, serde_json::from_slice(&b).unwrap_or(Value::Null))
+}
+
+async fn post_json(s: &Arc<Studio>, uri: &str, v: Value) -> (StatusCode, Value) {
+    let (st, b) = call(s, "POST", uri, Some(v.to_string().into_bytes())).await;
+    (st, serde_json::from_slice(&b).unwrap_or(Value::Null))
+}
+
+#[tokio::test]
+async fn files_outside_the_roots_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = studio(dir.path(), GRAPH);
+    let (st, b) = call(&s, "GET", "/api/file?path=g.yaml", None).await;
+    assert_eq!(st, StatusCode::OK);
+    assert_eq!(b, GRAPH.as_bytes());
+    for bad in [
+        "/api/file?path=../g.yaml",
+        "/api/file?path=%2e%2e%2f%2e%2e%2fetc%2fpasswd",
+        "/api/file?path=/etc/passwd",
+        "/api/file?path=sub/../../x",
+    ] {
+        let (st, v) = get_json(&s, bad).await;
+        assert_eq!(st, StatusCode::FORBIDDEN, "{bad}: {v}");
+        assert!(v["error"].as_str().unwrap().contains("not allowed"), "{v}");
+    }
+    let (st, _) = get_json(&s, "/api/file?path=nothing.txt").await;
+    assert_eq!(st, StatusCode::NOT_FOUND);
+    let (st, _) = get_json(&s, "/api/file").await;
+    assert_eq!(st, StatusCode::BAD_REQUEST);
+    let (st, _) = get_json(&s, "/assets/..%2Fsrc%2Flib.rs").await;
+    assert_eq!(st, StatusCode::NOT_FOUND);
+}
+
+#[tokio::test]
+async fn oversized_and_malformed_bodies_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = studio(dir.path(), GRAPH);
+    let before = std::fs::read(dir.path().join("marks.txt")).unwrap();
+    let big = format!(
+        r#"{{"node": "marks", "marks": {{"frames": [{{"frame": 1, "points": [{}]}}]}}}}"#,
+        vec!["[1.0, 2.0]"; 40_000].join(",")
+    );
+    assert!(big.len() > vfxgraph_serve::safety::MAX_BODY);
+    let (st, _) = call(&s, "POST", "/api/marks", Some(big.into_bytes())).await;
+    assert_eq!(st, StatusCode::PAYLOAD_TOO_LARGE);
+    let (st, v) = call(&s, "POST", "/api/params", Some(b"{not json".to_vec())).await;
+    assert_eq!(
+        st,
+        StatusCode::BAD_REQUEST,
+        "{}",
+        String::from_utf8_lossy(&v)
+    );
+    // Marks that are not the book's form: refused, the file as it was.
+    for bad in [
+        json!({"node": "marks", "marks": {"frames": []}}),
+        json!({"node": "marks", "marks": {"frames": [
+            {"frame": 1, "points": [[1, 2]]}, {"frame": 2, "points": [[1, 2], [3, 4]]}]}}),
+        json!({"node": "marks", "marks": {"frames": [
+            {"frame": 1, "points": [[1, 2]]}, {"frame": 1, "points": [[3, 4]]}]}}),
+        json!({"node": "grade", "marks": {"frames": [{"frame": 1, "points": [[1, 2]]}]}}),
+        json!({"node": "marks", "marks": {"frames": [{"frame": -1, "points": [[1, 2]]}]}}),
+    ] {
+        let (st, v) = post_json(&s, "/api/marks", bad.clone()).await;
+        assert!(st.is_client_error(), "{bad}: {st} {v}");
+    }
+    assert_eq!(std::fs::read(dir.path().join("marks.txt")).unwrap(), before);
+}
+
+#[tokio::test]
+async fn bad_params_change_nothing_good_ones_replan() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = studio(dir.path(), GRAPH);
+    for (edit, want) in [
+        (
+            json!({"node": "nope", "param": "stops", "value": "1"}),
+            "no node",
+        ),
+        (
+            json!({"node": "grade", "param": "nope", "value": "1"}),
+            "no param",
+        ),
+        (
+            json!({"node": "grade", "param": "stops", "value": "[1, 2"}),
+            "rejected",
+        ),
+        (
+            json!({"node": "grade", "param": "stops", "value": "lots"}),
+            "rejected",
+        ),
+        (
+            json!({"node": "grade", "param": "stops", "value": "1\nx: 2"}),
+            "one line",
+        ),
+        (json!({"node": "grade"}), "bad request body"),
+    ] {
+        let (st, v) = post_json(&s, "/api/params", edit.clone()).await;
+        assert_eq!(st, StatusCode::BAD_REQUEST, "{edit}: {v}");
+        assert!(v["error"].as_str().unwrap().contains(want), "{edit}: {v}");
+        assert_eq!(s.snapshot()["sets"], json!([]));
+    }
+    let (st, v) = post_json(
+        &s,
+        "/api/params",
+        json!({"node": "grade", "param": "stops", "value": "2.5"}),
+    )
+    .await;
+    assert_eq!(st, StatusCode::OK, "{v}");
+    assert_eq!(v["sets"], json!(["grade.stops=2.5"]));
+    let grade = v["graph"]["nodes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|n| n["id"] == "grade")
+        .unwrap()
+        .clone();
+    let stops = grade["params"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|p| p["name"] == "stops")
+        .unwrap();
+    assert_eq!(stops["value"], "2.5");
+    // The graph file itself is never rewritten.
+    assert_eq!(
+        std::fs::read_to_string(dir.path().join("g.yaml")).unwrap(),
+        GRAPH
+    );
+}
+
+#[tokio::test]
+async fn a_broken_graph_is_served_with_its_diagnostics() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = studio(
+        dir.path(),
+        "version: 1\nnodes:\n  a:\n    type: no_such_node\n",
+    );
+    let (st, page) = call(&s, "GET", "/", None).await;
+    assert_eq!(st, StatusCode::OK);
+    assert!(String::from_utf8_lossy(&page).contains("vfxgraph studio"));
+    let (st, v) = get_json(&s, "/api/state").await;
+    assert_eq!(st, StatusCode::OK);
+    assert!(v["graph"].is_null());
+    let d = &v["diagnostics"][0];
+    let text = d["text"].as_str().unwrap();
+    assert!(text.contains("g.yaml:4:11"), "{text}");
+    assert!(text.contains("no_such_node"), "{text}");
+    let (st, _) = post_json(&s, "/api/run", json!({})).await;
+    assert_eq!(st, StatusCode::CONFLICT);
+}
+
+fn wait_idle(s: &Studio) {
+    let t0 = Instant::now();
+    while s.is_running() {
+        assert!(t0.elapsed() < Duration::from_secs(120), "the run hangs");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_run_serves_previews_pixels_and_events() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = studio(dir.path(), GRAPH);
+    let (st, v) = get_json(&s, "/api/image?node=grade&port=image&frame=1").await;
+    assert_eq!(st, StatusCode::NOT_FOUND, "no output before a run: {v}");
+    let mut rx = s.subscribe();
+    let (st, _) = post_json(&s, "/api/run", json!({})).await;
+    assert_eq!(st, StatusCode::ACCEPTED);
+    let s2 = s.clone();
+    tokio::task::spawn_blocking(move || wait_idle(&s2))
+        .await
+        .unwrap();
+    let mut kinds = vec![];
+    while let Ok(m) = rx.try_recv() {
+        let v: Value = serde_json::from_str(&m).unwrap();
+        kinds.push((v["kind"].as_str().unwrap().to_string(), v["node"].clone()));
+    }
+    assert!(
+        kinds.iter().any(|(k, n)| k == "started" && n == "grade"),
+        "{kinds:?}"
+    );
+    assert!(
+        kinds.iter().any(|(k, n)| k == "finished" && n == "grade"),
+        "{kinds:?}"
+    );
+    assert!(kinds.iter().any(|(k, _)| k == "run_done"), "{kinds:?}");
+
+    let (st, png) = call(
+        &s,
+        "GET",
+        "/api/image?node=grade&port=image&frame=2&srgb=false",
+        None,
+    )
+    .await;
+    assert_eq!(st, StatusCode::OK);
+    let img = vfxgraph_imaging::decode(&png, vfxgraph_imaging::Format::Png).unwrap();
+    assert_eq!((img.width, img.height), (4, 3));
+    let (st, v) = get_json(&s, "/api/pixel?node=grade&port=image&frame=2&x=3&y=2").await;
+    assert_eq!(st, StatusCode::OK, "{v}");
+    let want = [
+        (3 + 20) as f64 / 1000.0 + 2.0,
+        (3 + 20 + 100) as f64 / 1000.0 + 2.0,
+    ];
+    assert!(
+        (v["value"][0].as_f64().unwrap() - 2.0 * want[0]).abs() < 1e-5,
+        "{v}"
+    );
+    assert!(
+        (v["value"][1].as_f64().unwrap() - 2.0 * want[1]).abs() < 1e-5,
+        "{v}"
+    );
+    for (bad, code) in [
+        (
+            "/api/pixel?node=grade&port=image&frame=2&x=4&y=0",
+            StatusCode::BAD_REQUEST,
+        ),
+        (
+            "/api/pixel?node=grade&port=image&frame=9&x=0&y=0",
+            StatusCode::NOT_FOUND,
+        ),
+        (
+            "/api/image?node=grade&port=image&frame=1&exposure=nan",
+            StatusCode::BAD_REQUEST,
+        ),
+        (
+            "/api/image?node=grade&port=image&frame=1&exposure=1e9",
+            StatusCode::BAD_REQUEST,
+        ),
+        (
+            "/api/image?node=grade&port=image&frame=1&fmt=gif",
+            StatusCode::BAD_REQUEST,
+        ),
+        ("/api/image?node=grade&port=image", StatusCode::BAD_REQUEST),
+        (
+            "/api/image?node=zz&port=image&frame=1",
+            StatusCode::NOT_FOUND,
+        ),
+        (
+            "/api/image?node=grade&port=zz&frame=1",
+            StatusCode::NOT_FOUND,
+        ),
+        (
+            "/api/image?node=grade&port=image&frame=x",
+            StatusCode::BAD_REQUEST,
+        ),
+    ] {
+        let (st, v) = get_json(&s, bad).await;
+        assert_eq!(st, code, "{bad}: {v}");
+    }
+    let (st, v) = get_json(&s, "/api/artifact?node=marks&port=marks").await;
+    assert_eq!(st, StatusCode::OK);
+    assert_eq!(v["frames"][0]["frame"], 1);
+}
+
+#[tokio::test]
+async fn the_books_marks_are_written_as_the_books_file() {
+    let Some(book) = vfxgraph_testdata::path("book-demo/points2d.txt") else {
+        return;
+    };
+    let text = std::fs::read_to_string(&book).unwrap();
+    let marks = vfxgraph_vision::formats::marked_points::parse_marked_points(&text, "b").unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let s = studio(dir.path(), GRAPH);
+    let (st, v) = post_json(&s, "/api/marks", json!({"node": "marks", "marks": marks})).await;
+    assert_eq!(st, StatusCode::OK, "{v}");
+    assert_eq!(
+        std::fs::read_to_string(dir.path().join("marks.txt")).unwrap(),
+        text
+    );
+    let (st, v) = get_json(&s, "/api/marks?node=marks").await;
+    assert_eq!(st, StatusCode::OK);
+    assert_eq!(v["marks"], serde_json::to_value(&marks).unwrap());
+    // The saved file is read_marks' input: the plan reruns it.
+    let plan = &s.snapshot()["plan"];
+    let m = plan
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|p| p["id"] == "marks")
+        .unwrap();
+    assert_eq!(m["status"], "run", "{m}");
+}
