@@ -140,7 +140,6 @@ type Entry = (String, Vec<String>, Vec<String>);
 
 /// Every cached entry: (node, frame) → (key, output digests, written-file digests); every
 /// object it names must read back verified (a corrupt or half-written one would not).
-
 fn entries(cache: &Path) -> BTreeMap<(String, Option<i64>), Entry> {
     let store = Store::open(cache).unwrap();
     let mut out = BTreeMap::new();
