@@ -52,7 +52,11 @@ mod tests {
         let data = (0..w * h)
             .map(|i| {
                 let (x, y) = ((i % w) as f32, (i / w) as f32);
-                let step = if (i % w / 40).is_multiple_of(2) { 80.0 } else { 0.0 };
+                let step = if (i % w / 40).is_multiple_of(2) {
+                    80.0
+                } else {
+                    0.0
+                };
                 // Box–Muller.
                 let (u, v): (f32, f32) = (rng.random::<f32>().max(1e-12), rng.random());
                 let g = (-2.0 * u.ln()).sqrt() * (std::f32::consts::TAU * v).cos();
