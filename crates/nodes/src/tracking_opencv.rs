@@ -414,16 +414,30 @@ mod tests {
         })
     }
 
+    /// The same params (names, types, defaults) and ports, but for the default drift
+    /// correction: 1 px in `klt_track`, 0 here (OpenCV's tracker has none, and the node refuses
+    /// any other value).
     #[test]
     fn same_params_and_ports_as_klt_track() {
         let (a, b) = (spec("klt_track"), spec("klt_track_opencv"));
         let params = |s: &vfxgraph_engine::NodeSpec| -> Vec<String> {
             s.params
                 .iter()
-                .map(|p| format!("{} {:?} {:?}", p.name, p.ty, p.default))
+                .map(|p| match p.name {
+                    "drift_correction" => format!("{} {:?}", p.name, p.ty),
+                    _ => format!("{} {:?} {:?}", p.name, p.ty, p.default),
+                })
                 .collect()
         };
         assert_eq!(params(&a), params(&b));
+        let drift = |s: &vfxgraph_engine::NodeSpec| {
+            s.params
+                .iter()
+                .find(|p| p.name == "drift_correction")
+                .and_then(|p| p.default.clone())
+        };
+        assert_eq!(drift(&a), Some(ParamValue::Float(1.0)));
+        assert_eq!(drift(&b), Some(ParamValue::Float(0.0)));
         let ports = |v: &[vfxgraph_engine::PortSpec]| -> Vec<String> {
             v.iter()
                 .map(|p| format!("{} {} {}", p.name, p.ty, p.sequence))
