@@ -58,10 +58,7 @@ fn demo_shot_inserts_the_objects_into_the_embedded_plate() {
     );
     assert_eq!(frames(&truth), frames(&solved));
     let (sim, rot, cen) = common::aligned_errors(&solved, &truth);
-    let centres: Vec<Point3<f64>> = truth.frames.iter().map(|f| f.pose.center()).collect();
-    let length: f64 = centres.windows(2).map(|w| (w[1] - w[0]).norm()).sum();
-    let max_rot = rot.iter().cloned().fold(0.0, f64::max);
-    let max_cen = cen.iter().cloned().fold(0.0, f64::max) / length;
+    let (max_rot, max_cen, length) = common::worst_path_errors(&rot, &cen, &truth);
     eprintln!(
         "cameras after similarity alignment: rotation max {max_rot:.4}°, centre max {:.3} % of \
          the {length:.2}-unit path",

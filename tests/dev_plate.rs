@@ -11,7 +11,6 @@
 
 mod common;
 
-use nalgebra::Point3;
 use vfxgraph_vision::formats::{read_json, CameraPath};
 
 const ROTATION_BOUND_DEG: f64 = 0.1;
@@ -40,10 +39,7 @@ fn the_default_graph_solves_the_grainy_blender_plate() {
     );
     assert_eq!(frames(&truth), frames(&solved));
     let (_, rot, cen) = common::aligned_errors(&solved, &truth);
-    let centres: Vec<Point3<f64>> = truth.frames.iter().map(|f| f.pose.center()).collect();
-    let length: f64 = centres.windows(2).map(|w| (w[1] - w[0]).norm()).sum();
-    let max_rot = rot.iter().cloned().fold(0.0, f64::max);
-    let max_cen = cen.iter().cloned().fold(0.0, f64::max) / length;
+    let (max_rot, max_cen, length) = common::worst_path_errors(&rot, &cen, &truth);
     eprintln!(
         "blender_plate_dev/pinhole with the defaults: rotation max {max_rot:.4}°, centre max \
          {:.3} % of the {length:.2} m path",

@@ -78,7 +78,8 @@ start_munge() {
 stop_slurm() {
   for d in slurmd slurmctld; do
     if alive "$dir/$d.pid"; then
-      kill "$(cat "$dir/$d.pid")"
+      # The daemon may remove its pid file between the check and the read.
+      kill "$(cat "$dir/$d.pid" 2>/dev/null)" 2>/dev/null || true
       for _ in $(seq 50); do alive "$dir/$d.pid" || break; sleep 0.1; done
     fi
     rm -f "$dir/$d.pid"

@@ -53,6 +53,21 @@ pub fn aligned_errors(
     vfxgraph_vision::camera_path::aligned_pose_errors(&poses(solved), &poses(truth)).unwrap()
 }
 
+/// The worst errors of [`aligned_errors`]: rotation (°) and camera centre as a fraction of the
+/// true path's length, with that length (true units).
+pub fn worst_path_errors(
+    rot: &[f64],
+    cen: &[f64],
+    truth: &vfxgraph_vision::formats::CameraPath,
+) -> (f64, f64, f64) {
+    let centres: Vec<nalgebra::Point3<f64>> =
+        truth.frames.iter().map(|f| f.pose.center()).collect();
+    let length: f64 = centres.windows(2).map(|w| (w[1] - w[0]).norm()).sum();
+    let max_rot = rot.iter().cloned().fold(0.0, f64::max);
+    let max_cen = cen.iter().cloned().fold(0.0, f64::max) / length;
+    (max_rot, max_cen, length)
+}
+
 /// The 3-D points of a `point_cloud_calibrate` report (`points`), mapped by `sim` (e.g. into
 /// the truth's frame).
 pub fn aligned_points(
