@@ -8,6 +8,8 @@
 //! The Slurm tests share one cluster (and one of them takes its partition down for a moment),
 //! so they run one at a time (`CLUSTER`).
 
+mod common;
+
 use std::collections::BTreeMap;
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -20,10 +22,6 @@ use vfxgraph_engine::store::Store;
 use vfxgraph_engine::Digest;
 
 static CLUSTER: Mutex<()> = Mutex::new(());
-
-fn repo() -> &'static Path {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-}
 
 fn ci() -> bool {
     std::env::var("CI").is_ok_and(|v| v == "true" || v == "1")
@@ -64,23 +62,7 @@ fn slurm_up() -> bool {
 
 /// `graphs/farm_shot.yaml` with its scene and dome copied into a fresh folder.
 fn shot(dir: &Path) -> PathBuf {
-    fs::create_dir_all(dir.join("g/scenes")).unwrap();
-    fs::create_dir_all(dir.join("g/data")).unwrap();
-    for f in ["plate.yaml", "cube.obj"] {
-        fs::copy(
-            repo().join("graphs/scenes").join(f),
-            dir.join("g/scenes").join(f),
-        )
-        .unwrap();
-    }
-    fs::copy(
-        repo().join("graphs/data/studio_small_03_1k.hdr"),
-        dir.join("g/data/studio_small_03_1k.hdr"),
-    )
-    .unwrap();
-    let g = dir.join("g/farm_shot.yaml");
-    fs::copy(repo().join("graphs/farm_shot.yaml"), &g).unwrap();
-    g
+    common::farm_shot_copy(dir)
 }
 
 /// `vfxgraph ARGS` in the graph's folder, with the cluster's config.

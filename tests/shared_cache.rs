@@ -5,6 +5,8 @@
 //! corrupt (every object of every entry reads back verified, every record and memo entry
 //! parses), every entry equals a single local run's, and `cache ls`, `du` and `gc` work.
 
+mod common;
+
 use std::collections::BTreeMap;
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -13,28 +15,9 @@ use std::process::{Child, Command};
 use vfxgraph_engine::store::Store;
 use vfxgraph_engine::Digest;
 
-fn repo() -> &'static Path {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-}
-
 /// `graphs/farm_shot.yaml` with its scene and dome copied into `dir`.
 fn shot(dir: &Path) -> PathBuf {
-    fs::create_dir_all(dir.join("g/scenes")).unwrap();
-    fs::create_dir_all(dir.join("g/data")).unwrap();
-    for f in ["plate.yaml", "cube.obj"] {
-        fs::copy(
-            repo().join("graphs/scenes").join(f),
-            dir.join("g/scenes").join(f),
-        )
-        .unwrap();
-    }
-    fs::copy(
-        repo().join("graphs/data/studio_small_03_1k.hdr"),
-        dir.join("g/data/studio_small_03_1k.hdr"),
-    )
-    .unwrap();
-    let g = dir.join("g/farm_shot.yaml");
-    fs::copy(repo().join("graphs/farm_shot.yaml"), &g).unwrap();
+    let g = common::farm_shot_copy(dir);
     // Files older than the memo's racy window, so the memo is written (and shared) too.
     let old = std::time::SystemTime::now() - std::time::Duration::from_secs(3600);
     for f in [

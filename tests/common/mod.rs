@@ -115,3 +115,26 @@ pub fn scratch_graphs(dir: &Path) -> std::path::PathBuf {
     copy_dir(&Path::new(env!("CARGO_MANIFEST_DIR")).join("graphs"), &g);
     g
 }
+
+/// `graphs/farm_shot.yaml` with its scene and dome copied into `dir/g/` (the render-farm
+/// tests' small shot); the copied graph's path.
+pub fn farm_shot_copy(dir: &Path) -> std::path::PathBuf {
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
+    std::fs::create_dir_all(dir.join("g/scenes")).unwrap();
+    std::fs::create_dir_all(dir.join("g/data")).unwrap();
+    for f in ["plate.yaml", "cube.obj"] {
+        std::fs::copy(
+            repo.join("graphs/scenes").join(f),
+            dir.join("g/scenes").join(f),
+        )
+        .unwrap();
+    }
+    std::fs::copy(
+        repo.join("graphs/data/studio_small_03_1k.hdr"),
+        dir.join("g/data/studio_small_03_1k.hdr"),
+    )
+    .unwrap();
+    let g = dir.join("g/farm_shot.yaml");
+    std::fs::copy(repo.join("graphs/farm_shot.yaml"), &g).unwrap();
+    g
+}
