@@ -9,14 +9,17 @@ use nalgebra::{Matrix3, Matrix3x4, Matrix4, Point2, Point3, Vector3};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Result, VisionError};
+use crate::lens::Distortion;
 
 /// Relative depth below which a point is said to lie on a camera's principal plane.
 const MIN_DEPTH: f64 = 1e-12;
 
-/// Intrinsic parameters K = [[f1, s, u0], [0, f2, v0], [0, 0, 1]] (book eq. 4.18), with the
-/// image size when known.
+/// Intrinsic parameters K = [[f1, s, u0], [0, f2, v0], [0, 0, 1]] (book eq. 4.18), the lens's
+/// distortion (an addition to the book's ideal pinhole, [`crate::lens`]) and the image size
+/// when known. A camera-frame point X maps to the pixel K·d(X.xy / X.z), d the distortion.
 ///
-/// JSON form: `{"K": [[..],[..],[..]], "width": W?, "height": H?}` (rows first).
+/// JSON form: `{"K": [[..],[..],[..]], "width": W?, "height": H?, "distortion": {..}?}` (rows
+/// first; `distortion` is absent for a pinhole, so a pinhole's JSON is the book's).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(try_from = "IntrinsicsJson", into = "IntrinsicsJson")]
 pub struct Intrinsics {
@@ -34,6 +37,8 @@ pub struct Intrinsics {
     pub width: Option<u32>,
     /// Image height in pixels, when known.
     pub height: Option<u32>,
+    /// The lens's distortion on normalized coordinates ([`Distortion::None`]: a pinhole).
+    pub distortion: Distortion,
 }
 
 impl Intrinsics {
@@ -47,6 +52,7 @@ impl Intrinsics {
             v0,
             width: None,
             height: None,
+            distortion: Distortion::None,
         }
     }
 
@@ -57,7 +63,28 @@ impl Intrinsics {
         self
     }
 
-    /// Check that every parameter is finite and both focal lengths are non-zero.
+    /// The same intrinsics with a lens distortion.
+    pub fn with_distortion(mut self, distortion: Distortion) -> Self {
+        self.distortion = distortion;
+        self
+    }
+
+    /// The same intrinsics as an ideal pinhole (K and size kept, no distortion).
+    pub fn pinhole(&self) -> Self {
+        Intrinsics {
+            distortion: Distortion::None,
+            ..self.clone()
+        }
+    }
+
+    /// Whether the lens is an ideal pinhole.
+    pub fn is_pinhole(&self) -> bool {
+        self.distortion.is_identity()
+    }
+
+    /// Check that every parameter is finite and both focal lengths are non-zero, and — when
+    /// the image size is known — that the distortion is invertible over the whole frame
+    /// ([`Distortion::check`] out to the farthest corner).
     pub fn validate(&self) -> Result<()> {
         let v = [self.f1, self.f2, self.s, self.u0, self.v0];
         if v.iter().any(|x| !x.is_finite()) || self.f1 == 0.0 || self.f2 == 0.0 {
@@ -65,7 +92,82 @@ impl Intrinsics {
                 "intrinsics must be finite with non-zero focal lengths: {v:?}"
             )));
         }
+        if !self.is_pinhole() {
+            if self.distortion.params().iter().any(|p| !p.is_finite()) {
+                return Err(VisionError::InvalidInput(format!(
+                    "the lens distortion has a non-finite coefficient: {:?}",
+                    self.distortion
+                )));
+            }
+            if let Some(r) = self.undistorted_corner_radius()? {
+                self.distortion.check(r)?;
+            }
+        }
         Ok(())
+    }
+
+    /// The largest undistorted normalized radius of the frame's corners (a little beyond), when
+    /// the image size is known; an error when the lens cannot be inverted at a corner.
+    pub fn undistorted_corner_radius(&self) -> Result<Option<f64>> {
+        let (Some(w), Some(h)) = (self.width, self.height) else {
+            return Ok(None);
+        };
+        let (w, h) = (w as f64, h as f64);
+        let mut r: f64 = 0.0;
+        for (x, y) in [
+            (-0.5, -0.5),
+            (w - 0.5, -0.5),
+            (-0.5, h - 0.5),
+            (w - 0.5, h - 0.5),
+        ] {
+            let p = self.normalized_of_pixel(&Point2::new(x, y)).map_err(|e| {
+                VisionError::InvalidInput(format!(
+                    "the {} lens cannot be inverted at the frame's corner ({x}, {y}): {e}",
+                    self.distortion.name()
+                ))
+            })?;
+            r = r.max((p[0] * p[0] + p[1] * p[1]).sqrt());
+        }
+        Ok(Some(r * 1.02))
+    }
+
+    /// The pixel where the lens images the undistorted normalized point `p` (= X.xy / X.z).
+    pub fn pixel_of_normalized(&self, p: [f64; 2]) -> Result<Point2<f64>> {
+        let q = self.distortion.distort(p)?;
+        Ok(Point2::new(
+            self.f1 * q[0] + self.s * q[1] + self.u0,
+            self.f2 * q[1] + self.v0,
+        ))
+    }
+
+    /// The undistorted normalized point (ray direction X.xy / X.z) of a pixel: K⁻¹ then the
+    /// inverse of the distortion.
+    pub fn normalized_of_pixel(&self, x: &Point2<f64>) -> Result<[f64; 2]> {
+        let q = self.k_inv() * Vector3::new(x.x, x.y, 1.0);
+        self.distortion.undistort([q.x, q.y])
+    }
+
+    /// The pixel an ideal pinhole with the same K would see where this lens images `x`
+    /// (undistortion in pixels; the identity for a pinhole).
+    pub fn undistort_pixel(&self, x: &Point2<f64>) -> Result<Point2<f64>> {
+        if self.is_pinhole() {
+            return Ok(*x);
+        }
+        let p = self.normalized_of_pixel(x)?;
+        Ok(Point2::new(
+            self.f1 * p[0] + self.s * p[1] + self.u0,
+            self.f2 * p[1] + self.v0,
+        ))
+    }
+
+    /// The pixel this lens images where an ideal pinhole with the same K sees `x`
+    /// (distortion in pixels; the inverse of [`Intrinsics::undistort_pixel`]).
+    pub fn distort_pixel(&self, x: &Point2<f64>) -> Result<Point2<f64>> {
+        if self.is_pinhole() {
+            return Ok(*x);
+        }
+        let p = self.k_inv() * Vector3::new(x.x, x.y, 1.0);
+        self.pixel_of_normalized([p.x, p.y])
     }
 
     /// The matrix K (the book's `calib_kmatrix_alloc`).
@@ -105,6 +207,7 @@ impl Intrinsics {
             v0: k[(1, 2)],
             width: None,
             height: None,
+            distortion: Distortion::None,
         })
     }
 
@@ -124,22 +227,26 @@ impl Intrinsics {
         )
     }
 
-    /// Normalized image coordinates K⁻¹x of a pixel (a ray direction with z = 1).
+    /// Normalized image coordinates K⁻¹x of a pixel (a ray direction with z = 1), ignoring the
+    /// distortion (see [`Intrinsics::normalized_of_pixel`] for a lens).
     pub fn unproject(&self, x: &Point2<f64>) -> Vector3<f64> {
         self.k_inv() * Vector3::new(x.x, x.y, 1.0)
     }
 
-    /// Pixel of a point given in camera coordinates (z > 0 in front).
+    /// Pixel of a point given in camera coordinates (z > 0 in front), through the lens.
     pub fn project_camera_point(&self, xc: &Vector3<f64>) -> Result<Point2<f64>> {
         if xc.z.abs() <= MIN_DEPTH * xc.norm().max(1.0) {
             return Err(VisionError::PointsAtInfinity);
         }
         let x = xc.x / xc.z;
         let y = xc.y / xc.z;
-        Ok(Point2::new(
-            self.f1 * x + self.s * y + self.u0,
-            self.f2 * y + self.v0,
-        ))
+        if self.is_pinhole() {
+            return Ok(Point2::new(
+                self.f1 * x + self.s * y + self.u0,
+                self.f2 * y + self.v0,
+            ));
+        }
+        self.pixel_of_normalized([x, y])
     }
 }
 
@@ -365,6 +472,8 @@ struct IntrinsicsJson {
     width: Option<u32>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     height: Option<u32>,
+    #[serde(default, skip_serializing_if = "Distortion::is_identity")]
+    distortion: Distortion,
 }
 
 impl From<Intrinsics> for IntrinsicsJson {
@@ -373,6 +482,7 @@ impl From<Intrinsics> for IntrinsicsJson {
             k: rows(&k.k()),
             width: k.width,
             height: k.height,
+            distortion: k.distortion,
         }
     }
 }
@@ -383,6 +493,7 @@ impl TryFrom<IntrinsicsJson> for Intrinsics {
         let mut k = Intrinsics::from_k(&from_rows(&j.k))?;
         k.width = j.width;
         k.height = j.height;
+        k.distortion = j.distortion;
         Ok(k)
     }
 }
@@ -423,6 +534,8 @@ struct CameraJson {
     width: Option<u32>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     height: Option<u32>,
+    #[serde(default, skip_serializing_if = "Distortion::is_identity")]
+    distortion: Distortion,
 }
 
 impl From<Camera> for CameraJson {
@@ -433,6 +546,7 @@ impl From<Camera> for CameraJson {
             t: [c.pose.t.x, c.pose.t.y, c.pose.t.z],
             width: c.intrinsics.width,
             height: c.intrinsics.height,
+            distortion: c.intrinsics.distortion,
         }
     }
 }
@@ -444,6 +558,7 @@ impl TryFrom<CameraJson> for Camera {
             k: j.k,
             width: j.width,
             height: j.height,
+            distortion: j.distortion,
         })?;
         Ok(Camera {
             intrinsics,
@@ -466,6 +581,7 @@ mod tests {
             v0: 240.0,
             width: Some(640),
             height: Some(480),
+            distortion: crate::lens::Distortion::None,
         };
         Camera::new(
             k,

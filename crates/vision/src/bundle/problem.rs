@@ -27,6 +27,48 @@ pub enum CameraModel {
     /// predicted = f·(1 + k1‖p‖² + k2‖p‖⁴)·p, pixels centred on the principal point with y up,
     /// camera looking down −z. Parameters `[f, k1, k2]`.
     Bal,
+    /// The project's pinhole frame seen through a radial lens ([`crate::lens`]): with
+    /// p = (X/Z, Y/Z) and q = d(p) the lens's distorted point, the pixel is
+    /// `(f·qx + skew·qy + cx, aspect·f·qy + cy)`. Parameters `[f, k1, k2]`: the focal length and
+    /// the first two radial coefficients of `lens` (Brown–Conrady's k1, k2 with its k3, p1, p2
+    /// held; or the division model's k1, k2), the principal point held. This is what a
+    /// matchmove with an unknown lens refines, as Blender's and libmv's camera solvers do.
+    Radial {
+        /// fy / fx, held constant.
+        aspect: f64,
+        /// K[0][1], held constant.
+        skew: f64,
+        /// Principal point, held constant.
+        cx: f64,
+        /// Principal point, held constant.
+        cy: f64,
+        /// The lens model; its k1, k2 are replaced by the block's parameters, the rest held.
+        lens: crate::lens::Distortion,
+    },
+}
+
+impl CameraModel {
+    /// The lens of a [`CameraModel::Radial`] block with its radial coefficients set to
+    /// `k1`, `k2` (the identity for the other models).
+    pub fn lens_with(&self, k1: f64, k2: f64) -> crate::lens::Distortion {
+        use crate::lens::Distortion;
+        match *self {
+            CameraModel::Radial { lens, .. } => match lens {
+                Distortion::None => Distortion::BrownConrady {
+                    k1,
+                    k2,
+                    k3: 0.0,
+                    p1: 0.0,
+                    p2: 0.0,
+                },
+                Distortion::BrownConrady { k3, p1, p2, .. } => {
+                    Distortion::BrownConrady { k1, k2, k3, p1, p2 }
+                }
+                Distortion::Division { .. } => Distortion::Division { k1, k2 },
+            },
+            _ => Distortion::None,
+        }
+    }
 }
 
 /// An intrinsics parameter block: a camera model and its three parameters.
@@ -38,6 +80,8 @@ pub struct Intrinsics {
     pub params: [f64; 3],
     /// Held constant during the solve.
     pub fixed: bool,
+    /// Parameters held constant when the block is free (e.g. k2 of a k1-only lens solve).
+    pub held: [bool; 3],
 }
 
 impl Intrinsics {
@@ -50,6 +94,7 @@ impl Intrinsics {
             },
             params: [f, cx, cy],
             fixed,
+            held: [false; 3],
         }
     }
 
@@ -59,6 +104,38 @@ impl Intrinsics {
             model: CameraModel::Bal,
             params: [f, k1, k2],
             fixed,
+            held: [false; 3],
+        }
+    }
+
+    /// A [`CameraModel::Radial`] block `[f, k1, k2]` of a camera with principal point
+    /// `(cx, cy)`, square pixels and zero skew.
+    pub fn radial(f: f64, cx: f64, cy: f64, lens: crate::lens::Distortion) -> Self {
+        let (k1, k2) = match lens {
+            crate::lens::Distortion::None => (0.0, 0.0),
+            crate::lens::Distortion::BrownConrady { k1, k2, .. }
+            | crate::lens::Distortion::Division { k1, k2 } => (k1, k2),
+        };
+        Intrinsics {
+            model: CameraModel::Radial {
+                aspect: 1.0,
+                skew: 0.0,
+                cx,
+                cy,
+                lens,
+            },
+            params: [f, k1, k2],
+            fixed: false,
+            held: [false; 3],
+        }
+    }
+
+    /// Number of parameters the solve changes (0 when fixed).
+    pub fn num_free(&self) -> usize {
+        if self.fixed {
+            0
+        } else {
+            self.held.iter().filter(|h| !**h).count()
         }
     }
 }
@@ -161,6 +238,16 @@ impl Problem {
             let consts_ok = match k.model {
                 CameraModel::Pinhole { aspect, skew } => aspect.is_finite() && skew.is_finite(),
                 CameraModel::Bal => true,
+                CameraModel::Radial {
+                    aspect,
+                    skew,
+                    cx,
+                    cy,
+                    lens,
+                } => {
+                    [aspect, skew, cx, cy].iter().all(|v| v.is_finite())
+                        && lens.params().iter().all(|v| v.is_finite())
+                }
             };
             if !consts_ok || k.params.iter().any(|p| !p.is_finite()) {
                 return Err(BundleError::NonFinite {
@@ -219,7 +306,7 @@ impl Problem {
             .filter(|(c, _)| !c.fixed)
             .map(|(_, m)| m.iter().filter(|f| !**f).count())
             .sum();
-        let intr = self.intrinsics.iter().filter(|k| !k.fixed).count() * 3;
+        let intr: usize = self.intrinsics.iter().map(Intrinsics::num_free).sum();
         let pts = self.points.iter().filter(|p| !p.fixed).count() * 3;
         poses + intr + pts
     }

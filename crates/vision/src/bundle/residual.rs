@@ -47,7 +47,83 @@ fn project_camera_frame(k: &Intrinsics, p: &Vector3<f64>) -> Vector2<f64> {
             let d = 1.0 + r2 * (k1 + k2 * r2);
             Vector2::new(f * d * px, f * d * py)
         }
+        CameraModel::Radial { .. } => radial(k, p).0,
     }
+}
+
+/// The [`CameraModel::Radial`] projection of a camera-frame point P with
+/// `(pixel, ∂pixel/∂P, ∂pixel/∂[f, k1, k2])`. Brown–Conrady in closed form; the division
+/// model through [`crate::lens::Distortion`]'s Newton inverse and implicit-function Jacobians
+/// (a point where it does not converge projects to NaN, which the solver's step rejects).
+fn radial(k: &Intrinsics, p: &Vector3<f64>) -> (Vector2<f64>, Matrix2x3<f64>, Matrix2x3<f64>) {
+    let CameraModel::Radial {
+        aspect,
+        skew,
+        cx,
+        cy,
+        lens,
+    } = k.model
+    else {
+        unreachable!("radial() is called on Radial blocks only")
+    };
+    let [f, k1, k2] = k.params;
+    let iz = 1.0 / p.z;
+    let (x, y) = (p.x * iz, p.y * iz);
+    let dn = Matrix2x3::new(iz, 0.0, -x * iz, 0.0, iz, -y * iz);
+    // q = d(x, y), ∂q/∂(x, y) and ∂q/∂(k1, k2).
+    let (q, jq, jk) = match lens {
+        crate::lens::Distortion::Division { .. } => {
+            let d = crate::lens::Distortion::Division { k1, k2 };
+            match (
+                d.distort([x, y]),
+                d.jacobian_point([x, y]),
+                d.jacobian_params([x, y]),
+            ) {
+                (Ok(q), Ok(jq), Ok(jk)) => (
+                    q,
+                    jq,
+                    nalgebra::Matrix2::new(jk[(0, 0)], jk[(0, 1)], jk[(1, 0)], jk[(1, 1)]),
+                ),
+                _ => {
+                    let nan = Vector2::new(f64::NAN, f64::NAN);
+                    return (nan, Matrix2x3::zeros(), Matrix2x3::zeros());
+                }
+            }
+        }
+        _ => {
+            let (k3, p1, p2) = match lens {
+                crate::lens::Distortion::BrownConrady { k3, p1, p2, .. } => (k3, p1, p2),
+                _ => (0.0, 0.0, 0.0),
+            };
+            let r2 = x * x + y * y;
+            let rho = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3));
+            let drho = k1 + r2 * (2.0 * k2 + 3.0 * k3 * r2); // ∂ρ/∂r²
+            let q = [
+                rho * x + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x),
+                rho * y + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y,
+            ];
+            let jq = nalgebra::Matrix2::new(
+                rho + 2.0 * drho * x * x + 2.0 * p1 * y + 6.0 * p2 * x,
+                2.0 * drho * x * y + 2.0 * p1 * x + 2.0 * p2 * y,
+                2.0 * drho * x * y + 2.0 * p1 * x + 2.0 * p2 * y,
+                rho + 2.0 * drho * y * y + 6.0 * p1 * y + 2.0 * p2 * x,
+            );
+            let jk = nalgebra::Matrix2::new(r2 * x, r2 * r2 * x, r2 * y, r2 * r2 * y);
+            (q, jq, jk)
+        }
+    };
+    let a = nalgebra::Matrix2::new(f, skew, 0.0, aspect * f);
+    let pred = Vector2::new(f * q[0] + skew * q[1] + cx, aspect * f * q[1] + cy);
+    let ak = a * jk;
+    let dk = Matrix2x3::new(
+        q[0],
+        ak[(0, 0)],
+        ak[(0, 1)],
+        aspect * q[1],
+        ak[(1, 0)],
+        ak[(1, 1)],
+    );
+    (pred, a * jq * dn, dk)
 }
 
 /// Predicted pixel with its analytic Jacobians: `(prediction, ∂/∂[ω,t,k], ∂/∂X)`.
@@ -112,6 +188,7 @@ pub fn project_with_jacobians_rj(
                 );
                 (pred, a * dp, dk)
             }
+            CameraModel::Radial { .. } => radial(k, &p),
         };
     let d_omega: Matrix2x3<f64> = d_pred_d_p * d_rx_d_omega;
     let d_x: Matrix2x3<f64> = d_pred_d_p * r;
@@ -127,6 +204,12 @@ mod tests {
     use super::*;
 
     fn check(k: Intrinsics, omega: Vector3<f64>, t: Vector3<f64>, x: Vector3<f64>) {
+        check_tol(k, omega, t, x, 1e-6)
+    }
+
+    /// `tol`: relative agreement required (the division model's Newton inverse converges to
+    /// 1e-12, which central differences of step 1e-8 amplify to ~1e-5).
+    fn check_tol(k: Intrinsics, omega: Vector3<f64>, t: Vector3<f64>, x: Vector3<f64>, tol: f64) {
         let (pred, jc, jx) = project_with_jacobians(&k, &omega, &t, &x);
         assert!((pred - project(&k, &omega, &t, &x)).norm() < 1e-12);
         let f = |v: &[f64; 12]| {
@@ -167,7 +250,7 @@ mod tests {
             } else {
                 jx.column(i - 9).into_owned()
             };
-            let tol = 1e-6 * (1.0 + an.norm());
+            let tol = tol * (1.0 + an.norm());
             assert!((fd - an).norm() < tol, "param {i}: fd {fd} analytic {an}");
         }
     }
@@ -181,6 +264,7 @@ mod tests {
             },
             params: [800.0, 320.0, 240.0],
             fixed: false,
+            held: [false; 3],
         };
         check(
             k,
@@ -193,6 +277,67 @@ mod tests {
             Vector3::zeros(),
             Vector3::new(0.0, 0.0, 3.0),
             Vector3::new(-0.5, 0.4, 2.0),
+        );
+    }
+
+    #[test]
+    fn radial_jacobians_match_finite_differences() {
+        use crate::lens::Distortion;
+        for lens in [
+            Distortion::BrownConrady {
+                k1: -0.16,
+                k2: 0.045,
+                k3: 0.01,
+                p1: 0.0008,
+                p2: -0.0005,
+            },
+            Distortion::Division { k1: -0.1, k2: 0.01 },
+        ] {
+            let tol = if matches!(lens, Distortion::Division { .. }) {
+                1e-4
+            } else {
+                1e-6
+            };
+            let mut k = Intrinsics::radial(920.0, 479.5, 269.5, lens);
+            if let CameraModel::Radial { aspect, skew, .. } = &mut k.model {
+                *aspect = 1.02;
+                *skew = 0.3;
+            }
+            check_tol(
+                k,
+                Vector3::new(0.1, -0.3, 0.2),
+                Vector3::new(0.2, 0.1, 4.0),
+                Vector3::new(0.9, -0.6, 1.0),
+                tol,
+            );
+            check_tol(
+                k,
+                Vector3::zeros(),
+                Vector3::new(0.0, 0.0, 3.0),
+                Vector3::new(-0.5, 0.4, 2.0),
+                tol,
+            );
+        }
+    }
+
+    #[test]
+    fn radial_projection_is_the_lens_of_the_camera_model() {
+        // The bundle block and the camera type project through the same lens.
+        let lens = crate::lens::Distortion::BrownConrady {
+            k1: -0.16,
+            k2: 0.045,
+            k3: 0.0,
+            p1: 0.0008,
+            p2: -0.0005,
+        };
+        let k = Intrinsics::radial(920.0, 479.5, 269.5, lens);
+        let cam = crate::camera::Intrinsics::new(920.0, 920.0, 479.5, 269.5).with_distortion(lens);
+        let x = Vector3::new(0.7, -0.45, 1.3);
+        let a = project(&k, &Vector3::zeros(), &Vector3::zeros(), &x);
+        let b = cam.project_camera_point(&x).unwrap();
+        assert!(
+            (a.x - b.x).abs() < 1e-9 && (a.y - b.y).abs() < 1e-9,
+            "{a} vs {b}"
         );
     }
 

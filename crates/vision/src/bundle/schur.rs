@@ -120,6 +120,7 @@ impl Structure {
             if exclusive {
                 for u in 6..9 {
                     cols[d] = u as u8;
+                    mask[d] = problem.intrinsics[k].held[u - 6];
                     d += 1;
                 }
             }
@@ -141,7 +142,8 @@ impl Structure {
                 });
                 fblock_dim.push(3);
                 fblock_cols.push([6, 7, 8, 0, 0, 0, 0, 0, 0]);
-                fblock_mask.push([false; 9]);
+                let h = problem.intrinsics[k].held;
+                fblock_mask.push([h[0], h[1], h[2], false, false, false, false, false, false]);
             }
         }
         let mut fblock_offset = Vec::with_capacity(fblocks.len());

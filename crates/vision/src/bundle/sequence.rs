@@ -60,6 +60,7 @@ pub fn adjust_sequence(
         },
         params: [k.f1, k.u0, k.v0],
         fixed: !refine_intrinsics,
+        held: [false; 3],
     };
     let cameras: Vec<CameraPose> = path
         .frames

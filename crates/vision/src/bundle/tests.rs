@@ -305,6 +305,7 @@ fn model_house() -> Problem {
             },
             params: [k[(0, 0)], k[(0, 2)], k[(1, 2)]],
             fixed: true,
+            held: [false; 3],
         });
         cameras.push(CameraPose {
             rotation: matrix_to_angle_axis(&r),

@@ -63,6 +63,7 @@ pub fn factor_camera(p: &Matrix3x4<f64>) -> Result<Camera> {
         v0,
         width: None,
         height: None,
+        distortion: crate::lens::Distortion::None,
     };
     Ok(Camera::new(k, r, Vector3::new(t1, t2, t3)))
 }

@@ -64,6 +64,7 @@ mod tests {
             v0: 359.5,
             width: None,
             height: None,
+            distortion: crate::lens::Distortion::None,
         };
         let back = parse_intrinsics(&format_intrinsics(&k), "k.txt").unwrap();
         assert_eq!(back, k);

@@ -568,6 +568,7 @@ pub(crate) fn bundle_adjust_indexed(
             },
             params: [k.f1, k.u0, k.v0],
             fixed: true,
+            held: [false; 3],
         }],
         points: pts,
         observations,
