@@ -9,7 +9,8 @@ use vfxgraph_engine::{
 use vfxgraph_params::{Choice, Options};
 use vfxgraph_vision::formats;
 use vfxgraph_vision::matchmove::{
-    adjust_path, matchmove, relax_path, GlobalOptions, MatchmoveOptions, RelaxOptions, Solve,
+    adjust_path, matchmove_with_lens, relax_path, GlobalOptions, MatchmoveOptions, RelaxOptions,
+    Solve,
 };
 
 use crate::artifacts::{CameraPathArt, IntrinsicsArt, PointCloudArt, ReportArt};
@@ -72,6 +73,22 @@ impl Default for WriteCamerasParams {
 }
 
 fn solve_node(name: &'static str, doc: &'static str, cameras_in: bool) -> NodeSpec {
+    let intrinsics = PortSpec::one(
+        "intrinsics",
+        IntrinsicsArt::NAME,
+        "K, shared by every frame",
+    );
+    let intrinsics = if name == "matchmove" {
+        PortSpec::one(
+            "intrinsics",
+            IntrinsicsArt::NAME,
+            "K and the lens shared by every frame: exact, or a start (focal: refine); optional \
+             with focal: unknown and the image size",
+        )
+        .optional()
+    } else {
+        intrinsics
+    };
     let spec = NodeSpec::new(name, doc)
         .mode(Mode::Once)
         .input(PortSpec::one(
@@ -79,11 +96,7 @@ fn solve_node(name: &'static str, doc: &'static str, cameras_in: bool) -> NodeSp
             TracksArt::NAME,
             "the feature tracks",
         ))
-        .input(PortSpec::one(
-            "intrinsics",
-            IntrinsicsArt::NAME,
-            "K, shared by every frame",
-        ));
+        .input(intrinsics);
     let spec = if cameras_in {
         spec.input(PortSpec::one(
             "cameras",
@@ -125,8 +138,9 @@ fn run_matchmove(ctx: &mut Context<'_>) -> Result<(), NodeError> {
         ..ctx.options()?
     };
     let tracks = &ctx.input::<TracksArt>("tracks")?.0;
-    let k = &ctx.input::<IntrinsicsArt>("intrinsics")?.0;
-    let solve = matchmove(tracks, k, &o, &|stage, done, total| {
+    let k = ctx.input_opt::<IntrinsicsArt>("intrinsics")?.map(|k| &k.0);
+    let k = o.lens.initial_intrinsics(k)?;
+    let solve = matchmove_with_lens(tracks, &k, &o.lens, &o, &|stage, done, total| {
         // Fragments are most of the work; the global adjustment the rest.
         let f = if stage == "fragments" {
             0.7 * done as f32 / total.max(1) as f32

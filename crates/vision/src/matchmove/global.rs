@@ -190,11 +190,54 @@ pub fn global_bundle_adjust(
             "global bundle adjustment thresholds must be positive".into(),
         ));
     }
+    global_adjust(tracks, tracks, k, poses, options, None).map(|(p, x, _)| (p, x))
+}
+
+/// [`global_bundle_adjust`] with the lens refined: the block `[f, k1, k2]` of
+/// [`crate::bundle::CameraModel::Radial`] (with `k`'s principal point and lens model, `held`
+/// flags for the parameters that stay) is free with every camera and point. Triangulation and
+/// outlier marking work on the tracks undistorted by the current lens; the adjustment on the
+/// observed (distorted) pixels. Returns the poses, the points and the solved intrinsics.
+pub fn global_lens_adjust(
+    tracks: &Tracks,
+    k: &Intrinsics,
+    poses: &[Option<Pose>],
+    options: &GlobalOptions,
+    held: [bool; 3],
+) -> Result<(super::Poses, super::TrackPoints, Intrinsics)> {
+    let und = super::lens_solve::undistort_tracks(tracks, k)?;
+    global_adjust(tracks, &und, k, poses, options, Some(held))
+}
+
+/// The rounds of [`global_bundle_adjust`]; with `lens` (held flags), the lens block is free and
+/// `und` (the tracks undistorted by the current lens) is re-made after every round.
+fn global_adjust(
+    tracks: &Tracks,
+    und: &Tracks,
+    k: &Intrinsics,
+    poses: &[Option<Pose>],
+    options: &GlobalOptions,
+    lens: Option<[bool; 3]>,
+) -> Result<(super::Poses, super::TrackPoints, Intrinsics)> {
+    if options.thresholds.iter().any(|t| !(*t > 0.0)) || !(options.triangulation_tolerance > 0.0) {
+        return Err(VisionError::InvalidInput(
+            "global bundle adjustment thresholds must be positive".into(),
+        ));
+    }
+    let mut k = k.clone();
+    let mut und = std::borrow::Cow::Borrowed(und);
+    let pin = |k: &Intrinsics| {
+        if lens.is_some() {
+            k.pinhole()
+        } else {
+            k.clone()
+        }
+    };
     let mut poses = poses.to_vec();
     let none = vec![None; tracks.tracks.len()];
     let (mut points, mut flags) = triangulate_all(
-        tracks,
-        k,
+        &und,
+        &pin(&k),
         &poses,
         &none,
         options.triangulation_tolerance,
@@ -205,8 +248,8 @@ pub fn global_bundle_adjust(
     for (round, &threshold) in thresholds.iter().enumerate() {
         if round > 0 {
             let r = triangulate_all(
-                tracks,
-                k,
+                &und,
+                &pin(&k),
                 &poses,
                 &points,
                 threshold,
@@ -216,15 +259,32 @@ pub fn global_bundle_adjust(
             flags = r.1;
         }
         let keep = |ti: usize, f: usize| flags[ti][f - tracks.tracks[ti].first];
-        bundle_adjust_indexed(
-            tracks,
-            k,
-            &mut poses,
-            &mut points,
-            &keep,
-            options.loss(),
-            options.max_iterations,
-        )?;
+        match lens {
+            None => {
+                bundle_adjust_indexed(
+                    tracks,
+                    &k,
+                    &mut poses,
+                    &mut points,
+                    &keep,
+                    options.loss(),
+                    options.max_iterations,
+                )?;
+            }
+            Some(held) => {
+                k = super::bundle_adjust_lens(
+                    tracks,
+                    &k,
+                    held,
+                    &mut poses,
+                    &mut points,
+                    &keep,
+                    options.loss(),
+                    options.max_iterations,
+                )?;
+                und = std::borrow::Cow::Owned(super::lens_solve::undistort_tracks(tracks, &k)?);
+            }
+        }
     }
-    Ok((poses, points))
+    Ok((poses, points, k))
 }

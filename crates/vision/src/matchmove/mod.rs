@@ -24,6 +24,7 @@ pub mod fragment;
 pub mod fragments;
 pub mod global;
 pub mod junction;
+pub mod lens_solve;
 pub mod pair;
 pub mod relax;
 pub mod report;
@@ -46,6 +47,9 @@ pub use fragment::{solve_fragment, FragmentSolution, RefineOptions};
 pub use fragments::{split_fragments, Fragment, FragmentOptions};
 pub use global::{global_bundle_adjust, GlobalOptions};
 pub use junction::{join_fragments, ScaleOptions};
+pub use lens_solve::{
+    estimate_focal, matchmove_with_lens, undistort_tracks, DistortionMode, FocalMode, LensOptions,
+};
 pub use pair::PairOptions;
 pub use relax::{relax, RelaxOptions};
 pub use report::{SolveReport, StageTime};
@@ -79,6 +83,10 @@ pub struct MatchmoveOptions {
     /// Not in the book; `None` skips it.
     #[param(toggle = "global_adjust")]
     pub global: Option<GlobalOptions>,
+    /// The lens: what of the focal length and distortion is solved ([`matchmove_with_lens`];
+    /// [`matchmove`] itself ignores it and takes K as exact and the tracks as a pinhole's).
+    #[param(flatten)]
+    pub lens: LensOptions,
     /// Seed of every random choice (RANSAC samples); each fragment derives its own stream.
     #[param(skip)]
     pub seed: u64,
@@ -96,6 +104,7 @@ impl Default for MatchmoveOptions {
             refine: RefineOptions::default(),
             scale: ScaleOptions::default(),
             global: Some(GlobalOptions::default()),
+            lens: LensOptions::default(),
             seed: 0,
             score: true,
         }
@@ -513,7 +522,60 @@ pub(crate) fn bundle_adjust_indexed(
     loss: crate::bundle::Loss,
     max_iterations: usize,
 ) -> Result<crate::bundle::SolverReport> {
-    use crate::bundle::{CameraModel, CameraPose, Gauge, Observation, Point, Problem};
+    let block = crate::bundle::Intrinsics {
+        model: crate::bundle::CameraModel::Pinhole {
+            aspect: k.f2 / k.f1,
+            skew: k.s,
+        },
+        params: [k.f1, k.u0, k.v0],
+        fixed: true,
+        held: [false; 3],
+    };
+    adjust_with_block(tracks, block, poses, points, keep, loss, max_iterations).map(|r| r.0)
+}
+
+/// [`bundle_adjust_indexed`] with the lens block `[f, k1, k2]` of `k`
+/// ([`crate::bundle::CameraModel::Radial`]: its principal point, aspect, skew and lens model
+/// held) free but for `held`, on the observed (distorted) pixels of `tracks`. Returns the
+/// solved intrinsics.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn bundle_adjust_lens(
+    tracks: &Tracks,
+    k: &Intrinsics,
+    held: [bool; 3],
+    poses: &mut [Option<Pose>],
+    points: &mut [Option<Vector3<f64>>],
+    keep: &(dyn Fn(usize, usize) -> bool + Sync),
+    loss: crate::bundle::Loss,
+    max_iterations: usize,
+) -> Result<Intrinsics> {
+    let mut block = crate::bundle::Intrinsics::radial(k.f1, k.u0, k.v0, k.distortion);
+    if let crate::bundle::CameraModel::Radial { aspect, skew, .. } = &mut block.model {
+        *aspect = k.f2 / k.f1;
+        *skew = k.s;
+    }
+    block.held = held;
+    let (_, b) = adjust_with_block(tracks, block, poses, points, keep, loss, max_iterations)?;
+    let [f, k1, k2] = b.params;
+    let mut out = k.clone();
+    out.f1 = f;
+    out.f2 = f * k.f2 / k.f1;
+    out.distortion = b.model.lens_with(k1, k2);
+    Ok(out)
+}
+
+/// The bundle adjustment of [`bundle_adjust_indexed`] with one shared intrinsics block; returns
+/// the solver's report and the adjusted block.
+fn adjust_with_block(
+    tracks: &Tracks,
+    block: crate::bundle::Intrinsics,
+    poses: &mut [Option<Pose>],
+    points: &mut [Option<Vector3<f64>>],
+    keep: &(dyn Fn(usize, usize) -> bool + Sync),
+    loss: crate::bundle::Loss,
+    max_iterations: usize,
+) -> Result<(crate::bundle::SolverReport, crate::bundle::Intrinsics)> {
+    use crate::bundle::{CameraPose, Gauge, Observation, Point, Problem};
     let mut cam_index = vec![usize::MAX; poses.len()];
     let mut cameras = Vec::new();
     let mut cam_frame = Vec::new();
@@ -561,15 +623,7 @@ pub(crate) fn bundle_adjust_indexed(
     let problem_cameras = cameras.len();
     let mut problem = Problem {
         cameras,
-        intrinsics: vec![crate::bundle::Intrinsics {
-            model: CameraModel::Pinhole {
-                aspect: k.f2 / k.f1,
-                skew: k.s,
-            },
-            params: [k.f1, k.u0, k.v0],
-            fixed: true,
-            held: [false; 3],
-        }],
+        intrinsics: vec![block],
         points: pts,
         observations,
         gauge: Gauge::FixFirstCameraAndScale,
@@ -595,7 +649,7 @@ pub(crate) fn bundle_adjust_indexed(
     for (p, &ti) in problem.points.iter().zip(&pt_track) {
         points[ti] = Some(p.position);
     }
-    Ok(report)
+    Ok((report, problem.intrinsics[0]))
 }
 
 #[cfg(test)]
