@@ -320,6 +320,10 @@ function imageUrl(sel, frame, opts = {}) {
   if ($('jpeg').checked && !opts.png) q.set('fmt', 'jpg');
   const layer = $('layer').value;
   if (layer && opts.layer !== false) q.set('layer', layer);
+  // The run number: a rerun's previews are new URLs, never the page's cached images of the
+  // last run (the server ignores it). studio.bust: a scrub benchmark's pass (the same).
+  q.set('run', studio.state ? studio.state.runs : 0);
+  if (studio.bust) q.set('b', studio.bust);
   return '/api/image?' + q;
 }
 
@@ -498,7 +502,7 @@ function prefetch() {
 async function warmPreviews() {
   const a = $('out-a').value;
   if (!a || !studio.state || !studio.state.graph) return null;
-  const u = imageUrl(a, frameNow()).replace('/api/image?', '/api/warm?');
+  const u = imageUrl(a, frameNow()).replace('/api/image?', '/api/warm?').replace(/&(run|b)=[^&]*/g, '');
   try { return await api('GET', u); } catch (e) { return null; }
 }
 studio.warmPreviews = warmPreviews;
@@ -529,6 +533,7 @@ function setFrameIdx(i, opts = {}) {
 // and checks that the frame label then names it; studio.scrubMisses counts labels that did not.
 studio.benchScrub = async function (count) {
   studio.scrubMisses = 0;
+  studio.bust = String(performance.now()); // new URLs: nothing from the browser's caches
   const t0 = performance.now();
   for (let k = 1; k <= count; k++) {
     setFrameIdx(studio.frameIdx + 1, { viewerOnly: true });
