@@ -528,6 +528,55 @@ fn studio_in_a_browser() {
     }
     std::fs::write(shots.join("frames.png"), s.screenshot()).unwrap();
 
+    // --- exposure −1 stop, linear view; then an A/B wipe at the middle: A (the plate) left of
+    // it, B (graded +1 stop) right of it
+    let canvas_px = |x: usize, y: usize| -> Vec<i64> {
+        s.js(
+            "const d = document.getElementById('viewer').getContext('2d').getImageData(arguments[0], arguments[1], 1, 1).data; return [d[0], d[1], d[2]];",
+            json!([x, y]),
+        )
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_i64().unwrap())
+        .collect()
+    };
+    let close = |a: &[i64], b: &[i64]| a.iter().zip(b).all(|(x, y)| (x - y).abs() <= 1);
+    s.js(
+        "const e = document.getElementById('exposure'); e.value = '-1'; document.getElementById('srgb').checked = false; e.dispatchEvent(new Event('input'));",
+        json!([]),
+    );
+    let lin: Vec<i64> = (0..3)
+        .map(|c| ((plate.pixel(px, py)[c] * 2.0 * 0.5).clamp(0.0, 1.0) * 255.0 + 0.5) as i64)
+        .collect();
+    wait_for("the linear view at −1 stop", || {
+        close(&canvas_px(px, py), &lin).then_some(())
+    });
+    s.js(
+        "const e = document.getElementById('exposure'); e.value = '0'; document.getElementById('srgb').checked = true; document.getElementById('wipe').value = '0.5'; const a = document.getElementById('out-a'); a.value = 'plate.sequence'; a.dispatchEvent(new Event('input')); const b = document.getElementById('out-b'); b.value = 'grade.image'; b.dispatchEvent(new Event('input'));",
+        json!([]),
+    );
+    let srgb = |x: usize, gain: f32| -> Vec<i64> {
+        (0..3)
+            .map(|c| vfxgraph_imaging::color::linear_to_srgb8(plate.pixel(x, py)[c] * gain) as i64)
+            .collect()
+    };
+    let (left, right) = (10usize, 50usize);
+    wait_for("the wipe", || {
+        (close(&canvas_px(left, py), &srgb(left, 1.0))
+            && close(&canvas_px(right, py), &srgb(right, 2.0)))
+        .then_some(())
+    });
+    assert!(
+        !close(&srgb(right, 1.0), &srgb(right, 2.0)),
+        "A and B differ"
+    );
+    std::fs::write(shots.join("frames-wipe.png"), s.screenshot()).unwrap();
+    s.js(
+        "const b = document.getElementById('out-b'); b.value = ''; b.dispatchEvent(new Event('input')); const a = document.getElementById('out-a'); a.value = 'grade.image'; a.dispatchEvent(new Event('input'));",
+        json!([]),
+    );
+
     // --- layers of a differential render: the layer menu lists the artifact's layers, and
     // the canvas shows the one chosen (the sphere's pixel, in `composite` and in `shadow`)
     s.js(
@@ -1109,5 +1158,24 @@ nodes:
             assert_eq!(saved.as_array().unwrap().len(), 3);
         }
     }
+    // The solve view over the 119-camera path with the calibrated points, at frame 96.
+    s.click(".tab[data-view=solve]");
+    s.js(
+        "const p = document.getElementById('solve-points'); p.value = 'cal_saved.points3d'; p.dispatchEvent(new Event('input'));",
+        json!([]),
+    );
+    wait_for("the path in 3-D", || {
+        (s.js(
+            "return solve.info && solve.info.points === 3 ? solve.info.cameras : null;",
+            json!([]),
+        ) == json!(119))
+        .then_some(())
+    });
+    s.js(
+        "setFrameIdx(studio.state.graph.frames.indexOf(96));",
+        json!([]),
+    );
+    assert_eq!(s.js("return solve.info.highlighted;", json!([])), json!(96));
+    std::fs::write(shots.join("solve-path.png"), s.screenshot()).unwrap();
     s.quit();
 }
