@@ -1,10 +1,22 @@
-//! The studio (`vfxgraph serve`'s server, started in this process) in a real browser (Debian's chromium + chromedriver, WebDriver): the graph
-//! view's states before, during and after a run started from the page, a param edit that
-//! reruns only its dependants, scrubbing frames with a pixel read back, the point-cloud
-//! definer (marks deleted, clicked, dragged, saved; the next run reruns only the marks'
-//! dependants), the solve view; on a 1280×720 EXR sequence, scrub speed and the book's marks
-//! clicked and saved byte for byte. Prints page-load time, event → DOM latency and scrub fps
-//! (figures, not assertions). Screenshots go to `target/serve-shots/`.
+//! The studio (`vfxgraph serve`'s server, started in this process) in a real browser (Debian's
+//! chromium + chromedriver, WebDriver; WebGL on SwiftShader):
+//! - `studio_in_a_browser`: the graph view's states before, during and after a run started
+//!   from the page, a param edit that reruns only its dependants; the frame viewer (scrub with
+//!   a pixel read back, hover readout, exposure and linear view, A/B wipe, the eight layers of a
+//!   `differential_render` picked from the menu, the reprojection overlay); the point-cloud
+//!   definer (marks deleted, clicked, dragged, triangulated with every mark's error shown,
+//!   saved; the next run reruns only the marks' dependants; snap of clicks 1–2 px off a
+//!   sub-pixel corner); the three.js solve view (frusta, points, the highlighted camera
+//!   following the scrubber, the error plot's click); a second tab that sees the same state and
+//!   whose edit reaches the first live.
+//! - `exr_scrub_and_the_books_marks`: on a 1280×720 EXR sequence, scrub speed (PNG and JPEG
+//!   previews, first pass and once encoded), the book's tracks drawn (counts per frame), the
+//!   book's marks clicked and saved byte for byte, and their calibration equal to the book
+//!   file's.
+//!
+//! Prints page-load time, event → DOM latency, scrub fps, snap and reprojection errors
+//! (figures; the one timed bound is a sanity floor at half the claimed fps). Screenshots go to
+//! `target/serve-shots/`.
 //!
 //! Without chromium or chromedriver the test prints a notice and returns; under `CI=true` it
 //! fails instead (no silent skip).
