@@ -320,6 +320,10 @@ function imageUrl(sel, frame, opts = {}) {
   if ($('jpeg').checked && !opts.png) q.set('fmt', 'jpg');
   const layer = $('layer').value;
   if (layer && opts.layer !== false) q.set('layer', layer);
+  // The run number: a rerun's previews are new URLs, never the page's cached images of the
+  // last run (the server ignores it). studio.bust: a scrub benchmark's pass (the same).
+  q.set('run', studio.state ? studio.state.runs : 0);
+  if (studio.bust) q.set('b', studio.bust);
   return '/api/image?' + q;
 }
 
@@ -362,6 +366,12 @@ async function tracksData() {
   return data;
 }
 
+let warmTimer = null;
+function warmSoon() {
+  clearTimeout(warmTimer);
+  warmTimer = setTimeout(() => { if (!$('view-frames').hidden) warmPreviews(); }, 100);
+}
+
 let drawToken = 0;
 async function drawViewer() {
   const a = $('out-a').value;
@@ -385,7 +395,14 @@ async function drawViewer() {
       ctx.strokeStyle = '#ff0'; ctx.beginPath(); ctx.moveTo(x + 0.5, 0); ctx.lineTo(x + 0.5, c.height); ctx.stroke();
     }
     const tr = await tracksData().catch(() => null);
-    if (tr && tok === drawToken) drawTracks(ctx, tr, f);
+    const ov = { tracks: 0, lost: 0, reproj: [] };
+    if (tr && tok === drawToken) Object.assign(ov, drawTracks(ctx, tr, f));
+    const rp = await reprojData().catch(() => null);
+    if (rp && tok === drawToken) ov.reproj = drawReprojection(ctx, rp, f);
+    studio.overlay = ov;
+    c.dataset.tracks = ov.tracks;
+    c.dataset.lost = ov.lost;
+    c.dataset.reproj = ov.reproj.length;
     $('viewer-msg').textContent = '';
     $('frame-label').textContent = f ?? '–';
     c.dataset.frame = f ?? '';
@@ -402,7 +419,8 @@ async function drawViewer() {
 // Each track's trail up to this frame; a track lost at this frame is marked with a red x.
 function drawTracks(ctx, tr, f) {
   const fi = tr.frames.indexOf(f);
-  if (fi < 0) return;
+  const n = { tracks: 0, lost: 0 };
+  if (fi < 0) return n;
   ctx.lineWidth = 1;
   for (const t of tr.tracks) {
     const last = t.first + t.points.length - 1;
@@ -419,39 +437,108 @@ function drawTracks(ctx, tr, f) {
     if (fi > last && t.lost) {
       ctx.strokeStyle = '#f44';
       ctx.beginPath(); ctx.moveTo(x - 3, y - 3); ctx.lineTo(x + 4, y + 4); ctx.moveTo(x + 4, y - 3); ctx.lineTo(x - 3, y + 4); ctx.stroke();
-    } else {
+      n.lost += 1;
+    } else if (fi <= last) {
       ctx.fillStyle = '#4f4'; ctx.fillRect(x - 1, y - 1, 3, 3);
+      n.tracks += 1;
     }
   }
+  return n;
 }
 
+// The solved points (a points3d/point_cloud output) through this frame's solved camera (the
+// Solve tab's camera path; K from the path, else the graph's first intrinsics output).
+let reprojCache = { key: null, data: null };
+async function reprojData() {
+  const p = $('reproj').value, c = $('solve-cams').value;
+  if (!p || !c) return null;
+  const key = p + '|' + c + '|' + (studio.state ? studio.state.runs : 0);
+  if (reprojCache.key === key) return reprojCache.data;
+  const cams = await artifactJson(c);
+  const pts = pointsOf(await artifactJson(p));
+  let K = cams && cams.intrinsics ? cams.intrinsics.K : null;
+  if (!K) for (const o of outputsOfType(['intrinsics'])) { const k = await artifactJson(o.node + '.' + o.port); if (k && k.K) { K = k.K; break; } }
+  const data = cams && pts && K ? { cams, pts, K } : null;
+  reprojCache = { key, data };
+  return data;
+}
+
+function projectPoint(K, pose, X) {
+  const R = pose.R, t = pose.t;
+  const xc = [0, 1, 2].map((i) => R[i][0] * X[0] + R[i][1] * X[1] + R[i][2] * X[2] + t[i]);
+  if (xc[2] <= 1e-9) return null;
+  const x = xc[0] / xc[2], y = xc[1] / xc[2];
+  return [K[0][0] * x + K[0][1] * y + K[0][2], K[1][1] * y + K[1][2]];
+}
+
+function drawReprojection(ctx, rp, f) {
+  const pose = rp.cams.frames.find((p) => p.frame === f);
+  if (!pose) return [];
+  const out = [];
+  ctx.strokeStyle = '#f0f'; ctx.lineWidth = 1.5;
+  for (const X of rp.pts) {
+    const uv = projectPoint(rp.K, pose, X);
+    if (!uv) continue;
+    const [u, v] = [uv[0] + 0.5, uv[1] + 0.5];
+    ctx.beginPath(); ctx.arc(u, v, 4, 0, 2 * Math.PI); ctx.moveTo(u - 6, v); ctx.lineTo(u + 6, v); ctx.moveTo(u, v - 6); ctx.lineTo(u, v + 6); ctx.stroke();
+    out.push(uv);
+  }
+  return out;
+}
+
+// The neighbouring frames (3 ahead, 1 behind) are fetched while this one shows, so a scrub or
+// play finds them decoded in the page.
 function prefetch() {
-  if (!studio.playing) return;
   const a = $('out-a').value, f = frames();
-  for (let k = 1; k <= 4; k++) {
-    const fr = f[(studio.frameIdx + k) % f.length];
+  if (!a || f.length < 2) return;
+  for (const k of [1, 2, 3, -1]) {
+    const fr = f[(((studio.frameIdx + k) % f.length) + f.length) % f.length];
     loadImage(imageUrl(a, fr)).catch(() => {});
   }
 }
 
-function setFrameIdx(i) {
+// Asks the server to encode every frame's preview of output A under the current view
+// (GET /api/warm, one background thread); resolves with its progress.
+async function warmPreviews() {
+  const a = $('out-a').value;
+  if (!a || !studio.state || !studio.state.graph) return null;
+  const u = imageUrl(a, frameNow()).replace('/api/image?', '/api/warm?').replace(/&(run|b)=[^&]*/g, '');
+  try { return await api('GET', u); } catch (e) { return null; }
+}
+studio.warmPreviews = warmPreviews;
+// Resolves once every preview of output A is encoded on the server.
+studio.warmed = async function () {
+  for (;;) {
+    const w = await warmPreviews();
+    if (!w || w.done + w.failed >= w.total) return w;
+    await new Promise((r) => setTimeout(r, 50));
+  }
+};
+
+function setFrameIdx(i, opts = {}) {
   const n = frames().length;
   if (!n) return;
   studio.frameIdx = ((i % n) + n) % n;
   $('scrub').value = studio.frameIdx;
   $('def-scrub').value = studio.frameIdx;
-  drawViewer();
-  drawDefiner();
-  drawSolve();
+  renderSolve();
+  if (opts.viewerOnly) return;
+  if (!$('view-frames').hidden) drawViewer();
+  if (!$('view-definer').hidden) drawDefiner();
 }
 
 // Scrubs `count` frames as fast as they can be shown; returns frames per second (the browser
 // test prints it).
+// Each step shows the next frame (fetched from the server unless prefetched, decoded, drawn)
+// and checks that the frame label then names it; studio.scrubMisses counts labels that did not.
 studio.benchScrub = async function (count) {
+  studio.scrubMisses = 0;
+  studio.bust = String(performance.now()); // new URLs: nothing from the browser's caches
   const t0 = performance.now();
   for (let k = 1; k <= count; k++) {
-    studio.frameIdx = (studio.frameIdx + 1) % frames().length;
+    setFrameIdx(studio.frameIdx + 1, { viewerOnly: true });
     await drawViewer();
+    if ($('frame-label').textContent !== String(frameNow())) studio.scrubMisses += 1;
   }
   return (count * 1000) / (performance.now() - t0);
 };
@@ -557,6 +644,7 @@ async function drawDefiner() {
     ctx.fillStyle = '#ff0'; ctx.fillText(String(i + 1), cx + 5, cy - 5);
   });
   c.dataset.frame = f ?? '';
+  c.dataset.src = src;
   c.dataset.marks = m ? m.points.length : 0;
   renderMarksTable();
 }
@@ -570,6 +658,31 @@ function defCoords(ev) {
   const i = Math.floor(((ev.clientX - r.left) * c.width) / r.width);
   const j = Math.floor(((ev.clientY - r.top) * c.height) / r.height);
   return [Math.round(i + 0.5 - z / 2) / z, Math.round(j + 0.5 - z / 2) / z];
+}
+
+// Sub-pixel refinement of a new mark (POST /api/refine: the corner within the window, on the
+// server, in the linear image); the mark stays where clicked when there is no corner there.
+// studio.snaps records each (from, to, refined) for the browser test.
+async function snapMark(frame, pt) {
+  const src = $('def-image').value;
+  if (!src) { triangulateSoon(); return; }
+  const [node, port] = src.split('.');
+  const body = { node, port, x: pt[0], y: pt[1], radius: Number($('def-snap-r').value) || 5 };
+  if (frame !== undefined) body.frame = frame;
+  const from = pt.slice();
+  try {
+    const r = await api('POST', '/api/refine', body);
+    if (r.refined) {
+      // 1/1000 px is far below any click's precision and keeps the text file short.
+      pt[0] = Math.round(r.x * 1000) / 1000;
+      pt[1] = Math.round(r.y * 1000) / 1000;
+    }
+    (studio.snaps = studio.snaps || []).push({ frame, from, to: pt.slice(), refined: r.refined });
+  } catch (e) {
+    (studio.snaps = studio.snaps || []).push({ frame, from, to: pt.slice(), refined: false, error: e.message });
+  }
+  drawDefiner();
+  triangulateSoon();
 }
 
 function nearestMark(x, y) {
@@ -605,8 +718,11 @@ function definerEvents() {
     if (drag >= 0) {
       if (moved) triangulateSoon();
     } else {
-      marksOf(frameNow(), true).points.push([x, y]);
-      triangulateSoon();
+      const m = marksOf(frameNow(), true);
+      const pt = [x, y];
+      m.points.push(pt);
+      if ($('def-snap').checked) snapMark(frameNow(), pt);
+      else triangulateSoon();
     }
     drag = -1;
     drawDefiner();
@@ -683,12 +799,21 @@ async function saveMarks() {
 
 // ----------------------------------------------------------------------------- solve viewer
 
-const solve = { yaw: 0.6, pitch: 0.35, dist: 1, cams: null, points: null, errors: null };
+// three.js (vendored, assets/vendor/) draws the solve: the camera path as a line, each solved
+// camera as a small frustum (the current frame's larger and yellow), the point cloud as points.
+// Orbit of our own (drag, wheel) around the centre of what is drawn.
+const solve = { yaw: 0.6, pitch: 0.35, dist: 1, cams: null, points: null, errors: null, gl: null, highlighted: null, info: null, error: null };
+window.solve = solve;
+
+let threeLib = null;
+const loadThree = async () => (threeLib = threeLib || (await import('/assets/three.module.min.js')));
 
 function fillSolve() {
   fillSelect($('solve-cams'), outputsOfType(['camera_path']), false);
-  fillSelect($('solve-points'), outputsOfType(['points3d', 'point_cloud']), true);
-  loadSolve();
+  const pts = outputsOfType(['points3d', 'point_cloud']);
+  fillSelect($('solve-points'), pts, true);
+  fillSelect($('reproj'), pts, true);
+  if (!$('view-solve').hidden) loadSolve();
 }
 
 async function artifactJson(sel) {
@@ -697,60 +822,121 @@ async function artifactJson(sel) {
   try { return await api('GET', `/api/artifact?node=${encodeURIComponent(node)}&port=${encodeURIComponent(port)}`); } catch (e) { return null; }
 }
 
-async function loadSolve() {
-  solve.cams = await artifactJson($('solve-cams').value);
-  const pts = await artifactJson($('solve-points').value);
-  solve.points = pts ? (Array.isArray(pts) ? pts : (pts.points || []).map((p) => p.position || p.x || p)) : null;
-  // Any report with per-frame RMS (matchmove, relax) feeds the error plot.
-  solve.errors = null;
-  for (const o of outputsOfType(['report'])) {
-    const r = await artifactJson(o.node + '.' + o.port);
-    if (r && Array.isArray(r.frames) && r.frames.length && r.frames[0].rms !== undefined) { solve.errors = r.frames; break; }
-  }
-  drawSolve();
+// [x, y, z] of a points3d (a list) or a point cloud ({points: [{position}]}).
+function pointsOf(pts) {
+  if (!pts) return null;
+  return Array.isArray(pts) ? pts : (pts.points || []).map((p) => p.position || p.x || p);
 }
 
-// Camera centre C = -Rᵀt and viewing axis (third row of R) of a frame pose.
+// Per-frame RMS of a report: a solve's ({frames: [{frame, rms}]}), else a point-cloud
+// calibration's ({frames: [f], errors: [point][frame]}, RMS over the points).
+function perFrameErrors(r) {
+  if (!r || !Array.isArray(r.frames) || !r.frames.length) return null;
+  if (r.frames[0] && r.frames[0].rms !== undefined) return { kind: 'solve', frames: r.frames.map((f) => ({ frame: f.frame, rms: f.rms })) };
+  if (Array.isArray(r.errors) && r.errors.length && typeof r.frames[0] === 'number') {
+    return { kind: 'marks', frames: r.frames.map((f, fi) => ({ frame: f, rms: Math.sqrt(r.errors.reduce((a, e) => a + e[fi] * e[fi], 0) / r.errors.length) })) };
+  }
+  return null;
+}
+
+async function loadSolve() {
+  solve.cams = await artifactJson($('solve-cams').value);
+  solve.points = pointsOf(await artifactJson($('solve-points').value));
+  solve.errors = null;
+  let fallback = null;
+  for (const o of outputsOfType(['report'])) {
+    const e = perFrameErrors(await artifactJson(o.node + '.' + o.port));
+    if (e && e.kind === 'solve') { solve.errors = e.frames; break; }
+    if (e && !fallback) fallback = e.frames;
+  }
+  solve.errors = solve.errors || fallback;
+  await buildSolve();
+  renderSolve();
+}
+
+// Camera centre C = -Rᵀt.
 function centre(p) {
   const R = p.R, t = p.t;
   return [0, 1, 2].map((j) => -(R[0][j] * t[0] + R[1][j] * t[1] + R[2][j] * t[2]));
 }
 
-function drawSolve() {
+async function buildSolve() {
+  let T;
+  try { T = await loadThree(); } catch (e) { solve.error = 'three.js did not load: ' + e.message; return; }
   const c = $('solve3d');
-  const ctx = c.getContext('2d');
-  ctx.fillStyle = '#111'; ctx.fillRect(0, 0, c.width, c.height);
-  $('solve-frame').textContent = frameNow() ?? '–';
-  if (!solve.cams || !solve.cams.frames) { ctx.fillStyle = '#888'; ctx.fillText('no solved cameras yet', 20, 20); drawErrors(); return; }
-  const cs = solve.cams.frames.map((p) => ({ frame: p.frame, c: centre(p), z: p.R[2] }));
-  const all = cs.map((x) => x.c).concat(solve.points || []);
-  const mean = [0, 1, 2].map((k) => all.reduce((a, p) => a + p[k], 0) / all.length);
-  const rad = Math.max(1e-6, ...all.map((p) => Math.hypot(p[0] - mean[0], p[1] - mean[1], p[2] - mean[2])));
-  const cy = Math.cos(solve.yaw), sy = Math.sin(solve.yaw), cp = Math.cos(solve.pitch), sp = Math.sin(solve.pitch);
-  const proj = (p) => {
-    let x = (p[0] - mean[0]) / rad, y = (p[1] - mean[1]) / rad, z = (p[2] - mean[2]) / rad;
-    [x, z] = [cy * x - sy * z, sy * x + cy * z];
-    [y, z] = [cp * y - sp * z, sp * y + cp * z];
-    const d = 3 * solve.dist + z;
-    const f = (c.height * 0.9) / Math.max(0.1, d);
-    return [c.width / 2 + f * x, c.height / 2 + f * y];
-  };
-  ctx.strokeStyle = '#4a8'; ctx.beginPath();
-  cs.forEach((x, i) => { const [u, v] = proj(x.c); if (i) ctx.lineTo(u, v); else ctx.moveTo(u, v); });
-  ctx.stroke();
-  for (const x of cs) {
-    const [u, v] = proj(x.c);
-    const cur = x.frame === frameNow();
-    ctx.fillStyle = cur ? '#ff0' : '#4a8';
-    ctx.fillRect(u - (cur ? 4 : 1.5), v - (cur ? 4 : 1.5), cur ? 8 : 3, cur ? 8 : 3);
-    if (cur) {
-      const tip = proj([0, 1, 2].map((k) => x.c[k] + 0.15 * rad * x.z[k]));
-      ctx.strokeStyle = '#ff0'; ctx.beginPath(); ctx.moveTo(u, v); ctx.lineTo(tip[0], tip[1]); ctx.stroke();
-    }
+  if (!solve.gl) {
+    try {
+      const renderer = new T.WebGLRenderer({ canvas: c, antialias: true, preserveDrawingBuffer: true });
+      renderer.setSize(c.width, c.height, false);
+      solve.gl = { T, renderer, camera: new T.PerspectiveCamera(45, c.width / c.height, 1e-3, 1e4) };
+    } catch (e) { solve.error = 'no WebGL: ' + e.message; $('solve-msg').textContent = solve.error; return; }
   }
-  ctx.fillStyle = '#ddd';
-  for (const p of solve.points || []) { const [u, v] = proj(p); ctx.fillRect(u - 1, v - 1, 2, 2); }
+  const scene = new T.Scene();
+  scene.background = new T.Color(0x111111);
+  const cams = solve.cams && solve.cams.frames ? solve.cams.frames : [];
+  const cs = cams.map((p) => ({ frame: p.frame, c: centre(p), R: p.R }));
+  const all = cs.map((x) => x.c).concat(solve.points || []);
+  const mean = all.length ? [0, 1, 2].map((k) => all.reduce((a, p) => a + p[k], 0) / all.length) : [0, 0, 0];
+  const rad = Math.max(1e-6, ...all.map((p) => Math.hypot(p[0] - mean[0], p[1] - mean[1], p[2] - mean[2])));
+  solve.mean = mean; solve.rad = rad;
+  const v3 = (p) => new T.Vector3(p[0], p[1], p[2]);
+  if (cs.length > 1) {
+    scene.add(new T.Line(new T.BufferGeometry().setFromPoints(cs.map((x) => v3(x.c))), new T.LineBasicMaterial({ color: 0x44aa88 })));
+  }
+  // A frustum per camera: apex at the centre, image rectangle along the viewing axis (3rd row
+  // of R), x and y the camera's (1st and 2nd rows).
+  const s = 0.06 * rad;
+  solve.camObjs = cs.map((x) => {
+    const [ax, ay, az] = x.R;
+    const corner = (u, v) => [0, 1, 2].map((k) => s * (az[k] + 0.6 * u * ax[k] + 0.4 * v * ay[k]));
+    const q = [corner(-1, -1), corner(1, -1), corner(1, 1), corner(-1, 1)];
+    const seg = [];
+    for (let i = 0; i < 4; i++) { seg.push([0, 0, 0], q[i], q[i], q[(i + 1) % 4]); }
+    seg.push(q[0], q[1].map((v, k) => (v + q[0][k]) / 2 - 0.6 * s * ay[k]));
+    const g = new T.BufferGeometry().setFromPoints(seg.map(v3));
+    const o = new T.LineSegments(g, new T.LineBasicMaterial({ color: 0x44aa88 }));
+    o.position.copy(v3(x.c));
+    o.userData.frame = x.frame;
+    scene.add(o);
+    return o;
+  });
+  if (solve.points && solve.points.length) {
+    const g = new T.BufferGeometry().setFromPoints(solve.points.map(v3));
+    solve.pointObj = new T.Points(g, new T.PointsMaterial({ color: 0xdddddd, size: 4, sizeAttenuation: false }));
+    scene.add(solve.pointObj);
+  } else solve.pointObj = null;
+  solve.gl.scene = scene;
+  solve.error = null;
+  $('solve-msg').textContent = cs.length ? '' : 'no solved cameras yet (run the graph)';
+}
+
+// Highlights the current frame's camera and draws; cheap (called on every frame change).
+function renderSolve() {
+  $('solve-frame').textContent = frameNow() ?? '–';
   drawErrors();
+  const gl = solve.gl;
+  if (!gl || !gl.scene) return;
+  const f = frameNow();
+  let hi = null;
+  (solve.camObjs || []).forEach((o) => {
+    const cur = o.userData.frame === f;
+    o.material.color.set(cur ? 0xffff00 : 0x44aa88);
+    o.scale.setScalar(cur ? 2.5 : 1);
+    if (cur) hi = f;
+  });
+  solve.highlighted = hi;
+  const m = solve.mean, d = 3 * solve.rad * solve.dist;
+  gl.camera.position.set(m[0] + d * Math.sin(solve.yaw) * Math.cos(solve.pitch), m[1] - d * Math.sin(solve.pitch), m[2] - d * Math.cos(solve.yaw) * Math.cos(solve.pitch));
+  gl.camera.up.set(0, -1, 0);
+  gl.camera.lookAt(m[0], m[1], m[2]);
+  gl.renderer.render(gl.scene, gl.camera);
+  solve.info = {
+    cameras: (solve.camObjs || []).length,
+    points: solve.pointObj ? solve.pointObj.geometry.attributes.position.count : 0,
+    objects: gl.scene.children.length,
+    highlighted: hi,
+  };
+  $('solve3d').dataset.highlighted = hi ?? '';
 }
 
 function drawErrors() {
@@ -759,8 +945,8 @@ function drawErrors() {
   if (!e) { svg.innerHTML = '<text x="10" y="20" fill="#888">no per-frame solve report</text>'; return; }
   const W = 800, H = 140, max = Math.max(1e-9, ...e.map((x) => x.rms));
   const x = (i) => 30 + (i * (W - 40)) / Math.max(1, e.length - 1), y = (v) => H - 20 - (v / max) * (H - 40);
-  let h = `<text x="4" y="14" fill="#888">RMS px (max ${max.toFixed(2)})</text><polyline fill="none" stroke="#f0c674" points="${e.map((f, i) => x(i) + ',' + y(f.rms)).join(' ')}"/>`;
-  h += e.map((f, i) => `<circle data-frame="${f.frame}" cx="${x(i)}" cy="${y(f.rms)}" r="3" fill="${f.frame === frameNow() ? '#ff0' : '#f0c674'}"><title>frame ${f.frame}: ${f.rms.toFixed(3)} px</title></circle>`).join('');
+  let h = `<text x="4" y="14" fill="#888">RMS px per frame (max ${max.toFixed(2)}); click a frame</text><polyline fill="none" stroke="#f0c674" points="${e.map((f, i) => x(i) + ',' + y(f.rms)).join(' ')}"/>`;
+  h += e.map((f, i) => `<circle data-frame="${f.frame}" cx="${x(i)}" cy="${y(f.rms)}" r="${e.length > 100 ? 2 : 4}" fill="${f.frame === frameNow() ? '#ff0' : '#f0c674'}"><title>frame ${f.frame}: ${f.rms.toFixed(3)} px</title></circle>`).join('');
   svg.innerHTML = h;
   svg.querySelectorAll('circle').forEach((el) => el.addEventListener('click', () => {
     const i = frames().indexOf(Number(el.dataset.frame));
@@ -778,9 +964,9 @@ function solveEvents() {
     solve.yaw += (e.clientX - last[0]) * 0.01;
     solve.pitch += (e.clientY - last[1]) * 0.01;
     last = [e.clientX, e.clientY];
-    drawSolve();
+    renderSolve();
   });
-  c.addEventListener('wheel', (e) => { e.preventDefault(); solve.dist *= e.deltaY > 0 ? 1.1 : 0.9; drawSolve(); });
+  c.addEventListener('wheel', (e) => { e.preventDefault(); solve.dist *= e.deltaY > 0 ? 1.1 : 0.9; renderSolve(); });
 }
 
 // ----------------------------------------------------------------------------- wiring
@@ -790,7 +976,7 @@ function showView(v) {
   document.querySelectorAll('.tab').forEach((b) => b.classList.toggle('active', b.dataset.view === v));
   if (v === 'definer') drawDefiner();
   if (v === 'solve') loadSolve();
-  if (v === 'frames') drawViewer();
+  if (v === 'frames') { drawViewer(); warmSoon(); }
 }
 
 function wire() {
@@ -802,8 +988,8 @@ function wire() {
   $('reload').addEventListener('click', () => api('POST', '/api/reload').catch((e) => ($('status').textContent = e.message)));
   $('scrub').addEventListener('input', () => setFrameIdx(Number($('scrub').value)));
   $('def-scrub').addEventListener('input', () => setFrameIdx(Number($('def-scrub').value)));
-  for (const id of ['exposure', 'srgb', 'jpeg', 'layer', 'wipe', 'out-b', 'tracks']) $(id).addEventListener('input', () => { $('exposure-label').textContent = $('exposure').value; drawViewer(); });
-  $('out-a').addEventListener('input', () => loadLayers().then(drawViewer));
+  for (const id of ['exposure', 'srgb', 'jpeg', 'layer', 'wipe', 'out-b', 'tracks', 'reproj']) $(id).addEventListener('input', () => { $('exposure-label').textContent = $('exposure').value; drawViewer(); warmSoon(); });
+  $('out-a').addEventListener('input', () => loadLayers().then(drawViewer).then(warmSoon));
   $('play').addEventListener('click', play);
   $('viewer').addEventListener('mousemove', hoverPixel);
   $('marks-node').addEventListener('input', () => loadMarks($('marks-node').value));

@@ -9,10 +9,12 @@
 //! | `POST /api/run`, `POST /api/cancel`, `POST /api/reload` | run (409 while one runs), stop, re-read the file |
 //! | `POST /api/params` | `{node, param, value}` (YAML text, as `--set`; `null` resets) |
 //! | `GET /api/image` | `node, port, frame, layer, exposure, srgb, fmt` → PNG/JPEG preview |
+//! | `GET /api/warm` | same query as `/api/image`: encodes every frame's preview in the background; progress |
 //! | `GET /api/pixel` | `node, port, frame, layer, x, y` → linear values |
 //! | `GET /api/artifact` | `node, port, frame` → a JSON artifact as stored, or an image's size and layers |
 //! | `GET /api/file?path=` | a file under the graph's folder or the cache |
 //! | `GET/POST /api/marks`, `POST /api/triangulate` | the point-cloud definer |
+//! | `POST /api/refine` | `{node, port, frame, layer, x, y, radius}` → the corner near (x, y), sub-pixel |
 
 use std::sync::Arc;
 
@@ -51,7 +53,9 @@ pub fn router(studio: Arc<Studio>) -> Router {
         .route("/api/reload", post(reload))
         .route("/api/params", post(params))
         .route("/api/image", get(image))
+        .route("/api/warm", get(warm))
         .route("/api/pixel", get(pixel))
+        .route("/api/refine", post(refine))
         .route("/api/artifact", get(artifact))
         .route("/api/file", get(file))
         .route("/api/marks", get(get_marks).post(post_marks))
@@ -225,8 +229,7 @@ fn loaded(s: &Studio) -> Result<(Arc<Graph>, Store), ApiError> {
     Ok((g, store))
 }
 
-async fn image(State(s): S, q: Result<Query<OutputQuery>, QueryRejection>) -> ApiResult {
-    let Query(q) = q.map_err(query_rejection)?;
+fn view_of(q: &OutputQuery) -> Result<View, ApiError> {
     if !(q.exposure.is_finite() && q.exposure.abs() <= 32.0) {
         return Err(ApiError::bad("exposure must be within ±32 stops"));
     }
@@ -239,14 +242,20 @@ async fn image(State(s): S, q: Result<Query<OutputQuery>, QueryRejection>) -> Ap
             )))
         }
     };
+    Ok(View {
+        exposure: q.exposure,
+        srgb: q.srgb,
+        jpeg,
+    })
+}
+
+async fn image(State(s): S, q: Result<Query<OutputQuery>, QueryRejection>) -> ApiResult {
+    let Query(q) = q.map_err(query_rejection)?;
+    let view = view_of(&q)?;
+    let jpeg = view.jpeg;
     let bytes = blocking(move || {
         let (g, store) = loaded(&s)?;
         let out = find_output(&g, &store, &q.node, &q.port, q.frame)?;
-        let view = View {
-            exposure: q.exposure,
-            srgb: q.srgb,
-            jpeg,
-        };
         s.previews
             .preview(&store, &s.registry, &out, q.layer.as_deref(), &view)
     })
@@ -260,6 +269,129 @@ async fn image(State(s): S, q: Result<Query<OutputQuery>, QueryRejection>) -> Ap
         Body::from(bytes.as_ref().clone()),
     )
         .into_response())
+}
+
+/// Encodes the previews of every frame of an output (from `frame` on, wrapping) on one
+/// background thread, so the scrubber finds them encoded; answers the progress at once. Asking
+/// again with the same query answers the same warming's progress; another query (or a new
+/// run) replaces it.
+async fn warm(State(s): S, q: Result<Query<OutputQuery>, QueryRejection>) -> ApiResult {
+    let Query(q) = q.map_err(query_rejection)?;
+    let view = view_of(&q)?;
+    let g = s
+        .graph()
+        .ok_or_else(|| ApiError::conflict("the graph does not load"))?;
+    let node = g
+        .index_of(&q.node)
+        .ok_or_else(|| ApiError::not_found(format!("no node `{}` in the graph", q.node)))?;
+    if !g.nodes[node]
+        .spec()
+        .outputs
+        .iter()
+        .any(|p| p.name == q.port)
+    {
+        return Err(ApiError::not_found(format!(
+            "node `{}` has no output `{}`",
+            q.node, q.port
+        )));
+    }
+    let per_frame = g.instances_of(&g.nodes[node]) > 1 || g.nodes[node].per_frame;
+    let mut frames: Vec<Option<i64>> = if per_frame {
+        g.frames.frames().iter().copied().map(Some).collect()
+    } else {
+        vec![None]
+    };
+    if let Some(i) = q
+        .frame
+        .and_then(|f| frames.iter().position(|x| *x == Some(f)))
+    {
+        frames.rotate_left(i);
+    }
+    let key = format!(
+        "{}|{}|{}|{}|{}|{}|{}",
+        s.runs(),
+        q.node,
+        q.port,
+        q.layer.as_deref().unwrap_or(""),
+        view.exposure,
+        view.srgb,
+        view.jpeg
+    );
+    let (w, start) = s.previews.warming(&key, frames.len());
+    if start {
+        let (s2, w2) = (s.clone(), w.clone());
+        std::thread::spawn(move || {
+            use std::sync::atomic::Ordering::Relaxed;
+            let Ok((g, store)) = loaded(&s2) else { return };
+            for f in frames {
+                if w2.stale.load(Relaxed) {
+                    return;
+                }
+                let r = find_output(&g, &store, &q.node, &q.port, f).and_then(|out| {
+                    s2.previews
+                        .preview(&store, &s2.registry, &out, q.layer.as_deref(), &view)
+                });
+                match r {
+                    Ok(_) => w2.done.fetch_add(1, Relaxed),
+                    Err(_) => w2.failed.fetch_add(1, Relaxed),
+                };
+            }
+        });
+    }
+    Ok(Json(w.json()).into_response())
+}
+
+#[derive(Deserialize)]
+struct RefineBody {
+    node: String,
+    port: String,
+    frame: Option<i64>,
+    layer: Option<String>,
+    x: f64,
+    y: f64,
+    #[serde(default = "five")]
+    radius: usize,
+}
+
+fn five() -> usize {
+    5
+}
+
+/// The corner near a definer click, at sub-pixel precision (see [`crate::refine`]).
+async fn refine(State(s): S, body: Result<Json<RefineBody>, JsonRejection>) -> ApiResult {
+    let Json(b) = body.map_err(json_rejection)?;
+    if !(1..=crate::refine::MAX_RADIUS).contains(&b.radius) {
+        return Err(ApiError::bad(format!(
+            "radius must be 1 to {}",
+            crate::refine::MAX_RADIUS
+        )));
+    }
+    let r = blocking(move || {
+        let (g, store) = loaded(&s)?;
+        let out = find_output(&g, &store, &b.node, &b.port, b.frame)?;
+        let art = s.previews.artifact(&store, &s.registry, &out)?;
+        let img = preview::image_of(art.as_ref(), b.layer.as_deref())?;
+        if !(b.x.is_finite()
+            && b.y.is_finite()
+            && b.x >= -0.5
+            && b.y >= -0.5
+            && b.x < img.width as f64 - 0.5
+            && b.y < img.height as f64 - 0.5)
+        {
+            return Err(ApiError::bad(format!(
+                "({}, {}) is outside the {}×{} image",
+                b.x, b.y, img.width, img.height
+            )));
+        }
+        Ok(
+            match crate::refine::refine_corner(img, b.x, b.y, b.radius) {
+                Some((x, y)) => json!({ "x": x, "y": y, "refined": true }),
+                None => json!({ "x": b.x, "y": b.y, "refined": false }),
+            },
+        )
+    })
+    .await?;
+    Ok(Json(r).into_response())
 }
 
 async fn pixel(State(s): S, q: Result<Query<OutputQuery>, QueryRejection>) -> ApiResult {

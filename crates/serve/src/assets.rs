@@ -11,6 +11,23 @@ const FILES: &[(&str, &str, &[u8])] = &[
         "text/javascript; charset=utf-8",
         include_bytes!("../assets/app.js"),
     ),
+    // three.js (npm `three` 0.171.0, MIT, assets/vendor/three.LICENSE): the solve view's 3-D.
+    // The module imports `./three.core.min.js`, which resolves to the entry below.
+    (
+        "three.module.min.js",
+        "text/javascript; charset=utf-8",
+        include_bytes!("../assets/vendor/three.module.min.js"),
+    ),
+    (
+        "three.core.min.js",
+        "text/javascript; charset=utf-8",
+        include_bytes!("../assets/vendor/three.core.min.js"),
+    ),
+    (
+        "three.LICENSE",
+        "text/plain; charset=utf-8",
+        include_bytes!("../assets/vendor/three.LICENSE"),
+    ),
     (
         "style.css",
         "text/css; charset=utf-8",

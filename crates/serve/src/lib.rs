@@ -14,6 +14,7 @@
 //! - [`preview`]: artifact decoding for the viewers (images, layers, JSON artifacts); the
 //!   only module that knows node artifact types.
 //! - [`definer`]: the point-cloud definer's marks file: read, validate, write, triangulate.
+//! - [`refine`]: sub-pixel corner refinement of a definer click.
 //! - [`assets`]: the embedded front end.
 
 pub mod api;
@@ -21,6 +22,7 @@ pub mod assets;
 pub mod definer;
 pub mod events;
 pub mod preview;
+pub mod refine;
 pub mod safety;
 pub mod studio;
 

@@ -44,31 +44,43 @@ pub const JSON_TYPES: &[&str] = &[
 /// Artifact types shown in the frame viewer.
 pub const IMAGE_TYPES: &[&str] = &["image", "layers"];
 
-/// A small LRU map (most recent at the back).
+/// A small LRU map (most recent at the back), bounded by a count and a total weight (bytes).
 struct Lru<V> {
     cap: usize,
-    items: VecDeque<(String, V)>,
+    max_weight: usize,
+    weight: usize,
+    items: VecDeque<(String, V, usize)>,
 }
 
 impl<V: Clone> Lru<V> {
-    fn new(cap: usize) -> Self {
+    fn new(cap: usize, max_weight: usize) -> Self {
         Lru {
             cap,
+            max_weight,
+            weight: 0,
             items: VecDeque::new(),
         }
     }
     fn get(&mut self, key: &str) -> Option<V> {
-        let i = self.items.iter().position(|(k, _)| k == key)?;
+        let i = self.items.iter().position(|(k, _, _)| k == key)?;
         let item = self.items.remove(i)?;
         let v = item.1.clone();
         self.items.push_back(item);
         Some(v)
     }
-    fn put(&mut self, key: String, v: V) {
-        self.items.retain(|(k, _)| *k != key);
-        self.items.push_back((key, v));
-        while self.items.len() > self.cap {
-            self.items.pop_front();
+    fn put(&mut self, key: String, v: V, weight: usize) {
+        if let Some(i) = self.items.iter().position(|(k, _, _)| *k == key) {
+            if let Some((_, _, w)) = self.items.remove(i) {
+                self.weight -= w;
+            }
+        }
+        self.items.push_back((key, v, weight));
+        self.weight += weight;
+        while self.items.len() > self.cap || (self.weight > self.max_weight && self.items.len() > 1)
+        {
+            if let Some((_, _, w)) = self.items.pop_front() {
+                self.weight -= w;
+            }
         }
     }
 }
@@ -77,14 +89,44 @@ impl<V: Clone> Lru<V> {
 pub struct PreviewCache {
     decoded: Mutex<Lru<Arc<dyn DynArtifact>>>,
     encoded: Mutex<Lru<Arc<Vec<u8>>>>,
+    warming: Mutex<Option<(String, Arc<Warming>)>>,
 }
+
+/// Most encoded preview bytes kept in memory (a 1280×720 JPEG preview is ~0.1 MB, a PNG ~1 MB).
+pub const ENCODED_BYTES: usize = 512 << 20;
 
 impl Default for PreviewCache {
     fn default() -> Self {
         PreviewCache {
-            decoded: Mutex::new(Lru::new(6)),
-            encoded: Mutex::new(Lru::new(512)),
+            decoded: Mutex::new(Lru::new(6, usize::MAX)),
+            encoded: Mutex::new(Lru::new(4096, ENCODED_BYTES)),
+            warming: Mutex::new(None),
         }
+    }
+}
+
+/// The progress of encoding every frame's preview of one output ahead of the scrubber.
+#[derive(Default)]
+pub struct Warming {
+    /// Frames to encode.
+    pub total: usize,
+    /// Frames encoded (or found encoded).
+    pub done: std::sync::atomic::AtomicUsize,
+    /// Frames without a preview (not run, not an image).
+    pub failed: std::sync::atomic::AtomicUsize,
+    /// Set when a newer warming replaced this one (its thread stops).
+    pub stale: std::sync::atomic::AtomicBool,
+}
+
+impl Warming {
+    /// `{total, done, failed}`.
+    pub fn json(&self) -> serde_json::Value {
+        use std::sync::atomic::Ordering::Relaxed;
+        serde_json::json!({
+            "total": self.total,
+            "done": self.done.load(Relaxed),
+            "failed": self.failed.load(Relaxed),
+        })
     }
 }
 
@@ -181,7 +223,7 @@ impl PreviewCache {
         self.decoded
             .lock()
             .unwrap_or_else(|p| p.into_inner())
-            .put(key, art.clone());
+            .put(key, art.clone(), 1);
         Ok(art)
     }
 
@@ -213,11 +255,30 @@ impl PreviewCache {
         let art = self.artifact(store, registry, out)?;
         let img = image_of(art.as_ref(), layer)?;
         let bytes = Arc::new(encode_preview(img, view)?);
+        let n = bytes.len();
         self.encoded
             .lock()
             .unwrap_or_else(|p| p.into_inner())
-            .put(key, bytes.clone());
+            .put(key, bytes.clone(), n);
         Ok(bytes)
+    }
+
+    /// The warming of `key` (a new one, replacing — and stopping — any other, when `key` is
+    /// not the current one; `true` with it when the caller must start its thread).
+    pub fn warming(&self, key: &str, total: usize) -> (Arc<Warming>, bool) {
+        let mut w = self.warming.lock().unwrap_or_else(|p| p.into_inner());
+        if let Some((k, cur)) = w.as_ref() {
+            if k == key {
+                return (cur.clone(), false);
+            }
+            cur.stale.store(true, std::sync::atomic::Ordering::Relaxed);
+        }
+        let new = Arc::new(Warming {
+            total,
+            ..Default::default()
+        });
+        *w = Some((key.to_string(), new.clone()));
+        (new, true)
     }
 }
 
@@ -258,13 +319,39 @@ pub fn image_of<'a>(art: &'a dyn DynArtifact, layer: Option<&str>) -> Result<&'a
     )))
 }
 
+/// `T[c]`: the least linear value that [`linear_to_srgb8`] maps above code `c` (found by
+/// bisection on the f32 bit patterns, once), so the transfer curve of a whole frame is 8
+/// comparisons a value instead of a `powf`, with exactly the same codes.
+fn srgb_thresholds() -> &'static [f32; 255] {
+    static T: std::sync::OnceLock<[f32; 255]> = std::sync::OnceLock::new();
+    T.get_or_init(|| {
+        std::array::from_fn(|c| {
+            let (mut lo, mut hi) = (0u32, 1f32.to_bits());
+            while lo < hi {
+                let mid = lo + (hi - lo) / 2;
+                if linear_to_srgb8(f32::from_bits(mid)) as usize > c {
+                    hi = mid;
+                } else {
+                    lo = mid + 1;
+                }
+            }
+            f32::from_bits(lo)
+        })
+    })
+}
+
+/// [`linear_to_srgb8`] by the thresholds (NaN → 0 as there).
+fn srgb8_fast(v: f32) -> u8 {
+    srgb_thresholds().partition_point(|&t| t <= v) as u8
+}
+
 /// 8-bit RGB (or grey) bytes of `img` under `view`.
 pub fn display_bytes(img: &Image, view: &View) -> (Vec<u8>, ExtendedColorType) {
     let gain = 2f32.powf(view.exposure);
     let to8 = |v: f32| -> u8 {
         let v = v * gain;
         if view.srgb {
-            linear_to_srgb8(v)
+            srgb8_fast(v)
         } else if v.is_nan() {
             0
         } else {
@@ -354,6 +441,18 @@ mod tests {
         assert!(b[0] > 64, "sRGB lifts the mid-tones");
         let png = encode_preview(&img, &srgb).unwrap();
         assert_eq!(&png[1..4], b"PNG");
+    }
+
+    #[test]
+    fn fast_transfer_curve_is_exact() {
+        let mut v = -0.5f32;
+        while v < 1.5 {
+            assert_eq!(srgb8_fast(v), linear_to_srgb8(v), "{v}");
+            v += 1.0 / 65536.0;
+        }
+        for v in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 0.0, 1.0, 1e-9] {
+            assert_eq!(srgb8_fast(v), linear_to_srgb8(v), "{v}");
+        }
     }
 
     #[test]

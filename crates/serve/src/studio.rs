@@ -192,6 +192,11 @@ impl Studio {
         }
     }
 
+    /// Runs finished since the studio started.
+    pub fn runs(&self) -> u64 {
+        self.runs.load(Ordering::SeqCst)
+    }
+
     /// True while a run is going on.
     pub fn is_running(&self) -> bool {
         self.running.load(Ordering::SeqCst)

@@ -325,6 +325,69 @@ async fn a_run_serves_previews_pixels_and_events() {
     let (st, v) = get_json(&s, "/api/artifact?node=marks&port=marks").await;
     assert_eq!(st, StatusCode::OK);
     assert_eq!(v["frames"][0]["frame"], 1);
+
+    // Warming: every frame's preview encoded in the background; asking again answers the
+    // same warming's progress; the previews then served are the ones encoded.
+    let q = "/api/warm?node=grade&port=image&frame=2&fmt=jpg";
+    let (st, v) = get_json(&s, q).await;
+    assert_eq!(st, StatusCode::OK, "{v}");
+    assert_eq!(v["total"], 2);
+    let t0 = std::time::Instant::now();
+    loop {
+        let (_, v) = get_json(&s, q).await;
+        if v["done"] == 2 {
+            break;
+        }
+        assert!(t0.elapsed().as_secs() < 60, "warming stuck: {v}");
+        tokio::time::sleep(std::time::Duration::from_millis(20)).await;
+    }
+    for (bad, code) in [
+        (
+            "/api/warm?node=grade&port=image&exposure=nan",
+            StatusCode::BAD_REQUEST,
+        ),
+        ("/api/warm?node=zz&port=image", StatusCode::NOT_FOUND),
+        ("/api/warm?node=grade&port=zz", StatusCode::NOT_FOUND),
+        ("/api/warm?node=grade", StatusCode::BAD_REQUEST),
+    ] {
+        let (st, v) = get_json(&s, bad).await;
+        assert_eq!(st, code, "{bad}: {v}");
+    }
+    // Refinement requests: outside the image, a bad radius, not finite → 400.
+    for bad in [
+        json!({"node": "grade", "port": "image", "frame": 1, "x": 9.0, "y": 1.0}),
+        json!({"node": "grade", "port": "image", "frame": 1, "x": 1.0, "y": -3.0}),
+        json!({"node": "grade", "port": "image", "frame": 1, "x": 1.0, "y": 1.0, "radius": 99}),
+        json!({"node": "grade", "port": "image", "frame": 1, "x": "a", "y": 1.0}),
+        json!({"node": "grade", "port": "image", "x": 1.0, "y": 1.0}),
+    ] {
+        let (st, v) = post_json(&s, "/api/refine", bad.clone()).await;
+        assert_eq!(st, StatusCode::BAD_REQUEST, "{bad}: {v}");
+    }
+    // A ramp has no corner: the click stays.
+    let (st, v) = post_json(
+        &s,
+        "/api/refine",
+        json!({"node": "grade", "port": "image", "frame": 1, "x": 1.0, "y": 1.0, "radius": 1}),
+    )
+    .await;
+    assert_eq!(st, StatusCode::OK, "{v}");
+    assert_eq!(v, json!({"x": 1.0, "y": 1.0, "refined": false}));
+}
+
+#[tokio::test]
+async fn the_vendored_three_js_is_served_with_its_licence() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = studio(dir.path(), GRAPH);
+    for (file, needle) in [
+        ("three.module.min.js", "./three.core.min.js"),
+        ("three.core.min.js", "WebGL"),
+        ("three.LICENSE", "MIT License"),
+    ] {
+        let (st, b) = call(&s, "GET", &format!("/assets/{file}"), None).await;
+        assert_eq!(st, StatusCode::OK, "{file}");
+        assert!(String::from_utf8_lossy(&b).contains(needle), "{file}");
+    }
 }
 
 #[tokio::test]

@@ -96,7 +96,9 @@ impl Session {
             "browserName": "chrome",
             "goog:chromeOptions": {
                 "binary": chromium,
-                "args": ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
+                // WebGL (the solve view's three.js) on SwiftShader, the CPU renderer.
+                "args": ["--headless", "--no-sandbox", "--use-angle=swiftshader",
+                         "--enable-unsafe-swiftshader", "--disable-quic",
                          "--no-first-run", "--disable-background-networking",
                          "--disable-component-update", "--disable-sync",
                          "--disable-dev-shm-usage", "--window-size=1600,1100",
@@ -203,6 +205,26 @@ impl Session {
                 "parameters": {"pointerType": "mouse"}, "actions": actions}]})),
         );
         self.call("DELETE", "/actions", None);
+    }
+
+    /// Opens a new tab (same browser, same profile) and returns its handle; the session stays
+    /// on the current tab until [`Session::switch_to`].
+    pub fn new_tab(&self) -> String {
+        let v = self.call("POST", "/window/new", Some(json!({ "type": "tab" })));
+        v["handle"].as_str().expect("window handle").to_string()
+    }
+
+    /// The handle of the current tab.
+    pub fn handle(&self) -> String {
+        self.call("GET", "/window", None)
+            .as_str()
+            .expect("window handle")
+            .to_string()
+    }
+
+    /// Makes the tab of `handle` the current one.
+    pub fn switch_to(&self, handle: &str) {
+        self.call("POST", "/window", Some(json!({ "handle": handle })));
     }
 
     /// A PNG screenshot of the page.
