@@ -524,6 +524,20 @@ mod tests {
         let r = s.gc(None, Duration::ZERO);
         assert_eq!(r.objects_removed, 1);
         assert!(s.has_object(&live) && !s.has_object(&dead));
+        // An old unreferenced object put again (a writer about to name it) is young again.
+        s.put_object(&dead, "string", b"\"b\"").unwrap();
+        let old = SystemTime::now() - Duration::from_secs(7200);
+        fs::File::options()
+            .append(true)
+            .open(s.object_path(&dead))
+            .unwrap()
+            .set_modified(old)
+            .unwrap();
+        s.put_object(&dead, "string", b"\"b\"").unwrap();
+        let r = s.gc(None, Duration::from_secs(3600));
+        assert_eq!((r.objects_removed, r.objects_kept_young), (0, 1));
+        let r = s.gc(None, Duration::ZERO);
+        assert_eq!(r.objects_removed, 1);
         let r = s.gc(Some(0), Duration::ZERO);
         assert_eq!(r.actions_removed, 1);
         assert!(!s.has_object(&live));
