@@ -164,12 +164,22 @@ enum CacheAction {
         at: CacheLocation,
     },
     /// Remove unreferenced objects; with --max-size, also the least recently used entries.
+    /// Safe while other processes or a farm use the cache: objects younger than --grace are
+    /// kept (a writer's objects precede the entry naming them), and --max-size is refused
+    /// while a farm submission's lease is younger than a day (its queued tasks need entries
+    /// it could evict).
     Gc {
         #[command(flatten)]
         at: CacheLocation,
         /// Size to shrink to, e.g. 500M, 2G, 100000 (bytes).
         #[arg(long, value_parser = parse_size)]
         max_size: Option<u64>,
+        /// Keep unreferenced objects younger than this many seconds.
+        #[arg(long, value_name = "SECONDS", default_value_t = 3600)]
+        grace: u64,
+        /// Evict with --max-size even while a farm submission is active.
+        #[arg(long)]
+        ignore_farm: bool,
     },
     /// Delete the whole cache.
     Clear {
@@ -440,15 +450,36 @@ fn cache_command(action: CacheAction) -> Result<u8, String> {
             let store = open_cache(&at)?;
             report::print_cache_du(&store);
         }
-        CacheAction::Gc { at, max_size } => {
+        CacheAction::Gc {
+            at,
+            max_size,
+            grace,
+            ignore_farm,
+        } => {
             let store = open_cache(&at)?;
-            let r = store.gc(max_size);
+            if max_size.is_some() && !ignore_farm {
+                let active = farm::active_submissions(store.root(), farm::LEASE);
+                if let Some((token, age)) = active.first() {
+                    return Err(format!(
+                        "cache {}: a farm run is active (submission {token}, a task started or \
+                         ended {} s ago; {} active): --max-size could evict entries its queued \
+                         tasks need. Run gc without --max-size (it removes only unreferenced \
+                         objects), wait until the run ends, or pass --ignore-farm",
+                        store.root().display(),
+                        age.as_secs(),
+                        active.len()
+                    ));
+                }
+            }
+            let r = store.gc(max_size, std::time::Duration::from_secs(grace));
             println!(
-                "removed {} entries and {} objects, freed {}; {} left",
+                "removed {} entries and {} objects, freed {}; {} left; kept {} unreferenced \
+                 object(s) younger than {grace} s",
                 r.actions_removed,
                 r.objects_removed,
                 report::human_bytes(r.bytes_freed),
-                report::human_bytes(r.bytes_left)
+                report::human_bytes(r.bytes_left),
+                r.objects_kept_young
             );
         }
         CacheAction::Clear { at } => {

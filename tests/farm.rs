@@ -240,7 +240,7 @@ fn slurm_submission_equals_a_local_run_and_resubmits_nothing() {
     for n in status(&g, &[]) {
         assert_eq!(n["missing"], 0, "{n}");
         assert_eq!(n["cached"], n["instances"], "{n}");
-        assert_eq!(n["running_tasks"], 0, "{n}");
+        assert_eq!((&n["running"], &n["queued"]), (&0.into(), &0.into()), "{n}");
     }
     // A log per task.
     let logs: Vec<_> = fs::read_dir(g.parent().unwrap().join("cache/farm"))
@@ -323,6 +323,19 @@ fn per_frame_dependencies_are_per_chunk() {
         !task_times(&graded).contains_key(&0),
         "graded chunk 0 waits for render chunk 0"
     );
+    // `status` counts instances, not tasks: of each of the two nodes, chunk 0's two frames
+    // are queued (its task pending), the other six cached.
+    let st = status(&g, &[]);
+    let line = |n: &str| st.iter().find(|x| x["id"] == n).unwrap().clone();
+    for n in ["plate", "graded"] {
+        let l = line(n);
+        assert_eq!(
+            (&l["cached"], &l["missing"], &l["queued"], &l["running"]),
+            (&6.into(), &2.into(), &2.into(), &0.into()),
+            "{l}"
+        );
+    }
+    assert_eq!(line("movie")["queued"], 1, "{}", line("movie"));
     let released = slurm(&["release", &format!("{plate}_0")], "scontrol");
     assert!(released.status.success());
     wait_idle();
@@ -378,6 +391,12 @@ fn a_killed_task_leaves_no_half_entry_and_resubmission_runs_only_what_is_missing
         assert!(t.elapsed() < Duration::from_secs(300));
         std::thread::sleep(Duration::from_millis(50));
     }
+    // While it runs, `status` counts its unfinished frames as running (it is killed below
+    // with at least one frame unfinished, so at least one).
+    let st = status(&g, &["--set", set[0]]);
+    let plate_line = st.iter().find(|x| x["id"] == "plate").unwrap();
+    let running = plate_line["running"].as_u64().unwrap();
+    assert!((1..=4).contains(&running), "{plate_line}");
     assert!(slurm(&[&task], "scancel").status.success());
     wait_idle();
     // No half entry: every entry's objects verify (`entries`); the render's chunk 0 is whole,
@@ -468,6 +487,32 @@ fn bad_input_is_a_clear_error_and_submits_nothing() {
             "node `path` (synthetic_camera_path) failed: an input of the selected instances \
              is not in the cache"
         ) && e.contains("node `plate_scene` (read_scene) failed"),
+        "{e}"
+    );
+    assert!(Store::open(&g.parent().unwrap().join("c"))
+        .unwrap()
+        .list()
+        .is_empty());
+    // A task whose cache is not the one its submit wrote (not shared with the submit host):
+    // it fails before reading the graph's inputs, naming the cache and the host.
+    let e = err(
+        &[
+            "exec",
+            "farm_shot.yaml",
+            "--node",
+            "path",
+            "--cache",
+            "c",
+            "--token",
+            "subhost-12-0-1700000000",
+        ],
+        None,
+    );
+    assert!(
+        e.contains(
+            "cache c is not the one submit wrote (no farm-tokens/subhost-12-0-1700000000: \
+             not shared with host subhost?)"
+        ),
         "{e}"
     );
     assert!(Store::open(&g.parent().unwrap().join("c"))
@@ -603,4 +648,188 @@ fn openjd_template_checks_and_runs_to_the_local_result() {
         0,
         "nothing left to run"
     );
+}
+
+/// The memory hint of each job of a Slurm dry run (`--mem`, MiB), by node.
+fn slurm_mem(graph: &Path, set: &[&str]) -> BTreeMap<String, Option<u64>> {
+    let mut args = vec![
+        "submit",
+        "farm_shot.yaml",
+        "--farm",
+        "slurm",
+        "--cache",
+        "cache",
+        "--dry-run",
+    ];
+    for s in set {
+        args.extend(["--set", s]);
+    }
+    let out = vfx(graph, &args);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout).into_owned();
+    let mut mem = BTreeMap::new();
+    for script in format!("\n{text}").split("\n# ").skip(1) {
+        let node = script.split('/').nth(1).unwrap().to_string();
+        let m = script.lines().find_map(|l| {
+            l.strip_prefix("#SBATCH --mem=")
+                .map(|v| v.trim_end_matches('M').parse().unwrap())
+        });
+        mem.insert(node, m);
+    }
+    mem
+}
+
+#[test]
+fn memory_hints_follow_the_node_type_and_the_image_size() {
+    let tmp = tempfile::tempdir().unwrap();
+    let g = shot(tmp.path());
+    let base = slurm_mem(&g, &[]);
+    let big = slurm_mem(&g, &["plate.width=4096", "plate.height=2160"]);
+    let small = slurm_mem(&g, &["plate.width=640", "plate.height=480"]);
+    // A reader has a small fixed hint; nodes without a model have none (the farm default).
+    let scene = base["plate_scene"].expect("read_scene has a hint");
+    assert!(scene <= 1024, "{base:?}");
+    assert_eq!(base["path"], None, "{base:?}");
+    // A render's grows with its pixels: 4K needs more than 640×480, by about the pixel
+    // ratio of the buffers (28.8× as many pixels), and more than the reader.
+    let (b, s) = (big["plate"].unwrap(), small["plate"].unwrap());
+    assert!(b > s && s > 0 && b > scene, "{big:?} {small:?}");
+    assert!(b > 2 * s, "4K {b} MiB vs 640×480 {s} MiB");
+    // The OpenJD template carries the same hints as host requirements.
+    let v = vfx(
+        &g,
+        &[
+            "submit",
+            "farm_shot.yaml",
+            "--farm",
+            "openjd",
+            "--cache",
+            "cache",
+            "--dry-run",
+            "--set",
+            "plate.width=4096",
+            "--set",
+            "plate.height=2160",
+        ],
+    );
+    assert!(v.status.success(), "{}", String::from_utf8_lossy(&v.stderr));
+    let t: Json = serde_json::from_slice(&v.stdout).unwrap();
+    for step in t["steps"].as_array().unwrap() {
+        let node = step["name"].as_str().unwrap();
+        let amount = step["hostRequirements"]["amounts"][0].clone();
+        match big[node] {
+            Some(m) => assert_eq!(
+                (&amount["name"], amount["min"].as_u64()),
+                (&Json::from("amount.worker.memory"), Some(m)),
+                "{step}"
+            ),
+            None => assert!(step.get("hostRequirements").is_none(), "{step}"),
+        }
+    }
+}
+
+#[test]
+fn tasks_on_a_cache_the_submit_did_not_write_fail_at_once() {
+    let _lock = CLUSTER.lock().unwrap_or_else(|e| e.into_inner());
+    if !slurm_up() {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let g = shot(tmp.path());
+    let part = |state: &str| {
+        let o = slurm(
+            &["update", "partitionname=farm", &format!("state={state}")],
+            "scontrol",
+        );
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    };
+    // Submitted with nothing started, then the token is gone, as on a host that mounts
+    // another folder at the cache's path.
+    part("down");
+    let jobs = submit(&g, &["--chunk", "4"]);
+    let cache = g.parent().unwrap().join("cache");
+    fs::remove_dir_all(cache.join("farm-tokens")).unwrap();
+    part("up");
+    wait_idle();
+    // Every task that started failed before computing anything; the farm cancelled the
+    // rest (their dependencies can never be met).
+    assert!(entries(&cache).is_empty(), "nothing computed");
+    let logs: Vec<String> = fs::read_dir(cache.join("farm"))
+        .unwrap()
+        .flat_map(|d| fs::read_dir(d.unwrap().path().join("logs")).unwrap())
+        .map(|f| fs::read_to_string(f.unwrap().path()).unwrap())
+        .collect();
+    // Only the two jobs without producers started (the camera path, the scene reader).
+    let roots = jobs.iter().filter(|j| j["dependency"] == "").count();
+    assert_eq!((logs.len(), roots), (2, 2), "{logs:?}");
+    for l in &logs {
+        assert!(
+            l.contains("is not the one submit wrote") && l.contains("not shared with host"),
+            "{l}"
+        );
+    }
+}
+
+#[test]
+fn cache_gc_during_a_farm_run_keeps_what_its_tasks_need() {
+    let tmp = tempfile::tempdir().unwrap();
+    let g = shot(tmp.path());
+    let gc = |args: &[&str]| {
+        let mut a = vec!["cache", "gc", "--cache", "cache"];
+        a.extend_from_slice(args);
+        vfx(&g, &a)
+    };
+    // The camera path computed (as a farm task would), the rest submitted: an active run.
+    let out = vfx(
+        &g,
+        &[
+            "exec",
+            "farm_shot.yaml",
+            "--node",
+            "path",
+            "--cache",
+            "cache",
+        ],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v = ok_json(
+        &g,
+        &[
+            "submit",
+            "farm_shot.yaml",
+            "--farm",
+            "openjd",
+            "--cache",
+            "cache",
+            "--json",
+        ],
+    );
+    assert_eq!(v["steps"].as_array().unwrap().len(), 5, "{v}");
+    let before = entries(&g.parent().unwrap().join("cache"));
+    assert_eq!(before.len(), 1);
+    // Eviction is refused while the submission's lease is fresh; nothing removed.
+    let o = gc(&["--max-size", "0"]);
+    assert!(!o.status.success());
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        e.contains("a farm run is active") && e.contains("--ignore-farm"),
+        "{e}"
+    );
+    assert_eq!(entries(&g.parent().unwrap().join("cache")), before);
+    // Collecting unreferenced objects is allowed and keeps every entry.
+    let o = gc(&[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(entries(&g.parent().unwrap().join("cache")), before);
+    // Forced, it evicts.
+    let o = gc(&["--max-size", "0", "--ignore-farm"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(entries(&g.parent().unwrap().join("cache")).is_empty());
 }

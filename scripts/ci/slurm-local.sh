@@ -14,6 +14,9 @@ dir="${VFXGRAPH_SLURM_DIR:-/tmp/vfxgraph-slurm}"
 conf="$dir/slurm.conf"
 host="$(hostname -s)"
 cpus="${VFXGRAPH_SLURM_CPUS:-$(nproc)}"
+# The node's memory (MiB), so jobs with a --mem hint fit (Slurm's default is 1 MiB): 95 % of
+# it, never above what slurmd detects.
+mem="$(awk '/^MemTotal:/ {print int($2 / 1024 * 0.95)}' /proc/meminfo)"
 export SLURM_CONF="$conf"
 
 alive() { [ -f "$1" ] && kill -0 "$(cat "$1")" 2>/dev/null; }
@@ -37,6 +40,9 @@ TaskPlugin=task/none
 SelectType=select/cons_tres
 SelectTypeParameters=CR_CPU
 SchedulerType=sched/backfill
+# Start a job as soon as its dependency is met or a slot frees (the default batch_sched_delay
+# of 3 s, for clusters flooded with submissions, made a one-slot farm idle ~2 s per task).
+SchedulerParameters=batch_sched_delay=0
 ReturnToService=2
 MpiDefault=none
 JobAcctGatherType=jobacct_gather/none
@@ -45,7 +51,7 @@ JobCompType=jobcomp/filetxt
 JobCompLoc=$dir/log/jobcomp.log
 MinJobAge=600
 MaxArraySize=10001
-NodeName=$host CPUs=$cpus State=UNKNOWN
+NodeName=$host CPUs=$cpus RealMemory=$mem State=UNKNOWN
 PartitionName=farm Nodes=$host Default=YES MaxTime=INFINITE State=UP
 CONF
   if ! cmp -s "$conf.new" "$conf" 2>/dev/null; then

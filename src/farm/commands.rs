@@ -35,6 +35,10 @@ pub struct ExecArgs {
     /// Print the per-instance report as JSON on stdout.
     #[arg(long)]
     pub json: bool,
+    /// The submission token `submit` passes to its tasks: the task fails at once unless the
+    /// cache holds it (a cache not shared with the submitting host).
+    #[arg(long, value_name = "TOKEN")]
+    pub token: Option<String>,
 }
 
 /// The farms `submit` knows.
@@ -87,6 +91,13 @@ fn graph_or_exit(args: &GraphArgs, registry: &Registry) -> Result<Graph, u8> {
 
 /// Runs exactly the named instances on inputs from the cache.
 pub fn exec_command(a: ExecArgs, registry: &Registry, quiet: bool) -> Result<u8, String> {
+    let cache = a
+        .cache
+        .clone()
+        .unwrap_or_else(|| default_cache_dir(&a.graph));
+    if let Some(t) = &a.token {
+        super::check_token(&cache, t)?;
+    }
     let ga = GraphArgs {
         graph: a.graph.clone(),
         set: a.set.clone(),
@@ -115,11 +126,7 @@ pub fn exec_command(a: ExecArgs, registry: &Registry, quiet: bool) -> Result<u8,
         .collect();
     let opts = RunOptions {
         jobs: a.jobs,
-        cache_dir: Some(
-            a.cache
-                .clone()
-                .unwrap_or_else(|| default_cache_dir(&a.graph)),
-        ),
+        cache_dir: Some(cache.clone()),
         force: vec![],
         cancel: Some(crate::interrupt::install()),
         only: Some(only),
@@ -128,6 +135,9 @@ pub fn exec_command(a: ExecArgs, registry: &Registry, quiet: bool) -> Result<u8,
     let rep =
         exec::run(&g, registry, &opts, &bars).map_err(|e| format!("{}: {e}", a.graph.display()))?;
     bars.finish();
+    if let Some(t) = &a.token {
+        super::touch_token(&cache, t);
+    }
     if a.json {
         println!(
             "{}",
@@ -156,6 +166,7 @@ fn task_context(a: &SubmitArgs, cache: &std::path::Path) -> Result<TaskContext, 
             .graph
             .file_stem()
             .map_or("graph".into(), |s| s.to_string_lossy().into_owned()),
+        token: super::new_token(),
     })
 }
 
@@ -185,14 +196,13 @@ pub fn submit_command(a: SubmitArgs, registry: &Registry) -> Result<u8, String> 
     };
     let plan = exec::plan(&g, &opts).map_err(|e| e.to_string())?;
     let farm = FarmPlan::new(&g, &plan, a.chunk as usize);
-    let dir = ctx.cache.join("farm").join(format!(
-        "{}-{}-{}",
-        ctx.graph_name,
-        std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map_or(0, |d| d.as_secs()),
-        std::process::id()
-    ));
+    let dir = ctx
+        .cache
+        .join("farm")
+        .join(format!("{}-{}", ctx.graph_name, ctx.token));
+    if !a.dry_run && !farm.jobs.is_empty() {
+        super::write_token(&ctx.cache, &ctx.token)?;
+    }
     match a.farm {
         Farm::Slurm => submit_slurm(&ctx, &farm, &dir, a.dry_run, a.json),
         Farm::Openjd => write_openjd(&ctx, &farm, &dir, a.chunk as usize, a.dry_run, a.json),

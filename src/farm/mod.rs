@@ -52,6 +52,8 @@ pub struct Job {
     pub deps: Vec<(usize, Wait)>,
     /// The node type's resource hint.
     pub threads: Threads,
+    /// The node type's memory hint for this node's params, MiB (`None`: no hint).
+    pub memory_mib: Option<u64>,
 }
 
 impl Job {
@@ -81,6 +83,8 @@ pub struct TaskContext {
     pub range: Option<String>,
     /// The graph's name in job names (its file stem).
     pub graph_name: String,
+    /// The submission's token (see [`write_token`]), passed to every task as `exec --token`.
+    pub token: String,
 }
 
 impl TaskContext {
@@ -107,6 +111,7 @@ impl TaskContext {
         if let Some(j) = jobs {
             a.extend(["--jobs".into(), j.into()]);
         }
+        a.extend(["--token".into(), self.token.clone()]);
         a
     }
 }
@@ -150,6 +155,7 @@ impl FarmPlan {
                 chunks,
                 deps: Vec::new(),
                 threads: node.spec().threads,
+                memory_mib: node.spec().memory.mib(&node.params),
             };
             job.deps = dependencies(graph, n, &job, &jobs, &job_of);
             job_of[n] = Some(jobs.len());
@@ -230,6 +236,91 @@ pub fn check_cache_writable(cache: &Path) -> Result<(), String> {
         .map_err(|e| format!("cache folder {} is not writable: {e}", cache.display()))?;
     let _ = std::fs::remove_file(&probe);
     Ok(())
+}
+
+/// How long after its last task started or ended a submission counts as active (a queued
+/// task may wait behind long renders): `cache gc --max-size` refuses to evict meanwhile.
+pub const LEASE: std::time::Duration = std::time::Duration::from_secs(24 * 3600);
+
+/// Where a submission's token lives in a cache.
+pub fn token_path(cache: &Path, token: &str) -> PathBuf {
+    cache.join("farm-tokens").join(token)
+}
+
+/// A new submission token: unique to this host (its name first), process and time.
+pub fn new_token() -> String {
+    let secs = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
+    format!("{}-{secs}", vfxgraph_engine::fsutil::unique_token())
+}
+
+/// The host a token was made on (its first part).
+fn token_host(token: &str) -> &str {
+    token.split('-').next().unwrap_or(token)
+}
+
+/// Writes the submission's token into the cache before anything is submitted: every task
+/// checks it ([`check_token`]), so a task whose cache path is not the submitter's cache
+/// (not shared, not mounted, another folder) fails at once instead of computing into a cache
+/// nobody reads. The token's mtime is the submission's lease: every task sets it when it
+/// starts and ends, and `cache gc` will not evict entries while a lease is recent.
+pub fn write_token(cache: &Path, token: &str) -> Result<(), String> {
+    let p = token_path(cache, token);
+    vfxgraph_engine::fsutil::atomic_write(&p, format!("{token}\n").as_bytes())
+        .map_err(|e| format!("cache folder {} is not writable: {e}", cache.display()))
+}
+
+/// Checks, at the start of a farm task, that `cache` holds the token its submit wrote, and
+/// renews the lease (sets the token's mtime).
+pub fn check_token(cache: &Path, token: &str) -> Result<(), String> {
+    let p = token_path(cache, token);
+    let seen = std::fs::read_to_string(&p).is_ok_and(|t| t.trim() == token);
+    if !seen {
+        return Err(format!(
+            "cache {} is not the one submit wrote (no {}: not shared with host {}?)",
+            cache.display(),
+            p.strip_prefix(cache).unwrap_or(&p).display(),
+            token_host(token)
+        ));
+    }
+    touch_token(cache, token);
+    Ok(())
+}
+
+/// Renews a submission's lease (its token's mtime).
+pub fn touch_token(cache: &Path, token: &str) {
+    if let Ok(f) = std::fs::File::options()
+        .append(true)
+        .open(token_path(cache, token))
+    {
+        let _ = f.set_modified(std::time::SystemTime::now());
+    }
+}
+
+/// Submissions whose lease is younger than `within`: (token, age), youngest first.
+pub fn active_submissions(
+    cache: &Path,
+    within: std::time::Duration,
+) -> Vec<(String, std::time::Duration)> {
+    let mut out: Vec<(String, std::time::Duration)> = std::fs::read_dir(cache.join("farm-tokens"))
+        .into_iter()
+        .flatten()
+        .flatten()
+        .filter_map(|e| {
+            let age = e
+                .metadata()
+                .ok()?
+                .modified()
+                .ok()?
+                .elapsed()
+                .unwrap_or_default();
+            let name = e.file_name().to_string_lossy().into_owned();
+            (age < within && !name.starts_with('.')).then_some((name, age))
+        })
+        .collect();
+    out.sort_by_key(|(_, a)| *a);
+    out
 }
 
 /// The full path of program `name` on `PATH`, or an error saying how to get it.

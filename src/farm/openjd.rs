@@ -1,7 +1,8 @@
 //! Open Job Description (what AWS Deadline Cloud runs): a `jobtemplate-2023-09` job template
 //! in JSON with one step per node. A per-frame step's tasks are a chunked `Frame` parameter
 //! (`CHUNK[INT]`, the `TASK_CHUNKING` extension) over the node's uncached frames; steps depend
-//! on the steps of their producers (OpenJD dependencies are whole-step). The vfxgraph binary,
+//! on the steps of their producers (OpenJD dependencies are whole-step); a node type's memory
+//! hint is the step's `amount.worker.memory` host requirement (MiB). The vfxgraph binary,
 //! the graph and the cache are job parameters, so a farm maps them to its own paths.
 
 use serde_json::{json, Value};
@@ -59,6 +60,9 @@ fn step(ctx: &TaskContext, plan: &FarmPlan, job: &Job, chunk: usize) -> Value {
         "description": format!("{}/{}/{}", ctx.graph_name, job.node, job.frames_label()),
         "script": {"actions": {"onRun": {"command": "{{Param.Vfxgraph}}", "args": args}}},
     });
+    if let Some(m) = job.memory_mib {
+        s["hostRequirements"] = json!({"amounts": [{"name": "amount.worker.memory", "min": m}]});
+    }
     if job.per_frame {
         s["parameterSpace"] = json!({"taskParameterDefinitions": [{
             "name": "Frame",

@@ -2,6 +2,9 @@
 //! index = the chunk's position in the graph's frames, so chunk k of two per-frame nodes has
 //! the same index and `aftercorr` pairs them); a whole-sequence consumer waits `afterok` for
 //! the whole array. `--kill-on-invalid-dep=yes` cancels the dependants of a failed task.
+//! Resources from the node type: `--cpus-per-task=1` for a one-core node, `--exclusive` for
+//! one that uses every core, `--mem` from its memory hint (`Memory`: a fixed amount for a
+//! reader, an image-sized one for a renderer from its width × height).
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -46,6 +49,9 @@ pub fn script(ctx: &TaskContext, job: &Job, logs: &Path) -> String {
         Threads::One => s.push_str("#SBATCH --cpus-per-task=1\n"),
         Threads::All => s.push_str("#SBATCH --exclusive\n"),
     }
+    if let Some(m) = job.memory_mib {
+        let _ = writeln!(s, "#SBATCH --mem={m}M");
+    }
     if job.per_frame {
         let idx: Vec<String> = job.chunks.iter().map(|c| c.index.to_string()).collect();
         let _ = writeln!(s, "#SBATCH --array={}", idx.join(","));
@@ -64,7 +70,10 @@ pub fn script(ctx: &TaskContext, job: &Job, logs: &Path) -> String {
         s.push_str(" )\n");
     }
     let frames = job.per_frame.then_some("@FRAMES@");
-    let mut line = format!("exec {}", sh_quote(&ctx.exe.display().to_string()));
+    // Start and end stamps in the log: a wrangler sees where and when a task ran, and the
+    // farm benchmark (scripts/bench/farm_scaling.sh) the time outside `vfxgraph exec`'s run.
+    s.push_str("echo \"task start $(date +%s.%N) on $(hostname)\"\n");
+    let mut line = sh_quote(&ctx.exe.display().to_string());
     for a in ctx.exec_args(&job.node, frames, Some("@JOBS@")) {
         let word = match a.as_str() {
             "@FRAMES@" => "\"${frames[$SLURM_ARRAY_TASK_ID]}\"".to_string(),
@@ -75,7 +84,7 @@ pub fn script(ctx: &TaskContext, job: &Job, logs: &Path) -> String {
         line.push_str(&word);
     }
     s.push_str(&line);
-    s.push('\n');
+    s.push_str("\necho \"task end $(date +%s.%N)\"\n");
     s
 }
 
@@ -190,17 +199,29 @@ fn cancel(done: &[Submitted]) {
         .status();
 }
 
-/// Tasks of the graph's jobs in the queue, per node: (running, pending), read from
-/// `squeue` (array tasks one per line). `None` when `squeue` is not installed or fails.
-pub fn queued(graph_name: &str) -> Option<std::collections::BTreeMap<String, (usize, usize)>> {
+/// The graph's instances in the farm's queue, per node.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Queued {
+    /// Instances of running tasks (frame, or `None` for a node that runs once).
+    pub running: Vec<Option<i64>>,
+    /// Instances of tasks waiting to start.
+    pub pending: Vec<Option<i64>>,
+}
+
+/// The graph's instances in the queue, per node, read from `squeue` (one line per array
+/// task: its job name, state, array index and batch script; a task's frames are the ones
+/// its script gives its index). `None` when `squeue` is not installed or fails.
+pub fn queued(graph_name: &str) -> Option<std::collections::BTreeMap<String, Queued>> {
     let out = Command::new("squeue")
-        .args(["-h", "-r", "-o", "%j|%T"])
+        .args(["-h", "-r", "-o", "%j|%T|%K|%o"])
         .output()
         .ok()
         .filter(|o| o.status.success())?;
     let mut per_node = std::collections::BTreeMap::new();
+    let mut scripts: std::collections::HashMap<String, Vec<(usize, Vec<i64>)>> = Default::default();
     for line in String::from_utf8_lossy(&out.stdout).lines() {
-        let Some((name, state)) = line.split_once('|') else {
+        let f: Vec<&str> = line.splitn(4, '|').collect();
+        let [name, state, index, command] = f[..] else {
             continue;
         };
         let mut parts = name.splitn(3, '/');
@@ -208,12 +229,60 @@ pub fn queued(graph_name: &str) -> Option<std::collections::BTreeMap<String, (us
             continue;
         }
         let Some(node) = parts.next() else { continue };
-        let e: &mut (usize, usize) = per_node.entry(node.to_string()).or_default();
+        let frames: Vec<Option<i64>> = match index.parse::<usize>() {
+            // An array task: the frames of its chunk.
+            Ok(k) => scripts
+                .entry(command.to_string())
+                .or_insert_with(|| {
+                    std::fs::read_to_string(command)
+                        .map(|t| script_chunks(&t))
+                        .unwrap_or_default()
+                })
+                .iter()
+                .find(|(i, _)| *i == k)
+                .map(|(_, fr)| fr.iter().map(|&f| Some(f)).collect())
+                .unwrap_or_default(),
+            Err(_) => vec![None],
+        };
+        let e: &mut Queued = per_node.entry(node.to_string()).or_default();
         match state {
-            "RUNNING" | "COMPLETING" => e.0 += 1,
-            "PENDING" | "CONFIGURING" => e.1 += 1,
+            "RUNNING" | "COMPLETING" => e.running.extend(frames),
+            "PENDING" | "CONFIGURING" | "REQUEUED" | "SUSPENDED" => e.pending.extend(frames),
             _ => {}
         }
     }
     Some(per_node)
+}
+
+/// The chunks of a batch script [`script`] wrote: (array index, frames).
+fn script_chunks(text: &str) -> Vec<(usize, Vec<i64>)> {
+    let Some(list) = text
+        .lines()
+        .find_map(|l| l.strip_prefix("frames=("))
+        .and_then(|l| l.strip_suffix(')'))
+    else {
+        return vec![];
+    };
+    list.split_whitespace()
+        .filter_map(|w| {
+            let (k, v) = w.strip_prefix('[')?.split_once("]=")?;
+            let frames = FrameSet::parse(v.trim_matches('\'')).ok()?;
+            Some((k.parse().ok()?, frames.frames().to_vec()))
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_scripts_chunks_read_back() {
+        let t = "#!/bin/bash\nset -e\nframes=( [0]=1-4 [2]='9,11' )\nexec x\n";
+        assert_eq!(
+            script_chunks(t),
+            vec![(0, vec![1, 2, 3, 4]), (2, vec![9, 11])]
+        );
+        assert!(script_chunks("exec x\n").is_empty());
+    }
 }

@@ -1,12 +1,16 @@
-//! `vfxgraph status`: per node, how many instances the shared cache holds, how many of its
-//! farm tasks are running or queued (from `squeue`, where installed) and how many instances
-//! are missing — a bar a wrangler reads at a glance.
+//! `vfxgraph status`: per node, how many instances the shared cache holds, how many of the
+//! missing ones farm tasks are computing now or will (running / queued, from `squeue` where
+//! installed; a task's frames from its batch script) and how many are missing — instances,
+//! not tasks: a chunk of 10 frames running with 3 of them done counts 7 running. A bar a
+//! wrangler reads at a glance.
 
 use std::collections::BTreeMap;
 
 use serde::Serialize;
 use vfxgraph_engine::exec::{PlanReport, PlanStatus};
 use vfxgraph_engine::Graph;
+
+use super::slurm::Queued;
 
 /// One node's line.
 #[derive(Clone, Debug, Serialize)]
@@ -19,17 +23,17 @@ pub struct NodeStatus {
     pub cached: usize,
     /// Instances not in the cache.
     pub missing: usize,
-    /// Farm tasks of this node running (`None`: no `squeue`).
-    pub running_tasks: Option<usize>,
-    /// Farm tasks of this node queued.
-    pub queued_tasks: Option<usize>,
+    /// Missing instances a running farm task computes (`None`: no `squeue`).
+    pub running: Option<usize>,
+    /// Missing instances of farm tasks waiting to start.
+    pub queued: Option<usize>,
 }
 
 /// The status of every node, in graph order.
 pub fn collect(
     graph: &Graph,
     plan: &PlanReport,
-    queue: Option<&BTreeMap<String, (usize, usize)>>,
+    queue: Option<&BTreeMap<String, Queued>>,
 ) -> Vec<NodeStatus> {
     graph
         .nodes
@@ -40,14 +44,21 @@ pub fn collect(
                 .iter()
                 .filter(|l| l.status == PlanStatus::Cached)
                 .count();
-            let q = queue.map(|q| q.get(&n.id).copied().unwrap_or_default());
+            let missing: Vec<Option<i64>> = lines
+                .iter()
+                .filter(|l| l.status != PlanStatus::Cached)
+                .map(|l| l.frame)
+                .collect();
+            // Missing instances among `of`, each once.
+            let count = |of: &[Option<i64>]| missing.iter().filter(|f| of.contains(*f)).count();
+            let q = queue.map(|q| q.get(&n.id).cloned().unwrap_or_default());
             NodeStatus {
                 id: n.id.clone(),
                 instances: lines.len(),
                 cached,
-                missing: lines.len() - cached,
-                running_tasks: q.map(|q| q.0),
-                queued_tasks: q.map(|q| q.1),
+                missing: missing.len(),
+                running: q.as_ref().map(|q| count(&q.running)),
+                queued: q.as_ref().map(|q| count(&q.pending)),
             }
         })
         .collect()
@@ -69,8 +80,8 @@ pub fn render(lines: &[NodeStatus]) -> String {
             l.id,
             format!("{}/{}", l.cached, l.instances),
             l.missing,
-            farm(l.running_tasks),
-            farm(l.queued_tasks)
+            farm(l.running),
+            farm(l.queued)
         ));
     }
     let (c, t) = lines

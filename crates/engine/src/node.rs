@@ -101,6 +101,49 @@ pub struct NodeSpec {
     /// How many cores an instance can use: a hint for schedulers outside the engine (a farm
     /// gives an `All` task a whole machine, a `One` task one core). Never part of the key.
     pub threads: Threads,
+    /// How much memory an instance needs: a hint for farms (Slurm's `--mem`, OpenJD's host
+    /// requirements), never part of the key.
+    pub memory: Memory,
+}
+
+/// The memory one instance of a node type needs, for farm schedulers.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Memory {
+    /// No hint (the farm's default: usually the whole host).
+    #[default]
+    Unknown,
+    /// A fixed amount, in MiB (a reader of a small file, a solver of tracks).
+    Fixed(u32),
+    /// An image-sized need: `base_mib` plus `bytes_per_pixel` × the node's `width` ×
+    /// `height` params (a renderer's buffers); a 0 (the camera's size, not known before the
+    /// run) counts as 2048 × 1556 (2K full aperture).
+    Image {
+        /// MiB besides the image buffers (the process, scene, acceleration structure, dome).
+        base_mib: u32,
+        /// Bytes per pixel of all the buffers an instance holds at once.
+        bytes_per_pixel: u32,
+    },
+}
+
+impl Memory {
+    /// The hint in MiB for an instance with `params` (`None`: no hint).
+    pub fn mib(&self, params: &crate::Params) -> Option<u64> {
+        match *self {
+            Memory::Unknown => None,
+            Memory::Fixed(m) => Some(m as u64),
+            Memory::Image {
+                base_mib,
+                bytes_per_pixel,
+            } => {
+                let dim = |name: &str, default: u64| match params.get(name) {
+                    Some(crate::ParamValue::Int(v)) if *v > 0 => *v as u64,
+                    _ => default,
+                };
+                let pixels = dim("width", 2048) * dim("height", 1556);
+                Some(base_mib as u64 + (pixels * bytes_per_pixel as u64).div_ceil(1 << 20))
+            }
+        }
+    }
 }
 
 /// The cores one instance of a node type can keep busy.
@@ -126,6 +169,7 @@ impl NodeSpec {
             mode: Mode::Either,
             seeded: false,
             threads: Threads::All,
+            memory: Memory::Unknown,
         }
     }
     /// Sets the version.
@@ -141,6 +185,11 @@ impl NodeSpec {
     /// Sets the resource hint (see [`Threads`]).
     pub fn threads(mut self, t: Threads) -> Self {
         self.threads = t;
+        self
+    }
+    /// Sets the memory hint (see [`Memory`]).
+    pub fn memory(mut self, m: Memory) -> Self {
+        self.memory = m;
         self
     }
     /// Marks the node seeded.

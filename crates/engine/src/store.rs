@@ -101,6 +101,8 @@ pub struct GcReport {
     pub actions_removed: usize,
     /// Objects removed.
     pub objects_removed: usize,
+    /// Unreferenced objects kept because they are younger than the grace period.
+    pub objects_kept_young: usize,
     /// Bytes freed.
     pub bytes_freed: u64,
     /// Bytes left.
@@ -185,6 +187,11 @@ impl Store {
     pub fn put_object(&self, digest: &Digest, type_name: &str, bytes: &[u8]) -> io::Result<()> {
         let path = self.object_path(digest);
         if path.exists() {
+            // Present: only its mtime is set, so `gc`'s grace period covers an object about
+            // to be named by a new action as well as a freshly written one.
+            if let Ok(f) = fs::File::options().append(true).open(&path) {
+                let _ = f.set_modified(SystemTime::now());
+            }
             return Ok(());
         }
         let name_len = (type_name.len() as u32).to_le_bytes();
@@ -339,8 +346,11 @@ impl Store {
     }
 
     /// Removes objects no action refers to, then (with `max_bytes`) the least recently used
-    /// actions until the cache fits, and their newly unreferenced objects.
-    pub fn gc(&self, max_bytes: Option<u64>) -> GcReport {
+    /// actions until the cache fits, and their newly unreferenced objects. Objects written or
+    /// re-put within `grace` are kept even when unreferenced: a concurrent writer (another
+    /// process, a farm task) writes its objects before the action naming them, so an object
+    /// without an action may be one about to get it.
+    pub fn gc(&self, max_bytes: Option<u64>, grace: Duration) -> GcReport {
         let mut report = GcReport::default();
         let mut actions = self.list();
         if let Some(max) = max_bytes {
@@ -367,7 +377,17 @@ impl Store {
                 .file_name()
                 .map(|s| s.to_string_lossy().into_owned())
                 .unwrap_or_default();
-            if !live.contains(&name) && fs::remove_file(&path).is_ok() {
+            if live.contains(&name) {
+                continue;
+            }
+            let young = meta
+                .modified()
+                .ok()
+                .and_then(|t| t.elapsed().ok())
+                .is_none_or(|age| age < grace);
+            if young {
+                report.objects_kept_young += 1;
+            } else if fs::remove_file(&path).is_ok() {
                 report.objects_removed += 1;
                 report.bytes_freed += meta.len();
             }
@@ -496,10 +516,29 @@ mod tests {
             },
         )
         .unwrap();
-        let r = s.gc(None);
+        // Within the grace period the unreferenced object stays (a writer may be about to
+        // name it); past it, it goes.
+        let r = s.gc(None, Duration::from_secs(3600));
+        assert_eq!((r.objects_removed, r.objects_kept_young), (0, 1));
+        assert!(s.has_object(&dead));
+        let r = s.gc(None, Duration::ZERO);
         assert_eq!(r.objects_removed, 1);
         assert!(s.has_object(&live) && !s.has_object(&dead));
-        let r = s.gc(Some(0));
+        // An old unreferenced object put again (a writer about to name it) is young again.
+        s.put_object(&dead, "string", b"\"b\"").unwrap();
+        let old = SystemTime::now() - Duration::from_secs(7200);
+        fs::File::options()
+            .append(true)
+            .open(s.object_path(&dead))
+            .unwrap()
+            .set_modified(old)
+            .unwrap();
+        s.put_object(&dead, "string", b"\"b\"").unwrap();
+        let r = s.gc(None, Duration::from_secs(3600));
+        assert_eq!((r.objects_removed, r.objects_kept_young), (0, 1));
+        let r = s.gc(None, Duration::ZERO);
+        assert_eq!(r.objects_removed, 1);
+        let r = s.gc(Some(0), Duration::ZERO);
         assert_eq!(r.actions_removed, 1);
         assert!(!s.has_object(&live));
         assert_eq!(s.list().len(), 0);

@@ -53,6 +53,8 @@ pub fn register(r: &mut Registry) {
             "Reads camera intrinsics K: the book's g7cam.txt (3×3 matrix, rows) or JSON.",
         )
         .mode(Mode::Once)
+        .threads(vfxgraph_engine::Threads::One)
+        .memory(vfxgraph_engine::Memory::Fixed(256))
         .param(path_in("g7cam.txt-style K file, or .json"))
         .output(PortSpec::one("intrinsics", IntrinsicsArt::NAME, "K")),
         |ctx| {
@@ -218,6 +220,7 @@ pub fn register(r: &mut Registry) {
     ));
     r.register_node(FnNode::new(
         NodeSpec::new("write_report", "Writes any report as pretty JSON.")
+            .threads(vfxgraph_engine::Threads::One)
             .input(PortSpec::one("report", ReportArt::NAME, "the report"))
             .param(path_out("JSON file")),
         |ctx| {

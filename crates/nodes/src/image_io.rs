@@ -23,6 +23,7 @@ pub fn register(r: &mut Registry) {
              sRGB files are decoded to linear light; float formats are read as they are.",
         )
         .mode(Mode::Once)
+        .threads(vfxgraph_engine::Threads::One)
         .param(ParamSpec::required(
             "path",
             ParamType::Path(PathRole::Input),
@@ -41,6 +42,7 @@ pub fn register(r: &mut Registry) {
             "Writes an image file; the format comes from the extension (PNG/JPEG are sRGB \
              encoded, EXR float ZIP, PFM, HDR RLE). The write is atomic.",
         )
+        .threads(vfxgraph_engine::Threads::One)
         .param(ParamSpec::required(
             "path",
             ParamType::Path(PathRole::Output),

@@ -38,6 +38,8 @@ pub fn register(r: &mut Registry) {
              `u v`) or its JSON form.",
         )
         .mode(Mode::Once)
+        .threads(vfxgraph_engine::Threads::One)
+        .memory(vfxgraph_engine::Memory::Fixed(256))
         .param(ParamSpec::required(
             "path",
             ParamType::Path(PathRole::Input),

@@ -92,6 +92,7 @@ pub fn register(r: &mut Registry) {
         )
         .threads(Threads::One)
         .mode(Mode::Once)
+        .memory(vfxgraph_engine::Memory::Fixed(512))
         .param(ParamSpec::required(
             "path",
             ParamType::Path(PathRole::Input),
@@ -114,6 +115,12 @@ pub fn register(r: &mut Registry) {
         )
         .mode(Mode::Either)
         .seeded()
+        // Measured (max RSS of graphs/farm_shot.yaml's 2 frames at 640×480 and 1920×1080):
+        // 32 MiB + 96 B/pixel.
+        .memory(vfxgraph_engine::Memory::Image {
+            base_mib: 64,
+            bytes_per_pixel: 96,
+        })
         .param(ParamSpec::optional(
             "spp",
             ParamType::Int {

@@ -62,6 +62,8 @@ pub fn register(r: &mut Registry) {
              `x y status`) or the native JSON format, recognised by content.",
         )
         .mode(Mode::Once)
+        .threads(vfxgraph_engine::Threads::One)
+        .memory(vfxgraph_engine::Memory::Fixed(512))
         .param(ParamSpec::required(
             "path",
             ParamType::Path(PathRole::Input),
