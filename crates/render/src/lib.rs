@@ -17,6 +17,7 @@ pub mod brdf;
 pub mod bvh;
 pub mod camera;
 pub mod catcher_fit;
+pub mod catcher_texture;
 pub mod differential;
 pub mod dome;
 pub mod environment;
