@@ -26,6 +26,7 @@ pub mod light;
 pub mod math;
 pub mod obj;
 pub mod placement;
+pub mod proxy;
 pub mod ray;
 pub mod render;
 pub mod sampling;
