@@ -1,0 +1,200 @@
+//! The local scene from the plate (issue 17; Debevec 1998 §4, book §10.10.1): `catcher_texture`
+//! estimates a shadow catcher's diffuse albedo per texel from clean plate frames (the algorithm:
+//! [`vfxgraph_render::catcher_texture`]).
+
+use vfxgraph_engine::{ArtifactType, Context, NodeError, NodeSpec, PortSpec, Registry};
+use vfxgraph_imaging::Image;
+use vfxgraph_params::Options;
+use vfxgraph_render::catcher_texture::{catcher_texture, TextureOptions, View};
+
+use crate::artifacts::{ImageArt, ReportArt};
+use crate::hdr::DomeArt;
+use crate::render::{camera_for_frame, pick_light, SceneArt};
+use crate::shot::{light_and_camera_inputs, size_params};
+use crate::FnNode;
+
+/// The params of `catcher_texture`.
+#[derive(Debug, PartialEq, Options)]
+#[param(check)]
+pub(crate) struct CatcherTextureParams {
+    /// the plate frames to estimate from, which must be clean (without the CG objects or their shadows); empty = every frame of the plate
+    frames: Vec<f64>,
+    /// which shadow catcher (0 = the scene's first), a planar one
+    catcher: usize,
+    /// texels along the catcher's longer side
+    #[param(range = 1..=8192)]
+    resolution: usize,
+    /// spacing of the irradiance grid, in texels (irradiance is smooth away from contact shadows)
+    #[param(range = 1..=256)]
+    irradiance_cell: usize,
+    /// paths per irradiance grid point
+    #[param(range = 1..=1048576)]
+    irradiance_samples: u32,
+    /// maximum scattering vertices of the irradiance paths
+    #[param(range = 1..=64)]
+    max_depth: u32,
+    /// a texel is estimated when seen in at least this many frames (else it keeps the uniform colour)
+    #[param(range = 1..=100000)]
+    min_frames: usize,
+    /// the physical albedo range's upper end (estimates are clamped to [0, max_albedo])
+    #[param(range = 0.01..=1.0)]
+    max_albedo: f64,
+    /// estimates, each rendering the irradiance with the previous texture (catchers that see one another)
+    #[param(range = 1..=10)]
+    iterations: usize,
+}
+
+impl CatcherTextureParams {
+    fn check(&self) -> Result<(), String> {
+        if let Some(f) = self.frames.iter().find(|f| f.fract() != 0.0) {
+            return Err(format!("param `frames`: {f} is not a frame number"));
+        }
+        Ok(())
+    }
+}
+
+impl Default for CatcherTextureParams {
+    fn default() -> Self {
+        let d = TextureOptions::default();
+        CatcherTextureParams {
+            frames: Vec::new(),
+            catcher: d.catcher,
+            resolution: d.resolution,
+            irradiance_cell: 8,
+            irradiance_samples: 1024,
+            max_depth: d.max_depth,
+            min_frames: d.min_frames,
+            max_albedo: d.max_albedo,
+            iterations: d.iterations,
+        }
+    }
+}
+
+/// Registers the nodes of this module.
+pub fn register(r: &mut Registry) {
+    r.register_node(FnNode::new(
+        light_and_camera_inputs(size_params(
+            NodeSpec::new(
+                "catcher_texture",
+                "The textured shadow catcher (Debevec 1998's local scene; book §10.10.1's \
+                 catcher, per texel): per texel of the catcher's plane, albedo = π × plate \
+                 radiance / irradiance, the irradiance rendered there from the dome and the \
+                 local scene (catchers, no synthetic objects), the plate read where each \
+                 pixel's ray meets the catcher first; combined over the frames by the median, \
+                 clamped to [0, max_albedo]. Texels never seen keep the catcher's (fitted) \
+                 uniform colour. The plate frames must be clean: give the frames without the \
+                 objects in `frames`. Outputs the scene with the texture on the catcher \
+                 (sampled bilinearly by the renders), the albedo image (write it as EXR), the \
+                 frames-seen count per texel and a report (texels estimated, clamped fraction).",
+            )
+            .seeded()
+            .options::<CatcherTextureParams>(),
+        ))
+        .input(PortSpec::sequence(
+            "plate",
+            ImageArt::NAME,
+            "the plate frames (linear radiance)",
+        ))
+        .output(PortSpec::one(
+            "scene",
+            SceneArt::NAME,
+            "the scene with the catcher's albedo texture",
+        ))
+        .output(PortSpec::one(
+            "albedo",
+            ImageArt::NAME,
+            "the estimated albedo, linear RGB; column i along the map's u edge, row j along v \
+             (see the report's map corners)",
+        ))
+        .output(PortSpec::one(
+            "seen",
+            ImageArt::NAME,
+            "frames that saw each texel (one channel)",
+        ))
+        .output(PortSpec::one("report", ReportArt::NAME, "the estimate")),
+        run_catcher_texture,
+    ));
+}
+
+fn run_catcher_texture(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+    let p: CatcherTextureParams = ctx.options()?;
+    let art = ctx.input::<SceneArt>("scene")?;
+    let input_dome = ctx.input_opt::<DomeArt>("dome")?.map(|d| &d.0);
+    let light = pick_light(input_dome, art)?;
+    let plates = ctx.sequence::<ImageArt>("plate")?;
+    let range = match (plates.first(), plates.last()) {
+        (Some(a), Some(b)) => format!("{}–{}", a.0, b.0),
+        _ => "none".into(),
+    };
+    let wanted: Vec<i64> = if p.frames.is_empty() {
+        plates.iter().map(|(f, _)| *f).collect()
+    } else {
+        p.frames.iter().map(|&f| f as i64).collect()
+    };
+    let mut chosen = Vec::new();
+    for f in &wanted {
+        let plate = plates
+            .iter()
+            .find(|(g, _)| g == f)
+            .map(|(_, i)| &i.0)
+            .ok_or_else(|| {
+                NodeError::msg(format!(
+                    "param `frames`: the plate has no frame {f} (its frames are {range})"
+                ))
+            })?;
+        let camera = camera_for_frame(ctx, &art.scene, Some(*f))?;
+        chosen.push((*f, camera, plate));
+    }
+    let views: Vec<View> = chosen
+        .iter()
+        .map(|(frame, camera, plate)| View {
+            frame: *frame,
+            camera,
+            plate,
+        })
+        .collect();
+    let options = TextureOptions {
+        catcher: p.catcher,
+        resolution: p.resolution,
+        irradiance_cell: p.irradiance_cell,
+        irradiance_samples: p.irradiance_samples,
+        max_depth: p.max_depth,
+        seed: ctx.seed(),
+        min_frames: p.min_frames,
+        max_albedo: p.max_albedo,
+        iterations: p.iterations,
+    };
+    let (scene, rep) = catcher_texture(
+        &art.scene,
+        light.env(),
+        &views,
+        &options,
+        Some(ctx.cancel_flag()),
+    )
+    .map_err(|e| NodeError::msg(e.to_string()))?;
+    let m = &rep.map;
+    let seen = Image::from_fn(m.width, m.height, 1, |x, y, _| {
+        rep.seen[y * m.width + x] as f32
+    });
+    let texels = m.width * m.height;
+    let report = serde_json::json!({
+        "frames": wanted,
+        "width": m.width,
+        "height": m.height,
+        "corner": [m.origin.x, m.origin.y, m.origin.z],
+        "u_edge": [m.u.x, m.u.y, m.u.z],
+        "v_edge": [m.v.x, m.v.y, m.v.z],
+        "uniform_colour": rep.uniform,
+        "texels_estimated": rep.estimated,
+        "fraction_estimated": rep.estimated as f64 / texels as f64,
+        "clamped_fraction": rep.clamped_fraction,
+        "pixels_per_frame": rep.pixels_per_frame,
+        "mean_irradiance": rep.mean_irradiance,
+    });
+    let dome = art.dome.clone();
+    ctx.output("scene", SceneArt { scene, dome });
+    ctx.output("albedo", ImageArt(rep.albedo));
+    ctx.output("seen", ImageArt(seen));
+    ctx.output("report", ReportArt(report));
+    Ok(())
+}
