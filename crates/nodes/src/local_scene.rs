@@ -1,13 +1,17 @@
 //! The local scene from the plate (issue 17; Debevec 1998 §4, book §10.10.1): `catcher_texture`
 //! estimates a shadow catcher's diffuse albedo per texel from clean plate frames (the algorithm:
-//! [`vfxgraph_render::catcher_texture`]).
+//! [`vfxgraph_render::catcher_texture`]); `proxy_from_points` adds boxes and plane patches of
+//! the real set, built from measured points, as catchers ([`vfxgraph_render::proxy`]).
 
 use vfxgraph_engine::{ArtifactType, Context, NodeError, NodeSpec, PortSpec, Registry};
 use vfxgraph_imaging::Image;
 use vfxgraph_params::Options;
-use vfxgraph_render::catcher_texture::{catcher_texture, TextureOptions, View};
+use vfxgraph_render::catcher_texture::{catcher_texture, TextureError, TextureOptions, View};
 
-use crate::artifacts::{ImageArt, ReportArt};
+use vfxgraph_render::proxy::{box_faces, catchers, plane_patch};
+use vfxgraph_render::{Rgb, Vec3};
+
+use crate::artifacts::{ImageArt, Points3dArt, ReportArt};
 use crate::hdr::DomeArt;
 use crate::render::{camera_for_frame, pick_light, SceneArt};
 use crate::shot::{light_and_camera_inputs, size_params};
@@ -42,6 +46,11 @@ pub(crate) struct CatcherTextureParams {
     /// estimates, each rendering the irradiance with the previous texture (catchers that see one another)
     #[param(range = 1..=10)]
     iterations: usize,
+    /// also texture every other planar catcher the frames see (proxy faces), after `catcher`
+    others: bool,
+    /// texels along the longer side of each other catcher
+    #[param(range = 1..=8192)]
+    others_resolution: usize,
 }
 
 impl CatcherTextureParams {
@@ -66,12 +75,135 @@ impl Default for CatcherTextureParams {
             min_frames: d.min_frames,
             max_albedo: d.max_albedo,
             iterations: d.iterations,
+            others: true,
+            others_resolution: 64,
         }
     }
 }
 
+/// The params of `proxy_from_points`.
+#[derive(Debug, PartialEq, Options)]
+pub(crate) struct ProxyParams {
+    /// boxes, 4 indices into `points3d` each: three base corners a, b, c (b adjacent to a and c) and the corner above a
+    boxes: Vec<f64>,
+    /// plane patches, 4 indices into `points3d` each: the corners in order around the patch
+    planes: Vec<f64>,
+    /// the proxies' starting diffuse colour (catcher_texture then estimates it from the plate)
+    albedo: Vec<f64>,
+}
+
+impl Default for ProxyParams {
+    fn default() -> Self {
+        ProxyParams {
+            boxes: Vec::new(),
+            planes: Vec::new(),
+            albedo: vec![0.18, 0.18, 0.18],
+        }
+    }
+}
+
+/// The measured points named by `indices` (groups of 4).
+fn groups(pts: &[Vec3], indices: &[f64], what: &str) -> Result<Vec<Vec<Vec3>>, NodeError> {
+    indices
+        .chunks(4)
+        .enumerate()
+        .map(|(g, c)| {
+            if c.len() < 4 {
+                return Err(NodeError::msg(format!(
+                    "param `{what}`: {what} {g} has {} point indices, a {} needs 4",
+                    c.len(),
+                    if what == "boxes" {
+                        "box"
+                    } else {
+                        "plane patch"
+                    }
+                )));
+            }
+            c.iter()
+                .map(|&i| {
+                    if i.fract() != 0.0 || i < 0.0 || i as usize >= pts.len() {
+                        Err(NodeError::msg(format!(
+                            "param `{what}`: {i} is not the index of one of the {} measured \
+                             points (0-based)",
+                            pts.len()
+                        )))
+                    } else {
+                        Ok(pts[i as usize])
+                    }
+                })
+                .collect()
+        })
+        .collect()
+}
+
+fn run_proxy_from_points(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+    let p: ProxyParams = ctx.options()?;
+    let art = ctx.input::<SceneArt>("scene")?;
+    let pts: Vec<Vec3> = ctx
+        .input::<Points3dArt>("points3d")?
+        .0
+         .0
+        .iter()
+        .map(|p| Vec3::new(p.x, p.y, p.z))
+        .collect();
+    if p.boxes.is_empty() && p.planes.is_empty() {
+        return Err(NodeError::msg(
+            "no proxies: give `boxes` and/or `planes` (4 point indices each)",
+        ));
+    }
+    if p.albedo.len() != 3 || p.albedo.iter().any(|a| !(0.0..=1.0).contains(a)) {
+        return Err(NodeError::msg("param `albedo`: 3 values in [0, 1]"));
+    }
+    let albedo = Rgb::new(p.albedo[0], p.albedo[1], p.albedo[2]);
+    let mut scene = art.scene.clone();
+    let mut faces = 0;
+    for (g, q) in groups(&pts, &p.boxes, "boxes")?.iter().enumerate() {
+        let f = box_faces(q).map_err(|e| NodeError::msg(format!("box {g}: {e}")))?;
+        faces += f.len();
+        scene.objects.extend(catchers(f, albedo));
+    }
+    for (g, q) in groups(&pts, &p.planes, "planes")?.iter().enumerate() {
+        let f = plane_patch(q).map_err(|e| NodeError::msg(format!("plane {g}: {e}")))?;
+        faces += 1;
+        scene.objects.extend(catchers(vec![f], albedo));
+    }
+    let report = serde_json::json!({
+        "boxes": p.boxes.len() / 4,
+        "planes": p.planes.len() / 4,
+        "catcher_faces": faces,
+    });
+    let dome = art.dome.clone();
+    ctx.output("scene", SceneArt { scene, dome });
+    ctx.output("report", ReportArt(report));
+    Ok(())
+}
+
 /// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
+    r.register_node(FnNode::new(
+        NodeSpec::new(
+            "proxy_from_points",
+            "Proxy geometry of the real set from measured points (point_cloud_calibrate's \
+             `points3d`): a box from three base corners and the corner above the first, a plane \
+             patch from its 4 corners. Every face is added as a planar shadow catcher (give it \
+             its texture with catcher_texture), so it receives the objects' shadows, is seen \
+             in their reflections and occludes the dome for their lighting.",
+        )
+        .options::<ProxyParams>()
+        .input(PortSpec::one("scene", SceneArt::NAME, "the placed scene"))
+        .input(PortSpec::one(
+            "points3d",
+            Points3dArt::NAME,
+            "the measured points",
+        ))
+        .output(PortSpec::one(
+            "scene",
+            SceneArt::NAME,
+            "the scene with the proxies' faces as catchers",
+        ))
+        .output(PortSpec::one("report", ReportArt::NAME, "proxies made")),
+        run_proxy_from_points,
+    ));
     r.register_node(FnNode::new(
         light_and_camera_inputs(size_params(
             NodeSpec::new(
@@ -172,6 +304,37 @@ fn run_catcher_texture(ctx: &mut Context<'_>) -> Result<(), NodeError> {
         Some(ctx.cancel_flag()),
     )
     .map_err(|e| NodeError::msg(e.to_string()))?;
+    // The other catchers (proxy faces): those no frame sees, or not planar, keep their colour.
+    let mut scene = scene;
+    let mut others = Vec::new();
+    if p.others {
+        let n = scene.objects.iter().filter(|o| o.catcher).count();
+        for k in (0..n).filter(|&k| k != p.catcher) {
+            let o = TextureOptions {
+                catcher: k,
+                resolution: p.others_resolution,
+                irradiance_cell: p.irradiance_cell.min(p.others_resolution),
+                ..options
+            };
+            match catcher_texture(&scene, light.env(), &views, &o, Some(ctx.cancel_flag())) {
+                Ok((s, r)) => {
+                    scene = s;
+                    others.push(
+                        serde_json::json!({"catcher": k, "texels_estimated": r.estimated,
+                        "clamped_fraction": r.clamped_fraction}),
+                    );
+                }
+                Err(
+                    e @ (TextureError::NotSeen { .. }
+                    | TextureError::NotPlanar(_)
+                    | TextureError::NotDiffuse(_)),
+                ) => {
+                    others.push(serde_json::json!({"catcher": k, "skipped": e.to_string()}));
+                }
+                Err(e) => return Err(NodeError::msg(format!("catcher {k}: {e}"))),
+            }
+        }
+    }
     let m = &rep.map;
     let seen = Image::from_fn(m.width, m.height, 1, |x, y, _| {
         rep.seen[y * m.width + x] as f32
@@ -190,6 +353,7 @@ fn run_catcher_texture(ctx: &mut Context<'_>) -> Result<(), NodeError> {
         "clamped_fraction": rep.clamped_fraction,
         "pixels_per_frame": rep.pixels_per_frame,
         "mean_irradiance": rep.mean_irradiance,
+        "others": others,
     });
     let dome = art.dome.clone();
     ctx.output("scene", SceneArt { scene, dome });
