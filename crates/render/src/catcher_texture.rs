@@ -177,7 +177,7 @@ fn rectangle(shape: &Shape, eye: Vec3) -> Option<(Vec3, Vec3, Vec3, Vec3)> {
     let t0 = triangles.first()?;
     let e1 = t0[1] - t0[0];
     let mut n = e1.cross(t0[2] - t0[0]);
-    if !(n.length() > 0.0) {
+    if n.length().is_nan() || n.length() <= 0.0 {
         return None;
     }
     n = n.normalized();
@@ -471,8 +471,8 @@ pub fn catcher_texture(
                         a[c] = r.clamp(0.0, o.max_albedo);
                     }
                 }
-                for c in 0..3 {
-                    albedo.set(i, j, c, a[c] as f32);
+                for (c, v) in a.iter().enumerate() {
+                    albedo.set(i, j, c, *v as f32);
                 }
                 map.texels[3 * k] = (a[0] / uniform.r) as f32;
                 map.texels[3 * k + 1] = (a[1] / uniform.g) as f32;

@@ -187,7 +187,7 @@ fn the_ground_texture_matches_cycles_albedo_within_5_percent() {
             }) {
                 continue;
             }
-            for c in 0..3 {
+            for (c, sc) in signed.iter_mut().enumerate() {
                 let mut t = 0.0;
                 for dy in 0..2 {
                     for dx in 0..2 {
@@ -196,7 +196,7 @@ fn the_ground_texture_matches_cycles_albedo_within_5_percent() {
                 }
                 let a = rep.albedo.get(i, j, c) as f64;
                 errs.push((a - t).abs() / t);
-                signed[c].push((a - t) / t);
+                sc.push((a - t) / t);
                 by_seen[(rep.seen[j * 256 + i] as usize).min(8)].push((a - t).abs() / t);
             }
         }
