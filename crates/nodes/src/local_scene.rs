@@ -108,15 +108,17 @@ fn groups(pts: &[Vec3], indices: &[f64], what: &str) -> Result<Vec<Vec<Vec3>>, N
         .chunks(4)
         .enumerate()
         .map(|(g, c)| {
+            let one = if what == "boxes" {
+                "box"
+            } else {
+                "plane patch"
+            };
             if c.len() < 4 {
                 return Err(NodeError::msg(format!(
-                    "param `{what}`: {what} {g} has {} point indices, a {} needs 4",
+                    "param `{what}`: {} {g} has {} point indices, a {} needs 4",
+                    one,
                     c.len(),
-                    if what == "boxes" {
-                        "box"
-                    } else {
-                        "plane patch"
-                    }
+                    one
                 )));
             }
             c.iter()
@@ -361,4 +363,131 @@ fn run_catcher_texture(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     ctx.output("seen", ImageArt(seen));
     ctx.output("report", ReportArt(report));
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::testing::{params, spec};
+    use nalgebra::Point3;
+    use std::path::Path;
+    use vfxgraph_engine::{InputValue, ParamValue, Value};
+    use vfxgraph_vision::Points3d;
+
+    fn scene(camera_at: &str) -> SceneArt {
+        let yaml = format!(
+            "camera:\n  look_at: {{from: [0, -4, 2], at: {camera_at}, up: [0, 0, 1], fov: 50}}\n  \
+             size: [16, 12]\nobjects:\n  - quad: {{corner: [-2, -2, 0], edge1: [4, 0, 0], \
+             edge2: [0, 4, 0]}}\n    material: {{type: lambert, albedo: 0.3}}\n    catcher: true\n\
+             dome: {{color: [1, 1, 1]}}\n"
+        );
+        let s = vfxgraph_render::parse_yaml_scene(&yaml, Path::new(".")).unwrap();
+        SceneArt {
+            scene: s.scene,
+            dome: None,
+        }
+    }
+
+    fn list(v: &[f64]) -> ParamValue {
+        ParamValue::List(v.iter().map(|&x| ParamValue::Float(x)).collect())
+    }
+
+    fn run(
+        node: &str,
+        set: &[(&str, ParamValue)],
+        inputs: Vec<(&'static str, InputValue)>,
+        f: fn(&mut Context<'_>) -> Result<(), NodeError>,
+    ) -> Result<(), NodeError> {
+        let sp = spec(node);
+        let ps = params(&sp, set);
+        let dir = std::env::temp_dir();
+        let mut ctx = Context::for_test(&sp, &ps, &dir, None, inputs);
+        f(&mut ctx)
+    }
+
+    fn plate() -> InputValue {
+        InputValue::Sequence(vec![
+            (3, Value::new(ImageArt(Image::new(16, 12, 3)))),
+            (4, Value::new(ImageArt(Image::new(16, 12, 3)))),
+        ])
+    }
+
+    #[test]
+    fn a_frame_outside_the_shot_or_a_catcher_never_seen_is_a_clear_error() {
+        let s = scene("[0, 0, 0]");
+        let e = run(
+            "catcher_texture",
+            &[("frames", list(&[3.0, 9.0]))],
+            vec![
+                ("scene", InputValue::One(Value::new(s.clone()))),
+                ("plate", plate()),
+            ],
+            run_catcher_texture,
+        )
+        .unwrap_err();
+        assert!(
+            e.to_string().contains("no frame 9 (its frames are 3–4)"),
+            "{e}"
+        );
+        // The camera looks up, away from the ground.
+        let up = scene("[0, 0, 40]");
+        let e = run(
+            "catcher_texture",
+            &[],
+            vec![
+                ("scene", InputValue::One(Value::new(up))),
+                ("plate", plate()),
+            ],
+            run_catcher_texture,
+        )
+        .unwrap_err();
+        assert!(
+            e.to_string().contains("is seen by any of the 2 frames"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn proxies_from_too_few_points_are_a_clear_error() {
+        let s = scene("[0, 0, 0]");
+        let pts = InputValue::One(Value::new(Points3dArt(Points3d(vec![
+            Point3::new(0.0, 0.0, 0.0),
+            Point3::new(1.0, 0.0, 0.0),
+            Point3::new(1.0, 1.0, 0.0),
+            Point3::new(0.0, 0.0, 0.5),
+        ]))));
+        let inputs = || {
+            vec![
+                ("scene", InputValue::One(Value::new(s.clone()))),
+                ("points3d", pts.clone()),
+            ]
+        };
+        let e = run(
+            "proxy_from_points",
+            &[("boxes", list(&[0.0, 1.0, 2.0]))],
+            inputs(),
+            run_proxy_from_points,
+        )
+        .unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("box 0 has 3 point indices, a box needs 4"),
+            "{e}"
+        );
+        let e = run(
+            "proxy_from_points",
+            &[("planes", list(&[0.0, 1.0, 2.0, 7.0]))],
+            inputs(),
+            run_proxy_from_points,
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("7 is not the index"), "{e}");
+        run(
+            "proxy_from_points",
+            &[("boxes", list(&[0.0, 1.0, 2.0, 3.0]))],
+            inputs(),
+            run_proxy_from_points,
+        )
+        .unwrap();
+    }
 }
