@@ -13,6 +13,7 @@ pub mod export;
 pub mod hdr;
 pub mod image_io;
 pub mod image_ops;
+pub mod local_scene;
 pub mod matchmove;
 pub mod modeling;
 pub mod placement;
@@ -69,6 +70,7 @@ pub fn registry() -> Registry {
     render::register(&mut r);
     // After `render`, which registers the `scene` artifact.
     shot::register(&mut r);
+    local_scene::register(&mut r);
     placement::register(&mut r);
     video::register(&mut r);
     #[cfg(feature = "opencv")]

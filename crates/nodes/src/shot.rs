@@ -87,7 +87,7 @@ fn seed_param() -> ParamSpec {
     )
 }
 
-fn size_params(spec: NodeSpec) -> NodeSpec {
+pub(crate) fn size_params(spec: NodeSpec) -> NodeSpec {
     spec.param(ParamSpec::optional(
         "width",
         ParamType::Int { min: 0, max: 65536 },
@@ -102,7 +102,7 @@ fn size_params(spec: NodeSpec) -> NodeSpec {
     ))
 }
 
-fn light_and_camera_inputs(spec: NodeSpec) -> NodeSpec {
+pub(crate) fn light_and_camera_inputs(spec: NodeSpec) -> NodeSpec {
     spec.input(PortSpec::one(
         "scene",
         SceneArt::NAME,

@@ -19,7 +19,7 @@ use serde::{Deserialize, Serialize};
 use crate::math::{Rgb, Vec3};
 
 /// A solid texture: a factor on the diffuse albedo at each world point.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case")]
 pub enum Texture {
     /// Random per-cell levels on a 3-D grid of cubes of side `size`: τ = 1 − contrast·u with
@@ -44,6 +44,75 @@ pub enum Texture {
         /// Depth of the modulation in [0, 1].
         contrast: f64,
     },
+    /// An image in a plane: a factor per texel, looked up bilinearly at the point's projection
+    /// onto the map's rectangle, 1 outside it (the textured catcher of
+    /// [`crate::catcher_texture`]).
+    Planar(PlanarMap),
+}
+
+/// A texture image over a rectangle of a plane: texel (i, j) covers
+/// `origin + (i + [0, 1))/width · u + (j + [0, 1))/height · v` (u, v the rectangle's edges,
+/// perpendicular); points are projected onto the plane along its normal.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PlanarMap {
+    /// The rectangle's corner.
+    pub origin: Vec3,
+    /// Its first edge (texel columns run along it).
+    pub u: Vec3,
+    /// Its second edge (texel rows), perpendicular to `u`.
+    pub v: Vec3,
+    /// Texels along `u`.
+    pub width: usize,
+    /// Texels along `v`.
+    pub height: usize,
+    /// RGB factors, row-major (row j along `v`), `3 · width · height` values.
+    pub texels: Vec<f32>,
+}
+
+impl PlanarMap {
+    /// The map's (s, t) ∈ [0, 1]² coordinates of `p` (outside the square when off the map).
+    #[inline]
+    pub fn coords(&self, p: Vec3) -> (f64, f64) {
+        let d = p - self.origin;
+        (
+            d.dot(self.u) / self.u.dot(self.u),
+            d.dot(self.v) / self.v.dot(self.v),
+        )
+    }
+
+    /// The world point at map coordinates (s, t).
+    #[inline]
+    pub fn point(&self, s: f64, t: f64) -> Vec3 {
+        self.origin + self.u * s + self.v * t
+    }
+
+    /// Texel (i, j).
+    #[inline]
+    pub fn texel(&self, i: usize, j: usize) -> Rgb {
+        let k = 3 * (j * self.width + i);
+        Rgb::new(
+            self.texels[k] as f64,
+            self.texels[k + 1] as f64,
+            self.texels[k + 2] as f64,
+        )
+    }
+
+    /// The bilinear lookup at `p` (texel centres at half-integers; clamped at the edges), 1
+    /// off the rectangle.
+    pub fn lookup(&self, p: Vec3) -> Rgb {
+        let (s, t) = self.coords(p);
+        if !(0.0..=1.0).contains(&s) || !(0.0..=1.0).contains(&t) || self.texels.is_empty() {
+            return Rgb::WHITE;
+        }
+        let x = (s * self.width as f64 - 0.5).clamp(0.0, (self.width - 1) as f64);
+        let y = (t * self.height as f64 - 0.5).clamp(0.0, (self.height - 1) as f64);
+        let (i0, j0) = (x.floor() as usize, y.floor() as usize);
+        let (i1, j1) = ((i0 + 1).min(self.width - 1), (j0 + 1).min(self.height - 1));
+        let (fx, fy) = (x - i0 as f64, y - j0 as f64);
+        let a = self.texel(i0, j0) * (1.0 - fx) + self.texel(i1, j0) * fx;
+        let b = self.texel(i0, j1) * (1.0 - fx) + self.texel(i1, j1) * fx;
+        a * (1.0 - fy) + b * fy
+    }
 }
 
 /// SplitMix64's finalizer: a well-mixed 64-bit hash of `x`.
@@ -73,6 +142,19 @@ impl Texture {
             Texture::Cells { size, contrast, .. } | Texture::Checker { size, contrast } => {
                 (size, contrast)
             }
+            Texture::Planar(ref m) => {
+                let ok = m.width > 0
+                    && m.height > 0
+                    && m.texels.len() == 3 * m.width * m.height
+                    && m.texels.iter().all(|t| t.is_finite() && *t >= 0.0)
+                    && m.u.length() > 0.0
+                    && m.v.length() > 0.0;
+                return if ok {
+                    Ok(())
+                } else {
+                    Err("planar texture: empty, degenerate or non-finite".into())
+                };
+            }
         };
         if !(size > 0.0 && size.is_finite()) {
             return Err(format!("texture size must be > 0, found {size}"));
@@ -91,6 +173,10 @@ impl Texture {
             Texture::Cells { contrast, .. } | Texture::Checker { contrast, .. } => {
                 1.0 - contrast / 2.0
             }
+            Texture::Planar(ref m) => {
+                let n = (m.width * m.height).max(1) as f64;
+                m.texels.iter().map(|&t| t as f64).sum::<f64>() / (3.0 * n)
+            }
         }
     }
 
@@ -98,6 +184,7 @@ impl Texture {
     #[inline]
     pub fn factor(&self, p: Vec3) -> Rgb {
         match *self {
+            Texture::Planar(ref m) => m.lookup(p),
             Texture::Cells {
                 size,
                 contrast,

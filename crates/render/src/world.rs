@@ -66,7 +66,7 @@ impl World {
         for obj in &scene.objects {
             let m = materials.len() as u32;
             materials.push(obj.material);
-            textures.push(obj.texture);
+            textures.push(obj.texture.clone());
             match &obj.shape {
                 Shape::Sphere(s) => {
                     if s.radius > 0.0 && s.radius.is_finite() && s.center.is_finite() {

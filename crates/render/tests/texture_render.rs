@@ -47,7 +47,7 @@ fn a_textured_floor_renders_its_factor() {
         seed: 3,
         color: true,
     };
-    let scene = floor(Some(tex));
+    let scene = floor(Some(tex.clone()));
     let env = ConstantEnvironment {
         radiance: Rgb::WHITE,
     };

@@ -1,0 +1,200 @@
+//! Proxy geometry of the real set from measured points (issue 17; Debevec 1998 §4's local scene
+//! "approximated by simple geometry"; book ch. 8's point-cloud calibration measures the points):
+//! a plane patch from its 4 corners, a box from 3 corners of its base and the corner above the
+//! first. Each face is a separate planar shadow catcher, so [`crate::catcher_texture`] can
+//! texture it from the plate; as catchers they receive the objects' shadows, are seen in the
+//! objects' reflections and occlude the dome for the objects' lighting.
+
+use crate::brdf::{Brdf, Lambert};
+use crate::math::{Rgb, Vec3};
+use crate::scene::{Object, Shape};
+
+/// Why a proxy could not be built.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum ProxyError {
+    /// Too few points.
+    #[error("a {kind} needs {need} measured points, found {found}")]
+    TooFewPoints {
+        /// Plane or box.
+        kind: &'static str,
+        /// Points needed.
+        need: usize,
+        /// Points given.
+        found: usize,
+    },
+    /// The points are degenerate.
+    #[error("the {kind}'s points are degenerate: {why}")]
+    Degenerate {
+        /// Plane or box.
+        kind: &'static str,
+        /// What is wrong.
+        why: String,
+    },
+}
+
+fn quad(a: Vec3, b: Vec3, c: Vec3, d: Vec3) -> Vec<[Vec3; 3]> {
+    vec![[a, b, c], [a, c, d]]
+}
+
+fn finite(kind: &'static str, p: &[Vec3]) -> Result<(), ProxyError> {
+    if p.iter().all(|p| p.is_finite()) {
+        Ok(())
+    } else {
+        Err(ProxyError::Degenerate {
+            kind,
+            why: "a point is not finite".into(),
+        })
+    }
+}
+
+/// A plane patch through 4 corners in order around it (made planar: the 4th corner is
+/// projected onto the plane of the first three, and must lie within 5 % of the patch's size
+/// from it).
+pub fn plane_patch(p: &[Vec3]) -> Result<Vec<[Vec3; 3]>, ProxyError> {
+    let kind = "plane patch";
+    if p.len() < 4 {
+        return Err(ProxyError::TooFewPoints {
+            kind,
+            need: 4,
+            found: p.len(),
+        });
+    }
+    finite(kind, &p[..4])?;
+    let n = (p[1] - p[0]).cross(p[2] - p[0]);
+    let size = (p[2] - p[0]).length();
+    if !(n.length() > 1e-9 * size * size && size > 0.0) {
+        return Err(ProxyError::Degenerate {
+            kind,
+            why: "the first three corners are collinear".into(),
+        });
+    }
+    let n = n.normalized();
+    let off = (p[3] - p[0]).dot(n);
+    if off.abs() > 0.05 * size {
+        return Err(ProxyError::Degenerate {
+            kind,
+            why: format!(
+                "the 4th corner is {:.3} off the plane of the first three ({:.1} % of the patch)",
+                off.abs(),
+                100.0 * off.abs() / size
+            ),
+        });
+    }
+    Ok(quad(p[0], p[1], p[2], p[3] - n * off))
+}
+
+/// A box's faces (top and 4 sides; the base stands on the ground) from 4 points: base corners
+/// `a`, `b`, `c` (b adjacent to both: the base is the parallelogram a, b, c, a + c − b) and
+/// `top`, the corner above `a` (only its height above the base's plane is used).
+pub fn box_faces(p: &[Vec3]) -> Result<Vec<Vec<[Vec3; 3]>>, ProxyError> {
+    let kind = "box";
+    if p.len() < 4 {
+        return Err(ProxyError::TooFewPoints {
+            kind,
+            need: 4,
+            found: p.len(),
+        });
+    }
+    finite(kind, &p[..4])?;
+    let (a, b, c) = (p[0], p[1], p[2]);
+    let d = a + c - b;
+    let n = (b - a).cross(c - b);
+    let size = (b - a).length().max((c - b).length());
+    if !(n.length() > 1e-6 * size * size && size > 0.0) {
+        return Err(ProxyError::Degenerate {
+            kind,
+            why: "the three base corners are collinear".into(),
+        });
+    }
+    let n = n.normalized();
+    let h = (p[3] - a).dot(n);
+    if h.abs() < 1e-3 * size {
+        return Err(ProxyError::Degenerate {
+            kind,
+            why: "the top corner is on the base's plane (zero height)".into(),
+        });
+    }
+    let up = n * h;
+    let (a2, b2, c2, d2) = (a + up, b + up, c + up, d + up);
+    Ok(vec![
+        quad(a2, b2, c2, d2),
+        quad(a, b, b2, a2),
+        quad(b, c, c2, b2),
+        quad(c, d, d2, c2),
+        quad(d, a, a2, d2),
+    ])
+}
+
+/// Each face as a Lambertian shadow catcher of colour `albedo`.
+pub fn catchers(faces: Vec<Vec<[Vec3; 3]>>, albedo: Rgb) -> Vec<Object> {
+    faces
+        .into_iter()
+        .map(|triangles| {
+            let mut o = Object::new(
+                Shape::Triangles { triangles },
+                Brdf::Lambert(Lambert { albedo }),
+            );
+            o.catcher = true;
+            o
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_box_from_four_points_has_the_measured_size() {
+        let v = Vec3::new;
+        let faces = box_faces(&[
+            v(0.0, 0.0, 0.0),
+            v(2.0, 0.0, 0.0),
+            v(2.0, 1.0, 0.0),
+            v(0.0, 0.0, 0.5),
+        ])
+        .unwrap();
+        assert_eq!(faces.len(), 5);
+        // Total area: top 2 + sides 2·(2·0.5) + 2·(1·0.5) = 5.
+        let area: f64 = faces
+            .iter()
+            .flatten()
+            .map(|t| 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length())
+            .sum();
+        assert!((area - 5.0).abs() < 1e-12, "{area}");
+        assert!(faces[0].iter().flatten().all(|p| (p.z - 0.5).abs() < 1e-12));
+    }
+
+    #[test]
+    fn too_few_or_degenerate_points_are_errors() {
+        let v = Vec3::new;
+        let e = box_faces(&[v(0.0, 0.0, 0.0), v(1.0, 0.0, 0.0), v(1.0, 1.0, 0.0)]).unwrap_err();
+        assert_eq!(e.to_string(), "a box needs 4 measured points, found 3");
+        let e = plane_patch(&[v(0.0, 0.0, 0.0), v(1.0, 0.0, 0.0)]).unwrap_err();
+        assert!(e.to_string().contains("needs 4"), "{e}");
+        let e = plane_patch(&[
+            v(0.0, 0.0, 0.0),
+            v(1.0, 0.0, 0.0),
+            v(2.0, 0.0, 0.0),
+            v(0.0, 1.0, 0.0),
+        ])
+        .unwrap_err();
+        assert!(e.to_string().contains("collinear"), "{e}");
+        let e = plane_patch(&[
+            v(0.0, 0.0, 0.0),
+            v(1.0, 0.0, 0.0),
+            v(1.0, 1.0, 0.0),
+            v(0.0, 1.0, 0.5),
+        ])
+        .unwrap_err();
+        assert!(e.to_string().contains("off the plane"), "{e}");
+        let e = box_faces(&[
+            v(0.0, 0.0, 0.0),
+            v(1.0, 0.0, 0.0),
+            v(1.0, 1.0, 0.0),
+            v(3.0, 0.0, 0.0),
+        ])
+        .unwrap_err();
+        assert!(e.to_string().contains("zero height"), "{e}");
+    }
+}
