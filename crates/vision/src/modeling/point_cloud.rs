@@ -4,6 +4,10 @@
 //! reprojection error over all its marks is kept and refined by Levenberg–Marquardt with the
 //! cameras fixed. The result is an n×3 list of world points (the book measures the ground plane,
 //! where to put objects, and the points that orient the light dome this way).
+//!
+//! A lens-carrying K (a path solved with `distortion`, [`crate::lens`]) undistorts the marks
+//! first: the triangulation and the report's errors are in the pixels of the ideal pinhole the
+//! lens is undistorted to.
 
 use std::collections::HashMap;
 
@@ -52,7 +56,7 @@ pub fn point_cloud_calibrate(
     let mut used = Vec::new();
     let mut skipped = Vec::new();
     let mut ps: Vec<Matrix3x4<f64>> = Vec::new();
-    let mut obs: Vec<&[Point2<f64>]> = Vec::new();
+    let mut obs: Vec<Vec<Point2<f64>>> = Vec::new();
     let n = marks.frames.first().map_or(0, |f| f.points.0.len());
     for mf in &marks.frames {
         if mf.points.0.len() != n {
@@ -66,7 +70,19 @@ pub fn point_cloud_calibrate(
             Some(p) => {
                 used.push(mf.frame);
                 ps.push(k.k() * p.matrix3x4());
-                obs.push(&mf.points.0);
+                let und = mf
+                    .points
+                    .0
+                    .iter()
+                    .map(|x| k.undistort_pixel(x))
+                    .collect::<Result<Vec<_>>>()
+                    .map_err(|e| {
+                        VisionError::InvalidInput(format!(
+                            "frame {}: a mark cannot be undistorted by the lens: {e}",
+                            mf.frame
+                        ))
+                    })?;
+                obs.push(und);
             }
             None => skipped.push(mf.frame),
         }
@@ -169,14 +185,67 @@ mod tests {
         }
         let path = CameraPath {
             frames,
-            intrinsics: Some(k),
+            intrinsics: Some(k.clone()),
         };
-        let (pts, rep) =
-            point_cloud_calibrate(&MarkedPoints { frames: marks }, &path, None).unwrap();
+        let marks_of = |_: &CameraPath| marks.clone();
+        let (pts, rep) = point_cloud_calibrate(
+            &MarkedPoints {
+                frames: marks.clone(),
+            },
+            &path,
+            None,
+        )
+        .unwrap();
         for (p, t) in pts.0.iter().zip(&truth) {
             assert!((p - t).norm() < 0.02, "{p} vs {t}");
         }
         assert!(rep.rms.iter().all(|r| *r < 1.0), "{:?}", rep.rms);
+        // The same marks seen through a barrel lens, with the lens on the path: the same points.
+        let lens = crate::lens::Distortion::BrownConrady {
+            k1: -0.16,
+            k2: 0.045,
+            k3: 0.0,
+            p1: 0.0008,
+            p2: -0.0005,
+        };
+        let kl = k.clone().with_size(1280, 720).with_distortion(lens);
+        let marks_l: Vec<MarkedFrame> = marks_of(&path)
+            .iter()
+            .map(|m| MarkedFrame {
+                frame: m.frame,
+                points: Points2d(
+                    m.points
+                        .0
+                        .iter()
+                        .map(|x| kl.distort_pixel(x).unwrap())
+                        .collect(),
+                ),
+            })
+            .collect();
+        let lens_path = CameraPath {
+            intrinsics: Some(kl),
+            ..path.clone()
+        };
+        let (pl, _) = point_cloud_calibrate(
+            &MarkedPoints {
+                frames: marks_l.clone(),
+            },
+            &lens_path,
+            None,
+        )
+        .unwrap();
+        for (a, b) in pl.0.iter().zip(&pts.0) {
+            assert!((a - b).norm() < 1e-6, "{a} vs {b}");
+        }
+        // Ignoring the lens moves them by centimetres.
+        let (pp, _) =
+            point_cloud_calibrate(&MarkedPoints { frames: marks_l }, &path, None).unwrap();
+        let worst =
+            pp.0.iter()
+                .zip(&pts.0)
+                .map(|(a, b)| (a - b).norm())
+                .fold(0.0, f64::max);
+        assert!(worst > 0.02, "{worst}");
         // A path without K and no K given is a clear error.
         let mut no_k = path.clone();
         no_k.intrinsics = None;
