@@ -1,10 +1,10 @@
 //! The farm's commands: `exec` (one task), `submit` and `status`.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use clap::{Args, ValueEnum};
 use vfxgraph_engine::exec::{self, default_cache_dir, RunOptions, Target};
-use vfxgraph_engine::{FrameSet, Graph, Registry};
+use vfxgraph_engine::{FrameSet, Registry};
 
 use super::{absolute, check_cache_writable, find_program, FarmPlan, TaskContext};
 use crate::{load_graph, GraphArgs, EXIT_FAILED};
@@ -85,16 +85,14 @@ pub struct StatusArgs {
     pub json: bool,
 }
 
-fn graph_or_exit(args: &GraphArgs, registry: &Registry) -> Result<Graph, u8> {
-    load_graph(args, registry)
+/// The cache folder given, or the graph's default one.
+fn cache_or_default(cache: &Option<PathBuf>, graph: &Path) -> PathBuf {
+    cache.clone().unwrap_or_else(|| default_cache_dir(graph))
 }
 
 /// Runs exactly the named instances on inputs from the cache.
 pub fn exec_command(a: ExecArgs, registry: &Registry, quiet: bool) -> Result<u8, String> {
-    let cache = a
-        .cache
-        .clone()
-        .unwrap_or_else(|| default_cache_dir(&a.graph));
+    let cache = cache_or_default(&a.cache, &a.graph);
     if let Some(t) = &a.token {
         super::check_token(&cache, t)?;
     }
@@ -103,7 +101,7 @@ pub fn exec_command(a: ExecArgs, registry: &Registry, quiet: bool) -> Result<u8,
         set: a.set.clone(),
         frames: a.range.clone(),
     };
-    let g = match graph_or_exit(&ga, registry) {
+    let g = match load_graph(&ga, registry) {
         Ok(g) => g,
         Err(code) => return Ok(code),
     };
@@ -172,14 +170,11 @@ fn task_context(a: &SubmitArgs, cache: &std::path::Path) -> Result<TaskContext, 
 
 /// Compiles the uncached instances into farm jobs and submits them (or prints them).
 pub fn submit_command(a: SubmitArgs, registry: &Registry) -> Result<u8, String> {
-    let g = match graph_or_exit(&a.graph, registry) {
+    let g = match load_graph(&a.graph, registry) {
         Ok(g) => g,
         Err(code) => return Ok(code),
     };
-    let cache = a
-        .cache
-        .clone()
-        .unwrap_or_else(|| default_cache_dir(&a.graph.graph));
+    let cache = cache_or_default(&a.cache, &a.graph.graph);
     if a.farm == Farm::Slurm && !a.dry_run {
         find_program(
             "sbatch",
@@ -312,14 +307,11 @@ fn write_openjd(
 
 /// Prints per node: cached / running / missing.
 pub fn status_command(a: StatusArgs, registry: &Registry) -> Result<u8, String> {
-    let g = match graph_or_exit(&a.graph, registry) {
+    let g = match load_graph(&a.graph, registry) {
         Ok(g) => g,
         Err(code) => return Ok(code),
     };
-    let cache = a
-        .cache
-        .clone()
-        .unwrap_or_else(|| default_cache_dir(&a.graph.graph));
+    let cache = cache_or_default(&a.cache, &a.graph.graph);
     if !cache.is_dir() {
         return Err(format!("no cache at {}", cache.display()));
     }

@@ -150,7 +150,7 @@ impl LensOptions {
                         return Err(VisionError::InvalidInput(format!(
                             "distortion: {} solves a Brown–Conrady lens, but the intrinsics \
                              carry a division one",
-                            self.distortion.name()
+                            self.distortion.choice()
                         )))
                     }
                 };
@@ -170,18 +170,6 @@ impl LensOptions {
             }
         };
         Ok((lens, [f_held, k1_held, k2_held]))
-    }
-}
-
-impl DistortionMode {
-    /// The YAML name.
-    pub fn name(&self) -> &'static str {
-        match self {
-            DistortionMode::None => "none",
-            DistortionMode::K1 => "k1",
-            DistortionMode::K1k2 => "k1k2",
-            DistortionMode::Division => "division",
-        }
     }
 }
 
@@ -310,6 +298,10 @@ pub fn matchmove_with_lens(
     let (lens_model, held) = lens.block(k)?;
     let mut k = k.clone().with_distortion(lens_model);
     if !lens.solves_lens() {
+        if k.is_pinhole() {
+            // The book's case: no copy of the tracks.
+            return matchmove(tracks, &k, options, progress);
+        }
         let und = undistort_tracks(tracks, &k)?;
         let mut solve = matchmove(&und, &k.pinhole(), options, progress)?;
         solve.path.intrinsics = Some(k);
