@@ -297,8 +297,22 @@ mod tests {
         Option<CameraPathArt>,
         Option<ReportArt>,
     ) {
+        run_node_with(s, &[])
+    }
+
+    /// [`run_node`] with more params set.
+    fn run_node_with(
+        s: &vfxgraph_vision::matchmove::synthetic::SyntheticShot,
+        set: &[(&str, ParamValue)],
+    ) -> (
+        Result<(), NodeError>,
+        Option<CameraPathArt>,
+        Option<ReportArt>,
+    ) {
         let sp = spec("matchmove");
-        let p = params(&sp, &[("min_frames", ParamValue::Int(30))]);
+        let mut set = set.to_vec();
+        set.push(("min_frames", ParamValue::Int(30)));
+        let p = params(&sp, &set);
         let inputs = [
             (
                 "tracks",
@@ -340,17 +354,31 @@ mod tests {
         assert!(report["score"]["median"].as_f64().unwrap() < 1.0);
     }
 
-    /// A degenerate input (a tripod pan, no parallax) gives a clear error, never NaN cameras.
+    /// A nodal pan solved as a moving camera (`solve: general`, no parallax) gives a clear
+    /// error, never NaN cameras; the default (`solve: auto`) solves it as rotations
+    /// (vfxgraph_vision::matchmove::tripod) and its report says so.
     #[test]
-    fn a_tripod_pan_is_a_clear_error() {
+    fn a_tripod_pan_is_a_clear_error_as_a_moving_camera_and_solved_as_a_pan() {
         let s = synthetic_shot(&ShotOptions {
             frames: 70,
             slots: 80,
             travel: 0.0,
+            bob: 0.0,
             outlier_fraction: 0.0,
             ..ShotOptions::default()
         });
-        let err = run_node(&s).0.unwrap_err().to_string();
+        let (r, cams, report) = run_node(&s);
+        r.unwrap();
+        let report = report.unwrap().0;
+        assert_eq!(report["rotation_only"].as_bool(), Some(true), "{report}");
+        assert!(cams
+            .unwrap()
+            .0
+            .frames
+            .iter()
+            .all(|f| f.pose.t.norm() == 0.0));
+        let general = [("solve", ParamValue::Str("general".into()))];
+        let err = run_node_with(&s, &general).0.unwrap_err().to_string();
         assert!(
             err.contains("parallax") || err.contains("rotation"),
             "{err}"

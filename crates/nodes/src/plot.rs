@@ -154,9 +154,37 @@ pub fn solve_error_svg(report: &serde_json::Value) -> Result<String, String> {
     }
     let _ = writeln!(
         svg,
-        r##"<text x="500" y="565" font-size="12" text-anchor="middle">frame</text></svg>"##
+        r##"<text x="500" y="565" font-size="12" text-anchor="middle">frame</text>"##
     );
+    if let Some(line) = solved_camera_line(report) {
+        let _ = writeln!(
+            svg,
+            r##"<text x="480" y="590" font-size="12" text-anchor="middle">{line}</text>"##
+        );
+    }
+    svg.push_str("</svg>\n");
     Ok(svg)
+}
+
+/// What the solve found of the camera besides its poses, for the plot's last line: the
+/// intrinsics it refined with their standard deviations, and whether it was a nodal pan.
+fn solved_camera_line(report: &serde_json::Value) -> Option<String> {
+    let mut parts = Vec::new();
+    for p in report["intrinsics"].as_array().into_iter().flatten() {
+        let (Some(name), Some(v)) = (p["name"].as_str(), p["value"].as_f64()) else {
+            continue;
+        };
+        let digits = if name == "focal_px" { 1 } else { 4 };
+        parts.push(match p["sd"].as_f64() {
+            Some(sd) => format!("{name} {v:.digits$} ± {sd:.digits$}"),
+            None if p["held"].as_bool() == Some(true) => format!("{name} {v:.digits$} (held)"),
+            None => format!("{name} {v:.digits$}"),
+        });
+    }
+    if report["rotation_only"].as_bool() == Some(true) {
+        parts.push("rotation-only solve (nodal pan)".into());
+    }
+    (!parts.is_empty()).then(|| format!("Solved: {}", parts.join(", ")))
 }
 
 #[cfg(test)]
@@ -175,5 +203,27 @@ mod tests {
         assert_eq!(svg.matches(" L").count() + svg.matches("\"L").count(), 98);
         assert!(svg.contains("overall RMS 0.500 px"));
         assert!(solve_error_svg(&serde_json::json!({"cost": 1})).is_err());
+        assert!(!svg.contains("Solved:"));
+    }
+
+    /// A lens solve's intrinsics (with standard deviations) and a nodal pan are written under
+    /// the panels.
+    #[test]
+    fn plots_the_solved_intrinsics_and_a_pan() {
+        let report = serde_json::json!({
+            "overall_rms": 0.5,
+            "frames": [{"frame": 0, "rms": 0.4, "inliers": 90}, {"frame": 1, "rms": 0.5, "inliers": 80}],
+            "rotation_only": true,
+            "intrinsics": [
+                {"name": "focal_px", "value": 918.04, "held": false, "sd": 1.26},
+                {"name": "k1", "value": -0.16123, "held": false, "sd": 0.0021},
+            ]
+        });
+        let svg = solve_error_svg(&report).unwrap();
+        assert!(
+            svg.contains("Solved: focal_px 918.0 ± 1.3, k1 -0.1612 ± 0.0021, rotation-only"),
+            "{svg}"
+        );
+        assert!(svg.trim_end().ends_with("</svg>"));
     }
 }

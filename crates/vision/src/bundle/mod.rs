@@ -15,7 +15,7 @@
 //! - [`schur`]: the reduced camera system (Schur complement on the points);
 //! - [`linear_solver`]: dense / sparse Cholesky and block-Jacobi PCG on the reduced system;
 //! - [`lm`]: the Levenberg–Marquardt trust-region loop;
-//! - [`report`]: what a solve returns;
+//! - [`report`]: what a solve returns; [`covariance`]: the solved intrinsics' uncertainty;
 //! - [`bal`]: the BAL text format; [`synthetic`]: video-like test problems; [`bench`]: the
 //!   `vfxgraph bench ba` entry point.
 //!
@@ -36,6 +36,7 @@
 
 pub mod bal;
 pub mod bench;
+pub mod covariance;
 pub mod error;
 mod evaluate;
 pub mod linear_solver;
@@ -51,6 +52,7 @@ pub mod synthetic;
 
 pub use bal::{read_bal, read_bal_str, write_bal};
 pub use bench::{solve_bal_file, BalBenchOptions, BalBenchReport};
+pub use covariance::intrinsics_covariance;
 pub use error::BundleError;
 pub use linear_solver::LinearSolverKind;
 pub use lm::{solve, SolverOptions};

@@ -209,6 +209,11 @@ pub enum Gauge {
     /// components and its rotation stay free). Under a similarity that keeps camera 0, that
     /// component scales with the scene, so holding it removes exactly the scale freedom.
     FixFirstCameraAndScale,
+    /// A camera that only rotates (a nodal pan, [`crate::matchmove::tripod`]): every camera
+    /// centre held at the origin (all translations held, so t = 0) and the first camera's
+    /// rotation held. The points are then directions: a point moved along its ray projects
+    /// the same in every camera, a null direction of its own block that LM's damping handles.
+    RotationOnly,
 }
 
 /// A bundle adjustment problem: blocks and the observations that tie them.
@@ -315,6 +320,12 @@ impl Problem {
     /// in the order `[ω₀, ω₁, ω₂, t₀, t₁, t₂]`.
     pub fn pose_masks(&self) -> Vec<[bool; 6]> {
         let mut masks = vec![[false; 6]; self.cameras.len()];
+        if self.gauge == Gauge::RotationOnly {
+            for (i, m) in masks.iter_mut().enumerate() {
+                *m = [i == 0, i == 0, i == 0, true, true, true];
+            }
+            return masks;
+        }
         if let (Gauge::FixFirstCameraAndScale, true) = (self.gauge, self.cameras.len() >= 2) {
             masks[0] = [true; 6];
             let c0 = camera_centre(&self.cameras[0]);

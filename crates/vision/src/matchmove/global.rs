@@ -87,7 +87,7 @@ impl GlobalOptions {
             .unwrap_or(self.triangulation_tolerance)
     }
 
-    fn loss(&self) -> Loss {
+    pub(crate) fn loss(&self) -> Loss {
         match self.loss {
             RobustLoss::None => Loss::Trivial,
             RobustLoss::Huber => Loss::Huber {
@@ -190,21 +190,28 @@ pub fn global_bundle_adjust(
             "global bundle adjustment thresholds must be positive".into(),
         ));
     }
-    global_adjust(tracks, tracks, k, poses, options, None).map(|(p, x, _)| (p, x))
+    global_adjust(tracks, tracks, k, poses, options, None).map(|(p, x, _, _)| (p, x))
 }
 
 /// [`global_bundle_adjust`] with the lens refined: the block `[f, k1, k2]` of
 /// [`crate::bundle::CameraModel::Radial`] (with `k`'s principal point and lens model, `held`
 /// flags for the parameters that stay) is free with every camera and point. Triangulation and
 /// outlier marking work on the tracks undistorted by the current lens; the adjustment on the
-/// observed (distorted) pixels. Returns the poses, the points and the solved intrinsics.
+/// observed (distorted) pixels. Returns the poses, the points, the solved intrinsics and the
+/// covariance of the block `[f, k1, k2]` after the last round (or why there is none).
+#[allow(clippy::type_complexity)]
 pub fn global_lens_adjust(
     tracks: &Tracks,
     k: &Intrinsics,
     poses: &[Option<Pose>],
     options: &GlobalOptions,
     held: [bool; 3],
-) -> Result<(super::Poses, super::TrackPoints, Intrinsics)> {
+) -> Result<(
+    super::Poses,
+    super::TrackPoints,
+    Intrinsics,
+    Option<super::BlockCovariance>,
+)> {
     let und = super::lens_solve::undistort_tracks(tracks, k)?;
     global_adjust(tracks, &und, k, poses, options, Some(held))
 }
@@ -218,7 +225,12 @@ fn global_adjust(
     poses: &[Option<Pose>],
     options: &GlobalOptions,
     lens: Option<[bool; 3]>,
-) -> Result<(super::Poses, super::TrackPoints, Intrinsics)> {
+) -> Result<(
+    super::Poses,
+    super::TrackPoints,
+    Intrinsics,
+    Option<super::BlockCovariance>,
+)> {
     if options.thresholds.iter().any(|t| !(*t > 0.0)) || !(options.triangulation_tolerance > 0.0) {
         return Err(VisionError::InvalidInput(
             "global bundle adjustment thresholds must be positive".into(),
@@ -245,6 +257,7 @@ fn global_adjust(
     );
     let mut thresholds = vec![options.triangulation_tolerance];
     thresholds.extend(options.thresholds.iter().copied());
+    let mut cov = None;
     for (round, &threshold) in thresholds.iter().enumerate() {
         if round > 0 {
             let r = triangulate_all(
@@ -272,7 +285,7 @@ fn global_adjust(
                 )?;
             }
             Some(held) => {
-                k = super::bundle_adjust_lens(
+                let (k_new, c) = super::bundle_adjust_lens(
                     tracks,
                     &k,
                     held,
@@ -281,10 +294,13 @@ fn global_adjust(
                     &keep,
                     options.loss(),
                     options.max_iterations,
+                    round + 1 == thresholds.len(),
                 )?;
+                k = k_new;
+                cov = c;
                 und = std::borrow::Cow::Owned(super::lens_solve::undistort_tracks(tracks, &k)?);
             }
         }
     }
-    Ok((poses, points, k))
+    Ok((poses, points, k, cov))
 }

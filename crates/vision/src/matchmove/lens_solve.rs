@@ -297,6 +297,46 @@ pub fn matchmove_with_lens(
     k.validate()?;
     let (lens_model, held) = lens.block(k)?;
     let mut k = k.clone().with_distortion(lens_model);
+    let unknown = lens.focal == FocalMode::Unknown;
+    let t0 = std::time::Instant::now();
+    let (tripod, focal, note) = super::tripod::decide(tracks, &k, unknown, options)?;
+    if let Some(parallax) = tripod {
+        if let Some(f) = focal {
+            k.f1 = f;
+            k.f2 = f;
+        }
+        let mut solve =
+            super::tripod::solve_rotations(tracks, &k, held, options, parallax.as_ref(), progress)?;
+        solve
+            .report
+            .stages
+            .insert(0, super::StageTime::new("motion", t0));
+        if let Some(f) = focal {
+            solve
+                .report
+                .notes
+                .insert(0, format!("initial focal length {f:.1} px from the pan"));
+        }
+        return Ok(solve);
+    }
+    let motion = super::StageTime::new("motion", t0);
+    let mut solve = general_with_lens(tracks, k, held, lens, options, progress)?;
+    if let Some(note) = note {
+        solve.report.stages.insert(0, motion);
+        solve.report.notes.push(note);
+    }
+    Ok(solve)
+}
+
+/// [`matchmove_with_lens`] of a moving camera.
+fn general_with_lens(
+    tracks: &Tracks,
+    mut k: Intrinsics,
+    held: [bool; 3],
+    lens: &LensOptions,
+    options: &MatchmoveOptions,
+    progress: &(dyn Fn(&str, usize, usize) + Sync),
+) -> Result<Solve> {
     if !lens.solves_lens() {
         if k.is_pinhole() {
             // The book's case: no copy of the tracks.
@@ -329,6 +369,7 @@ pub fn matchmove_with_lens(
         ..options.clone()
     };
     let mut solve = None;
+    let mut cov = None;
     for round in 0..lens.lens_rounds {
         let t0 = std::time::Instant::now();
         let und = undistort_tracks(tracks, &k)?;
@@ -339,8 +380,9 @@ pub fn matchmove_with_lens(
         ));
         let t0 = std::time::Instant::now();
         let poses = super::poses_by_index(&und, &s.path);
-        let (poses, points, k_new) =
+        let (poses, points, k_new, c) =
             super::global::global_lens_adjust(tracks, &k, &poses, global, held)?;
+        cov = c;
         stages.push(super::StageTime::new(
             &format!("round {}: lens adjustment", round + 1),
             t0,
@@ -371,6 +413,12 @@ pub fn matchmove_with_lens(
     out.report.notes = s.report.notes;
     out.report.notes.extend(notes);
     out.report.fragments = s.report.fragments;
+    out.report.intrinsics = super::solved_intrinsics(&k, held, cov.as_ref());
+    if let Some(Err(why)) = &cov {
+        out.report
+            .notes
+            .push(format!("no standard deviations of the intrinsics: {why}"));
+    }
     out.path.intrinsics = Some(k);
     Ok(out)
 }

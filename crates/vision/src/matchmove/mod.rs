@@ -30,6 +30,7 @@ pub mod relax;
 pub mod report;
 pub mod score;
 pub mod synthetic;
+pub mod tripod;
 
 use std::time::Instant;
 
@@ -54,6 +55,7 @@ pub use pair::PairOptions;
 pub use relax::{relax, RelaxOptions};
 pub use report::{SolveReport, StageTime};
 pub use score::{score_cameras, BookScore};
+pub use tripod::{measure_parallax, solve_rotations, MotionOptions, Parallax, SolveMode};
 
 /// Poses by frame index (`None`: no camera for that frame).
 pub type Poses = Vec<Option<Pose>>;
@@ -87,6 +89,9 @@ pub struct MatchmoveOptions {
     /// [`matchmove`] itself ignores it and takes K as exact and the tracks as a pinhole's).
     #[param(flatten)]
     pub lens: LensOptions,
+    /// The camera's motion: general, or a nodal pan ([`tripod`]), or detected.
+    #[param(flatten)]
+    pub motion: tripod::MotionOptions,
     /// Seed of every random choice (RANSAC samples); each fragment derives its own stream.
     #[param(skip)]
     pub seed: u64,
@@ -105,6 +110,7 @@ impl Default for MatchmoveOptions {
             scale: ScaleOptions::default(),
             global: Some(GlobalOptions::default()),
             lens: LensOptions::default(),
+            motion: tripod::MotionOptions::default(),
             seed: 0,
             score: true,
         }
@@ -531,7 +537,18 @@ pub(crate) fn bundle_adjust_indexed(
         fixed: true,
         held: [false; 3],
     };
-    adjust_with_block(tracks, block, poses, points, keep, loss, max_iterations).map(|r| r.0)
+    let gauge = crate::bundle::Gauge::FixFirstCameraAndScale;
+    adjust_with_block(
+        tracks,
+        block,
+        gauge,
+        poses,
+        points,
+        keep,
+        loss,
+        max_iterations,
+    )
+    .map(|r| r.0)
 }
 
 /// [`bundle_adjust_indexed`] with the lens block `[f, k1, k2]` of `k`
@@ -548,34 +565,123 @@ pub(crate) fn bundle_adjust_lens(
     keep: &(dyn Fn(usize, usize) -> bool + Sync),
     loss: crate::bundle::Loss,
     max_iterations: usize,
-) -> Result<Intrinsics> {
+    covariance: bool,
+) -> Result<(Intrinsics, Option<BlockCovariance>)> {
+    let gauge = crate::bundle::Gauge::FixFirstCameraAndScale;
+    let block = lens_block(k, held);
+    let (_, b, cov) = adjust_with_block_cov(
+        tracks,
+        block,
+        gauge,
+        poses,
+        points,
+        keep,
+        loss,
+        max_iterations,
+        covariance,
+    )?;
+    Ok((intrinsics_of_block(k, &b), cov))
+}
+
+/// The solved intrinsics of a lens block for a report: focal length, k1, k2 with their
+/// standard deviations where free and known (`cov`).
+pub(crate) fn solved_intrinsics(
+    k: &Intrinsics,
+    held: [bool; 3],
+    cov: Option<&BlockCovariance>,
+) -> Vec<report::SolvedIntrinsic> {
+    let (k1, k2) = match k.distortion {
+        crate::lens::Distortion::BrownConrady { k1, k2, .. }
+        | crate::lens::Distortion::Division { k1, k2 } => (k1, k2),
+        crate::lens::Distortion::None => (0.0, 0.0),
+    };
+    let names = ["focal_px", "k1", "k2"];
+    let values = [k.f1, k1, k2];
+    (0..3)
+        .filter(|&i| i == 0 || !held[i])
+        .map(|i| report::SolvedIntrinsic {
+            name: names[i].into(),
+            value: values[i],
+            held: held[i],
+            sd: match cov {
+                Some(Ok((c, _))) if !held[i] => Some(c[(i, i)].max(0.0).sqrt()),
+                _ => None,
+            },
+        })
+        .collect()
+}
+
+/// The bundle adjuster's lens block `[f, k1, k2]` of `k` ([`crate::bundle::CameraModel::Radial`]:
+/// its principal point, aspect, skew and lens model held), free but for `held`.
+pub(crate) fn lens_block(k: &Intrinsics, held: [bool; 3]) -> crate::bundle::Intrinsics {
     let mut block = crate::bundle::Intrinsics::radial(k.f1, k.u0, k.v0, k.distortion);
     if let crate::bundle::CameraModel::Radial { aspect, skew, .. } = &mut block.model {
         *aspect = k.f2 / k.f1;
         *skew = k.s;
     }
     block.held = held;
-    let (_, b) = adjust_with_block(tracks, block, poses, points, keep, loss, max_iterations)?;
+    block
+}
+
+/// `k` with the focal length and radial terms of an adjusted [`lens_block`].
+pub(crate) fn intrinsics_of_block(k: &Intrinsics, b: &crate::bundle::Intrinsics) -> Intrinsics {
     let [f, k1, k2] = b.params;
     let mut out = k.clone();
     out.f1 = f;
     out.f2 = f * k.f2 / k.f1;
     out.distortion = b.model.lens_with(k1, k2);
-    Ok(out)
+    out
 }
 
-/// The bundle adjustment of [`bundle_adjust_indexed`] with one shared intrinsics block; returns
-/// the solver's report and the adjusted block.
-fn adjust_with_block(
+/// The bundle adjustment of [`bundle_adjust_indexed`] with one shared intrinsics block and the
+/// given gauge; returns the solver's report and the adjusted block.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn adjust_with_block(
     tracks: &Tracks,
     block: crate::bundle::Intrinsics,
+    gauge: crate::bundle::Gauge,
     poses: &mut [Option<Pose>],
     points: &mut [Option<Vector3<f64>>],
     keep: &(dyn Fn(usize, usize) -> bool + Sync),
     loss: crate::bundle::Loss,
     max_iterations: usize,
 ) -> Result<(crate::bundle::SolverReport, crate::bundle::Intrinsics)> {
-    use crate::bundle::{CameraPose, Gauge, Observation, Point, Problem};
+    adjust_with_block_cov(
+        tracks,
+        block,
+        gauge,
+        poses,
+        points,
+        keep,
+        loss,
+        max_iterations,
+        false,
+    )
+    .map(|(r, b, _)| (r, b))
+}
+
+/// The covariance of a lens block's `[f, k1, k2]` at the solution, with σ̂
+/// ([`crate::bundle::intrinsics_covariance`]), or why it is not available.
+pub(crate) type BlockCovariance = std::result::Result<(nalgebra::Matrix3<f64>, f64), String>;
+
+/// [`adjust_with_block`], with the covariance of the block at the solution when `covariance`.
+#[allow(clippy::too_many_arguments, clippy::type_complexity)]
+pub(crate) fn adjust_with_block_cov(
+    tracks: &Tracks,
+    block: crate::bundle::Intrinsics,
+    gauge: crate::bundle::Gauge,
+    poses: &mut [Option<Pose>],
+    points: &mut [Option<Vector3<f64>>],
+    keep: &(dyn Fn(usize, usize) -> bool + Sync),
+    loss: crate::bundle::Loss,
+    max_iterations: usize,
+    covariance: bool,
+) -> Result<(
+    crate::bundle::SolverReport,
+    crate::bundle::Intrinsics,
+    Option<BlockCovariance>,
+)> {
+    use crate::bundle::{CameraPose, Observation, Point, Problem};
     let mut cam_index = vec![usize::MAX; poses.len()];
     let mut cameras = Vec::new();
     let mut cam_frame = Vec::new();
@@ -626,7 +732,7 @@ fn adjust_with_block(
         intrinsics: vec![block],
         points: pts,
         observations,
-        gauge: Gauge::FixFirstCameraAndScale,
+        gauge,
     };
     let options = crate::bundle::SolverOptions {
         max_iterations,
@@ -649,7 +755,13 @@ fn adjust_with_block(
     for (p, &ti) in problem.points.iter().zip(&pt_track) {
         points[ti] = Some(p.position);
     }
-    Ok((report, problem.intrinsics[0]))
+    let cov = covariance.then(|| match crate::bundle::intrinsics_covariance(&problem) {
+        Ok((c, sigma)) => c[0]
+            .map(|c| (c, sigma))
+            .ok_or_else(|| "the lens is held".to_string()),
+        Err(e) => Err(e.to_string()),
+    });
+    Ok((report, problem.intrinsics[0], cov))
 }
 
 #[cfg(test)]

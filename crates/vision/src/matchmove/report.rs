@@ -76,6 +76,28 @@ pub struct SolveReport {
     pub score: Option<BookScore>,
     /// Fallbacks taken and other remarks, for a person to read.
     pub notes: Vec<String>,
+    /// The camera was solved as a nodal pan: rotations only, every centre at the origin
+    /// ([`super::tripod`]).
+    #[serde(default)]
+    pub rotation_only: bool,
+    /// The intrinsics the solve refined (focal length, distortion), with their standard
+    /// deviations ([`crate::bundle::covariance`]); empty when K was held.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub intrinsics: Vec<SolvedIntrinsic>,
+}
+
+/// One intrinsic parameter of a solve.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SolvedIntrinsic {
+    /// `focal_px`, `k1`, `k2`.
+    pub name: String,
+    /// Its solved value.
+    pub value: f64,
+    /// Held at its given value.
+    pub held: bool,
+    /// Its standard deviation (the covariance at the solution scaled by the residual
+    /// variance), when free and computed.
+    pub sd: Option<f64>,
 }
 
 /// Builds the per-frame and per-track figures of a solve; `marks` (by track index and
@@ -154,5 +176,7 @@ pub fn solve_report(
         fragments: Vec::new(),
         score: None,
         notes: Vec::new(),
+        rotation_only: false,
+        intrinsics: Vec::new(),
     }
 }

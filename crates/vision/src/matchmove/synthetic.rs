@@ -30,10 +30,12 @@ pub struct ShotOptions {
     pub drift: f64,
     /// Mean track lifetime, frames (geometric).
     pub mean_track_length: f64,
-    /// Sideways travel of the camera over the shot, scene units (0: a tripod pan).
+    /// Sideways travel of the camera over the shot, scene units.
     pub travel: f64,
     /// Pan over the shot, radians.
     pub pan: f64,
+    /// Amplitude of the camera's vertical bob, scene units (0 with `travel: 0`: a nodal pan).
+    pub bob: f64,
     /// Seed.
     pub seed: u64,
 }
@@ -49,6 +51,7 @@ impl Default for ShotOptions {
             mean_track_length: 60.0,
             travel: 3.0,
             pan: 0.25,
+            bob: 0.15,
             seed: 1,
         }
     }
@@ -70,7 +73,7 @@ pub struct SyntheticShot {
 /// The true camera of frame `i` of `n`.
 fn pose_at(i: usize, n: usize, o: &ShotOptions) -> Pose {
     let s = i as f64 / (n.max(2) - 1) as f64;
-    let centre = Vector3::new(o.travel * s, 0.15 * (3.0 * s).sin(), 0.4 * o.travel * s);
+    let centre = Vector3::new(o.travel * s, o.bob * (3.0 * s).sin(), 0.4 * o.travel * s);
     let r = axis_angle_to_r(&Vector3::new(0.03 * (2.0 * s).sin(), -o.pan * s, 0.01 * s));
     Pose::new(r, -(r * centre))
 }
