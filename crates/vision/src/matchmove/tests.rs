@@ -397,6 +397,16 @@ fn parallax_tells_a_pan_from_a_moving_camera() {
     let p = measure_parallax(&pan.tracks, &pan.k, &opts, 1).unwrap();
     eprintln!("pan: {}", p.describe());
     assert!(p.rotation_only, "{}", p.describe());
+    // Without K: homographies rule the moving camera out, not the pan.
+    let h = tripod::rule_out_pan(&moving.tracks, &opts, 1).unwrap();
+    eprintln!(
+        "moving, homographies: {:?}",
+        h.as_ref().map(Parallax::describe)
+    );
+    assert!(h.is_some());
+    assert!(tripod::rule_out_pan(&pan.tracks, &opts, 1)
+        .unwrap()
+        .is_none());
 }
 
 /// A pan with the focal length unknown (only the image size given): the focal length from the

@@ -14,7 +14,9 @@
 //! one — and 3–3.5× measured, F over-fitting the noise of a pan that does not define it).
 //! This is Torr's model selection between a homography and F (GRIC, 1998) reduced to its
 //! residuals, with the rotation in place of the homography so that a translating camera over a
-//! planar floor — a homography, but not a rotation — is not taken for a pan.
+//! planar floor — a homography, but not a rotation — is not taken for a pan. With the focal
+//! length unknown the rotation needs it first; a shot whose pairs do not even fit homographies
+//! ([`rule_out_pan`]; a pan's do, whatever K) is a moving camera without that search.
 //!
 //! **Solve** ([`solve_rotations`]): the rotations are chained frame by frame (each frame's
 //! rotation from the directions of the tracks already seen, RANSAC + Kabsch), then refined by
@@ -39,7 +41,7 @@ use crate::error::{Result, VisionError};
 use crate::klt::Tracks;
 use crate::ransac::{ransac, Estimator, RansacParams};
 use crate::rotation::nearest_rotation;
-use crate::two_view::FundamentalEstimator;
+use crate::two_view::{FundamentalEstimator, HomographyEstimator};
 
 /// How the matchmove models the camera's motion.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Choice)]
@@ -95,8 +97,10 @@ pub struct PairParallax {
     pub frames: [i64; 2],
     /// Tracks seen in both.
     pub tracks: usize,
-    /// Median pixel residual of the best rotation (the parallax).
+    /// Median pixel residual of the best rotation (the parallax; NaN when not fitted).
     pub rotation_px: f64,
+    /// Median transfer error of the best homography (a pan's is at the noise whatever K).
+    pub homography_px: f64,
     /// Median Sampson distance of the best fundamental matrix (the noise).
     pub epipolar_px: f64,
 }
@@ -206,6 +210,44 @@ pub fn measure_parallax(
     options: &MotionOptions,
     seed: u64,
 ) -> Result<Parallax> {
+    let pairs = fit_pairs(tracks, Some(k), seed)?;
+    let rotation: Vec<f64> = pairs.iter().map(|p| p.rotation_px).collect();
+    Ok(decision(pairs, &rotation, options))
+}
+
+/// Whether the shot may be a nodal pan whatever its focal length: every pair's tracks fit a
+/// homography (a pan's do, H = K R K⁻¹) within the threshold of [`measure_parallax`]. `None`
+/// when they may (a pan, or a moving camera over a plane), else the measure that rules it out.
+/// This is what spares a moving camera with an unknown lens the focal search of a pan.
+pub fn rule_out_pan(
+    tracks: &Tracks,
+    options: &MotionOptions,
+    seed: u64,
+) -> Result<Option<Parallax>> {
+    let pairs = fit_pairs(tracks, None, seed)?;
+    let homography: Vec<f64> = pairs.iter().map(|p| p.homography_px).collect();
+    let p = decision(pairs, &homography, options);
+    Ok((!p.rotation_only).then_some(p))
+}
+
+/// The decision of [`measure_parallax`] on the pairs' parallaxes `parallax`.
+fn decision(pairs: Vec<PairParallax>, parallax: &[f64], options: &MotionOptions) -> Parallax {
+    let parallax_px = parallax.iter().copied().fold(0.0, f64::max);
+    let noise_px = median(pairs.iter().map(|p| p.epipolar_px).collect());
+    let threshold_px = options.tripod_parallax.max(NOISE_RATIO * noise_px);
+    Parallax {
+        pairs,
+        parallax_px,
+        noise_px,
+        threshold_px,
+        rotation_only: parallax_px <= threshold_px,
+    }
+}
+
+/// The three models of every pair of [`frame_pairs`]: the rotation (when `k` is given; NaN
+/// otherwise), the homography and the fundamental matrix, each by RANSAC, with the median
+/// residual of every common track.
+fn fit_pairs(tracks: &Tracks, k: Option<&Intrinsics>, seed: u64) -> Result<Vec<PairParallax>> {
     let mut pairs = Vec::new();
     for (pi, (a, b)) in frame_pairs(tracks).into_iter().enumerate() {
         let obs: Vec<([f64; 2], [f64; 2])> = tracks
@@ -214,28 +256,43 @@ pub fn measure_parallax(
             .filter(|t| t.first <= a && t.end() > b)
             .map(|t| (t.points[a - t.first], t.points[b - t.first]))
             .collect();
-        let rays: Vec<_> = obs.iter().map(|(p, q)| (ray(k, p), ray(k, q))).collect();
-        let est = RotationEstimator { focal: k.f1 };
         let mut rng = Pcg64::seed_from_u64(derive_seed(seed, 11, pi as u64));
-        let params = RansacParams::with_threshold(ROTATION_THRESHOLD);
-        let Ok(rot) = ransac(&est, &rays, &params, &mut rng) else {
-            continue;
+        let rotation_px = match k {
+            Some(k) => {
+                let rays: Vec<_> = obs.iter().map(|(p, q)| (ray(k, p), ray(k, q))).collect();
+                let est = RotationEstimator { focal: k.f1 };
+                let params = RansacParams::with_threshold(ROTATION_THRESHOLD);
+                let Ok(rot) = ransac(&est, &rays, &params, &mut rng) else {
+                    continue;
+                };
+                median(rays.iter().map(|d| est.residual(&rot.model, d)).collect())
+            }
+            None => f64::NAN,
         };
-        let rotation_px = median(rays.iter().map(|d| est.residual(&rot.model, d)).collect());
         let pts: Vec<_> = obs
             .iter()
             .map(|(p, q)| (Point2::new(p[0], p[1]), Point2::new(q[0], q[1])))
             .collect();
+        let params = RansacParams::with_threshold(ROTATION_THRESHOLD);
+        let Ok(h) = ransac(&HomographyEstimator, &pts, &params, &mut rng) else {
+            continue;
+        };
+        let homography_px = median(
+            pts.iter()
+                .map(|d| HomographyEstimator.residual(&h.model, d))
+                .collect(),
+        );
         let fe = FundamentalEstimator::default();
         let Ok(f) = ransac(&fe, &pts, &RansacParams::with_threshold(1.5), &mut rng) else {
             continue;
         };
         let epipolar_px = median(pts.iter().map(|d| fe.residual(&f.model, d)).collect());
-        if rotation_px.is_finite() && epipolar_px.is_finite() {
+        if (rotation_px.is_finite() || k.is_none()) && epipolar_px.is_finite() {
             pairs.push(PairParallax {
                 frames: [tracks.frames[a], tracks.frames[b]],
                 tracks: obs.len(),
                 rotation_px,
+                homography_px,
                 epipolar_px,
             });
         }
@@ -245,16 +302,7 @@ pub fn measure_parallax(
             "no two frames share {MIN_COMMON} tracks: the camera's motion cannot be measured"
         )));
     }
-    let parallax_px = pairs.iter().map(|p| p.rotation_px).fold(0.0, f64::max);
-    let noise_px = median(pairs.iter().map(|p| p.epipolar_px).collect());
-    let threshold_px = options.tripod_parallax.max(NOISE_RATIO * noise_px);
-    Ok(Parallax {
-        pairs,
-        parallax_px,
-        noise_px,
-        threshold_px,
-        rotation_only: parallax_px <= threshold_px,
-    })
+    Ok(pairs)
 }
 
 /// Rotations of a pan chained frame by frame, and the tracks' directions.
@@ -586,6 +634,13 @@ pub fn decide(
         }
         SolveMode::Auto => {
             let und = undistort_tracks(tracks, k)?;
+            if focal_unknown {
+                match rule_out_pan(&und, &options.motion, seed) {
+                    Ok(Some(p)) => return Ok((None, None, Some(p.describe()))),
+                    Ok(None) => {}
+                    Err(e) => return Ok((None, None, Some(format!("parallax not measured: {e}")))),
+                }
+            }
             let (kp, f) = if focal_unknown {
                 let f = estimate_rotation_focal(&und, k, seed)?;
                 let kp = Intrinsics {
