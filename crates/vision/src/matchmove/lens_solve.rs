@@ -278,6 +278,10 @@ pub fn estimate_focal(tracks: &Tracks, k: &Intrinsics, options: &MatchmoveOption
     Ok(x.exp())
 }
 
+/// Fewest tracks (seen in 3 frames or more) a distortion solve accepts: the lens's radial
+/// curve needs points spread over the frame, and fewer make k1, k2 noise.
+pub const MIN_LENS_TRACKS: usize = 30;
+
 /// Frames of the focal-length search ([`estimate_focal`]).
 const SEARCH_FRAMES: usize = 16;
 /// Focal lengths tried by the search, log-spaced over 0.3–3 image diagonals (×1.39 apart).
@@ -297,6 +301,16 @@ pub fn matchmove_with_lens(
     k.validate()?;
     let (lens_model, held) = lens.block(k)?;
     let mut k = k.clone().with_distortion(lens_model);
+    if !held[1] || !held[2] {
+        let n = tracks.tracks.iter().filter(|t| t.points.len() >= 3).count();
+        if n < MIN_LENS_TRACKS {
+            return Err(VisionError::InvalidInput(format!(
+                "distortion: {} needs at least {MIN_LENS_TRACKS} tracks seen in 3 frames or \
+                 more, the tracks have {n}: track more features, or solve with distortion: none",
+                lens.distortion.choice()
+            )));
+        }
+    }
     let unknown = lens.focal == FocalMode::Unknown;
     let t0 = std::time::Instant::now();
     let (tripod, focal, note) = super::tripod::decide(tracks, &k, unknown, options)?;

@@ -339,7 +339,8 @@ pub fn finish_solve(
     })
 }
 
-/// The book's relaxation (§7.14, [`relax()`]) of a solved path, as a [`Solve`].
+/// The book's relaxation (§7.14, [`relax()`]) of a solved path, as a [`Solve`]. A lens on `k`
+/// is undistorted from the tracks first ([`pinhole_view`]) and returned with the cameras.
 pub fn relax_path(
     tracks: &Tracks,
     k: &Intrinsics,
@@ -348,16 +349,21 @@ pub fn relax_path(
     with_score: bool,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<Solve> {
-    let poses = require_all_frames(tracks, path)?;
+    let (tracks, kp) = pinhole_view(tracks, k)?;
+    let poses = require_all_frames(&tracks, path)?;
     let t0 = Instant::now();
-    let (poses, points) = relax(tracks, k, &poses, options, progress)?;
+    let (poses, points) = relax(&tracks, &kp, &poses, options, progress)?;
     let stages = vec![StageTime::new("relaxation", t0)];
     let tol = (options.initial_tolerance - options.tolerance_step * options.rounds as f64)
         .max(options.tolerance_step.max(0.5));
-    finish_solve(tracks, k, &poses, &points, tol, stages, with_score)
+    let mut solve = finish_solve(&tracks, &kp, &poses, &points, tol, stages, with_score)?;
+    solve.path.intrinsics = Some(k.clone());
+    Ok(solve)
 }
 
-/// A robust global bundle adjustment ([`global_bundle_adjust`]) of a solved path, as a [`Solve`].
+/// A robust global bundle adjustment ([`global_bundle_adjust`]) of a solved path, as a
+/// [`Solve`]. A lens on `k` is undistorted from the tracks first ([`pinhole_view`]) and returned
+/// with the cameras (held: the lens is solved by [`matchmove_with_lens`]).
 pub fn adjust_path(
     tracks: &Tracks,
     k: &Intrinsics,
@@ -365,12 +371,32 @@ pub fn adjust_path(
     options: &GlobalOptions,
     with_score: bool,
 ) -> Result<Solve> {
-    let poses = require_all_frames(tracks, path)?;
+    let (tracks, kp) = pinhole_view(tracks, k)?;
+    let poses = require_all_frames(&tracks, path)?;
     let t0 = Instant::now();
-    let (poses, points) = global_bundle_adjust(tracks, k, &poses, options)?;
+    let (poses, points) = global_bundle_adjust(&tracks, &kp, &poses, options)?;
     let stages = vec![StageTime::new("global bundle adjustment", t0)];
     let tol = options.final_threshold();
-    finish_solve(tracks, k, &poses, &points, tol, stages, with_score)
+    let mut solve = finish_solve(&tracks, &kp, &poses, &points, tol, stages, with_score)?;
+    solve.path.intrinsics = Some(k.clone());
+    Ok(solve)
+}
+
+/// The tracks as the ideal pinhole of `k` sees them, with that pinhole: `tracks` and `k`
+/// themselves (no copy) when `k` has no lens, else the tracks undistorted
+/// ([`undistort_tracks`]) and `k` without its lens.
+pub fn pinhole_view<'a>(
+    tracks: &'a Tracks,
+    k: &Intrinsics,
+) -> Result<(std::borrow::Cow<'a, Tracks>, Intrinsics)> {
+    if k.is_pinhole() {
+        Ok((std::borrow::Cow::Borrowed(tracks), k.clone()))
+    } else {
+        Ok((
+            std::borrow::Cow::Owned(undistort_tracks(tracks, k)?),
+            k.pinhole(),
+        ))
+    }
 }
 
 /// The path's poses by frame index of `tracks`; every frame of the tracks must have one.
