@@ -11,7 +11,8 @@
 //! - [`bundle`]: sparse bundle adjustment (§7.7, Schur-complement Levenberg–Marquardt);
 //! - [`camera_path`]: synthetic camera paths (orbit/dolly) and similarity alignment of a solve;
 //! - [`klt`]: KLT feature tracking (chapter 6): Shi–Tomasi corners, pyramidal Lucas–Kanade;
-//! - [`lens`]: lens distortion models (the `vfxgraph-lens` crate, shared with render).
+//! - [`lens`]: lens distortion models (the `vfxgraph-lens` crate); [`undistort`]: plates
+//!   undistorted (with overscan) and redistorted; [`st_map`]: the same warps as Nuke ST-maps.
 //!
 //! Conventions: f64; pixels with the origin at the top-left pixel's centre, x right, y down;
 //! a camera maps X to K(RX + t) and looks down +z.
@@ -37,8 +38,10 @@ pub mod optimize;
 pub mod points;
 pub mod ransac;
 pub mod rotation;
+pub mod st_map;
 pub mod synthetic;
 pub mod two_view;
+pub mod undistort;
 
 pub use camera::{Camera, Frustum, Intrinsics, Pose};
 pub use error::{Result, VisionError};
