@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Applies our ST-map with OpenCV's `remap` and compares the result with our `undistort`.
 
-    st_map_remap.py PLATE.exr ST_MAP.exr OURS.exr [--tolerance 0.005]
+    st_map_remap.py PLATE.pfm ST_MAP.pfm OURS.pfm [--tolerance 0.005]
 
 PLATE is the source image, ST_MAP the map vfxgraph's `write_st_map` wrote (Nuke's STMap
 convention: red = s, green = t, the source position normalized 0-1, origin bottom-left; -1 where
@@ -12,7 +12,10 @@ bilinear `remap` with a replicated border is masked the same way (inside the edg
 the outer pixels). Prints the largest and RMS difference relative to the range of OURS and exits
 1 when the largest exceeds the tolerance (a fraction of that range).
 
-Needs opencv-python(-headless) and numpy (the venv ~/.cache/vfxgraph/pyenv-cv).
+The files are float PFM (lossless f32, read by OpenCV's own PFM codec): the pip wheels of
+OpenCV are built without OpenEXR, so the test writes the ST-map EXR as `write_st_map` does, reads
+it back and hands the same f32 values over as PFM. Needs opencv-python(-headless) and numpy
+(the venv ~/.cache/vfxgraph/pyenv-cv).
 """
 import argparse
 import os
@@ -39,7 +42,7 @@ def main():
     a = ap.parse_args()
     plate, st, ours = read(a.plate), read(a.st_map), read(a.ours)
     h, w = plate.shape[:2]
-    # OpenCV reads EXR channels as BGR: red (s) is the last one, green (t) the middle.
+    # OpenCV reads colour channels as BGR: red (s) is the last one, green (t) the middle.
     s, t = st[..., 2], st[..., 1]
     if st.shape[:2] != ours.shape[:2]:
         sys.exit("FAIL the map is %s but ours is %s" % (st.shape[:2], ours.shape[:2]))

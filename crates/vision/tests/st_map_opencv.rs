@@ -1,7 +1,8 @@
 //! Our ST-maps in another program (issue 21): OpenCV's `remap` applies the undistort ST-map to a
 //! frame of `blender_plate_dev/distorted` (Cycles' render seen through its Brown–Conrady lens)
-//! and must reproduce our `undistort` of it within 0.5 % of the image's range
-//! (scripts/check/st_map_remap.py).
+//! and must reproduce our `undistort` of it within 0.5 % of the image's range (the issue; the test
+//! holds it to 0.01 %)
+//! (scripts/check/st_map_remap.py; measured: max 0.0027 %, RMS 0.00007 %).
 //!
 //! The Python comes from `VFXGRAPH_PYTHON_CV` (default `python3`), with opencv-python(-headless)
 //! and numpy. Without `cv2` the test prints a notice and passes, unless
@@ -82,19 +83,27 @@ fn opencv_remap_of_our_st_map_is_our_undistort() {
     let plate = read_image(&plate_path).unwrap().to_rgb();
     let ours = warp.undistort(&plate).unwrap();
     let dir = tempfile::tempdir().unwrap();
-    let (p, m, o) = (
-        dir.path().join("plate.exr"),
-        dir.path().join("st_undistort.exr"),
-        dir.path().join("ours.exr"),
+    // The ST-map as write_st_map writes it (float EXR), read back exactly.
+    let map = st_map(&warp, StMapDirection::Undistort);
+    let exr = dir.path().join("st_undistort.exr");
+    write_image(&exr, &map).unwrap();
+    assert!(
+        read_image(&exr).unwrap() == map,
+        "the ST-map EXR does not read back exactly"
     );
-    // f32 EXRs, so OpenCV reads exactly what we warped.
+    // OpenCV's wheels have no OpenEXR codec: the same f32 values as PFM.
+    let (p, m, o) = (
+        dir.path().join("plate.pfm"),
+        dir.path().join("st_undistort.pfm"),
+        dir.path().join("ours.pfm"),
+    );
     write_image(&p, &plate).unwrap();
-    write_image(&m, &st_map(&warp, StMapDirection::Undistort)).unwrap();
+    write_image(&m, &map).unwrap();
     write_image(&o, &ours).unwrap();
     let out = Command::new(python())
         .arg(repo().join("scripts/check/st_map_remap.py"))
         .args([&p, &m, &o])
-        .args(["--tolerance", "0.005"])
+        .args(["--tolerance", "0.0001"])
         .output()
         .expect("run python");
     let text = format!(
