@@ -2,7 +2,12 @@
 """Error of a composite on the Blender dev plate against its truth frames, per region (issue 17).
 
     ~/.cache/vfxgraph/pyenv-export/bin/python scripts/bench/dev_plate_regions.py \
-        'graphs/out/dev_plate_shot/composite.%04d.exr' 0 24 47 [--json out.json]
+        'graphs/out/dev_plate_shot/composite.%04d.exr' 0 24 47 [--json out.json] \
+        [--variant pinhole|distorted]
+
+`--variant distorted` measures a composite over the distorted plate (graphs/dev_plate_lens_shot.yaml)
+against distorted/truth: the regions' pixel rays go through the undistorted point of each pixel
+(cameras_gt.json's Brown–Conrady lens inverted by Newton's method).
 
 Regions, from the exact cameras (cameras_gt.json) and scene.json: `diffuse` and `mirror` = pixels
 whose ray passes within 0.85 r of the sphere's centre (the silhouette less its anti-aliased rim);
@@ -36,11 +41,33 @@ def load(path):
     return a.reshape(h, w, 4)[::-1, :, :3].astype(np.float64)  # row 0 = top
 
 
-def masks(cam, K, w, h, scene):
+def undistort(q, lens):
+    """Undistorted normalized points of the distorted ones q (N×2), OpenCV's Brown–Conrady."""
+    k1, k2, p1, p2 = (lens.get(k, 0.0) for k in ('k1', 'k2', 'p1', 'p2'))
+    p = q.copy()
+    for _ in range(30):
+        x, y = p[:, 0], p[:, 1]
+        r2 = x * x + y * y
+        rho = 1 + k1 * r2 + k2 * r2 * r2
+        drho = k1 + 2 * k2 * r2
+        f = np.stack([x * rho + 2 * p1 * x * y + p2 * (r2 + 2 * x * x) - q[:, 0],
+                      y * rho + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y - q[:, 1]], 1)
+        a = rho + 2 * x * x * drho + 2 * p1 * y + 6 * p2 * x
+        b = 2 * x * y * drho + 2 * p1 * x + 2 * p2 * y
+        d = rho + 2 * y * y * drho + 6 * p1 * y + 2 * p2 * x
+        det = a * d - b * b
+        p = p - np.stack([(d * f[:, 0] - b * f[:, 1]) / det, (a * f[:, 1] - b * f[:, 0]) / det], 1)
+    return p
+
+
+def masks(cam, K, w, h, scene, lens=None):
     R = np.array(cam['R']); C = np.array(cam['C'])
     ys, xs = np.mgrid[0:h, 0:w]
     pix = np.stack([xs, ys, np.ones_like(xs)], -1).reshape(-1, 3).astype(float)
-    d = (R.T @ np.linalg.inv(K) @ pix.T).T
+    n = (np.linalg.inv(K) @ pix.T).T
+    if lens:
+        n[:, :2] = undistort(n[:, :2], lens)
+    d = (R.T @ n.T).T
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     out = {}
     hit_any = np.zeros(len(d), bool)
@@ -103,18 +130,22 @@ def main():
     jpath = None
     if '--json' in args:
         i = args.index('--json'); jpath = args[i + 1]; del args[i:i + 2]
+    variant = 'pinhole'
+    if '--variant' in args:
+        i = args.index('--variant'); variant = args[i + 1]; del args[i:i + 2]
+    assert variant in ('pinhole', 'distorted'), variant
     pattern, frames = args[0], [int(f) for f in args[1:]]
-    cams = json.load(open(os.path.join(DATA, 'pinhole', 'cameras_gt.json')))
+    cams = json.load(open(os.path.join(DATA, variant, 'cameras_gt.json')))
     scene = json.load(open(os.path.join(DATA, 'scene.json')))
     K = np.array(cams['K'])
     rows = []
     for f in frames:
-        truth = load(os.path.join(DATA, 'pinhole', 'truth', 'frame.%04d.exr' % f))
-        plate = load(os.path.join(DATA, 'pinhole', 'plate_linear', 'frame.%04d.exr' % f))
+        truth = load(os.path.join(DATA, variant, 'truth', 'frame.%04d.exr' % f))
+        plate = load(os.path.join(DATA, variant, 'plate_linear', 'frame.%04d.exr' % f))
         comp = load(pattern % f)
         h, w, _ = truth.shape
         cam = [c for c in cams['frames'] if c['frame'] == f][0]
-        m = masks(cam, K, w, h, scene)
+        m = masks(cam, K, w, h, scene, cams.get('distortion'))
         tb, far = blocks(truth, m['far'])
         pb, _ = blocks(plate, m['far'])
         sig_far = np.sqrt(np.mean((pb[far] - tb[far]) ** 2) / 2)

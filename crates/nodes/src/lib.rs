@@ -13,6 +13,7 @@ pub mod export;
 pub mod hdr;
 pub mod image_io;
 pub mod image_ops;
+pub mod lens;
 pub mod local_scene;
 pub mod matchmove;
 pub mod modeling;
@@ -59,6 +60,7 @@ pub fn registry() -> Registry {
     calibration::register(&mut r);
     image_io::register(&mut r);
     image_ops::register(&mut r);
+    lens::register(&mut r);
     tracking::register(&mut r);
     // After `tracking`, which registers the `tracks` artifact.
     bundle::register(&mut r);
@@ -115,6 +117,18 @@ mod tests {
         (
             "write_cameras",
             check_defaults::<crate::matchmove::WriteCamerasParams>,
+        ),
+        (
+            "undistort",
+            check_defaults::<vfxgraph_vision::undistort::UndistortOptions>,
+        ),
+        (
+            "redistort",
+            check_defaults::<vfxgraph_vision::undistort::UndistortOptions>,
+        ),
+        (
+            "write_st_map",
+            check_defaults::<vfxgraph_vision::st_map::StMapOptions>,
         ),
     ];
 

@@ -315,6 +315,7 @@ pub(crate) fn camera_for_frame(
                 t: [0.0; 3],
                 width: w as usize,
                 height: h as usize,
+                distortion: Default::default(),
             },
             _ => {
                 return Err(NodeError::msg(
@@ -326,6 +327,8 @@ pub(crate) fn camera_for_frame(
     };
     if let Some(k) = &k {
         camera.k = [[k.f1, k.s, k.u0], [0.0, k.f2, k.v0], [0.0, 0.0, 1.0]];
+        // A solved lens: the render traces the plate's own (distorted) pixels.
+        camera.distortion = k.distortion;
         if let (Some(w), Some(h)) = (k.width, k.height) {
             (camera.width, camera.height) = (w as usize, h as usize);
         }

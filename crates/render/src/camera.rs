@@ -1,11 +1,16 @@
-//! The pinhole camera: a calibrated K[R|t] with an image size (book §2.7–2.8), and the book's
-//! `view{from, at, up, fov, imgw, imgh}` mapped onto it.
+//! The camera: a calibrated K[R|t] with an image size (book §2.7–2.8), and the book's
+//! `view{from, at, up, fov, imgw, imgh}` mapped onto it; optionally a lens distortion
+//! ([`vfxgraph_lens::Distortion`], not in the book) so that a render lines up with a real,
+//! distorted plate without resampling it: the primary ray of pixel position x goes through the
+//! *undistorted* normalized point of K⁻¹x, and a world point X projects to K·distort(X.xy/X.z).
+//! Without a lens (the default) both are the pinhole's, computed exactly as before.
 //!
 //! Convention of the project (DESIGN.md §3): a world point X projects to x ~ K(RX + t); the
 //! camera looks down +z of its frame, x right, y down; pixel coordinates have their origin at
 //! the centre of the top-left pixel, so pixel (i, j) covers [i − ½, i + ½] × [j − ½, j + ½].
 
 use serde::{Deserialize, Serialize};
+use vfxgraph_lens::Distortion;
 
 use crate::math::Vec3;
 use crate::ray::Ray;
@@ -25,6 +30,9 @@ pub enum CameraError {
     /// Zero image size.
     #[error("image size {0}×{1} must be positive")]
     BadSize(usize, usize),
+    /// The lens cannot be inverted over the frame (it folds over inside it).
+    #[error("camera lens: {0}")]
+    BadLens(String),
     /// `from`, `at` and `up` do not define a frame.
     #[error("view: from = at, or up is parallel to the viewing direction")]
     DegenerateView,
@@ -33,7 +41,8 @@ pub enum CameraError {
     BadFov(f64),
 }
 
-/// A calibrated pinhole camera x ~ K(RX + t) with its image size (book §2.7.2, §2.8).
+/// A calibrated camera x ~ K·distort(RX + t) with its image size (book §2.7.2, §2.8; the lens
+/// is the module docs' addition).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Camera {
     /// Intrinsics K (rows), upper triangular; skew allowed.
@@ -46,6 +55,9 @@ pub struct Camera {
     pub width: usize,
     /// Image height in pixels.
     pub height: usize,
+    /// The lens on normalized coordinates ([`Distortion::None`]: a pinhole; absent in JSON).
+    #[serde(default, skip_serializing_if = "Distortion::is_identity")]
+    pub distortion: Distortion,
 }
 
 fn mat_vec(m: &[[f64; 3]; 3], v: Vec3) -> Vec3 {
@@ -80,6 +92,7 @@ impl Camera {
             t,
             width,
             height,
+            distortion: Distortion::None,
         };
         c.validate()?;
         Ok(c)
@@ -100,6 +113,9 @@ impl Camera {
         {
             return Err(CameraError::BadIntrinsics(*k));
         }
+        if !self.distortion.is_identity() {
+            self.check_lens()?;
+        }
         for i in 0..3 {
             for j in 0..3 {
                 let d: f64 = (0..3).map(|m| r[m][i] * r[m][j]).sum();
@@ -115,6 +131,38 @@ impl Camera {
             return Err(CameraError::NotRotation);
         }
         Ok(())
+    }
+
+    /// The same camera with a lens distortion (checked as [`Camera::validate`] does).
+    pub fn with_distortion(mut self, distortion: Distortion) -> Result<Camera, CameraError> {
+        self.distortion = distortion;
+        self.validate()?;
+        Ok(self)
+    }
+
+    /// The lens must be invertible at the frame's outer corners (pixel edges, where the ray
+    /// jitter reaches) and monotonic out to 2 % beyond their largest undistorted radius, so every
+    /// primary ray's Newton inverse converges.
+    fn check_lens(&self) -> Result<(), CameraError> {
+        let (w, h) = (self.width as f64, self.height as f64);
+        let kinv = k_inverse(&self.k);
+        let mut r: f64 = 0.0;
+        for (x, y) in [
+            (-0.5, -0.5),
+            (w - 0.5, -0.5),
+            (-0.5, h - 0.5),
+            (w - 0.5, h - 0.5),
+        ] {
+            let q = mat_vec(&kinv, Vec3::new(x, y, 1.0));
+            let p = self
+                .distortion
+                .undistort([q.x / q.z, q.y / q.z])
+                .map_err(|e| CameraError::BadLens(format!("at the corner ({x}, {y}): {e}")))?;
+            r = r.max(p[0].hypot(p[1]));
+        }
+        self.distortion
+            .check(r * 1.02)
+            .map_err(|e| CameraError::BadLens(e.to_string()))
     }
 
     /// The book's `view{from, at, up, fov, imgw, imgh}` (S3D `lookat` + `perspective`): `fov`
@@ -168,13 +216,19 @@ impl Camera {
         -mat_t_vec(&self.r, Vec3::from_array(self.t))
     }
 
-    /// Projects a world point to pixel coordinates; `None` behind the camera.
+    /// Projects a world point to pixel coordinates, through the lens; `None` behind the camera
+    /// (or, for a division lens, beyond the radius it can image).
     pub fn project(&self, p: Vec3) -> Option<(f64, f64)> {
         let pc = mat_vec(&self.r, p) + Vec3::from_array(self.t);
         if pc.z <= 0.0 {
             return None;
         }
-        let x = mat_vec(&self.k, pc);
+        if self.distortion.is_identity() {
+            let x = mat_vec(&self.k, pc);
+            return Some((x.x / x.z, x.y / x.z));
+        }
+        let q = self.distortion.distort([pc.x / pc.z, pc.y / pc.z]).ok()?;
+        let x = mat_vec(&self.k, Vec3::new(q[0], q[1], 1.0));
         Some((x.x / x.z, x.y / x.z))
     }
 
@@ -199,14 +253,7 @@ impl Camera {
 
     /// Precomputes what ray generation needs.
     pub fn rays(&self) -> RayGenerator {
-        let k = &self.k;
-        // Inverse of the upper-triangular K.
-        let (a, b, c, d, e, f) = (k[0][0], k[0][1], k[0][2], k[1][1], k[1][2], k[2][2]);
-        let kinv = [
-            [1.0 / a, -b / (a * d), (b * e - c * d) / (a * d * f)],
-            [0.0, 1.0 / d, -e / (d * f)],
-            [0.0, 0.0, 1.0 / f],
-        ];
+        let kinv = k_inverse(&self.k);
         // M = Rᵀ K⁻¹
         let mut m = [[0.0; 3]; 3];
         for (i, row) in m.iter_mut().enumerate() {
@@ -214,11 +261,35 @@ impl Camera {
                 *v = (0..3).map(|l| self.r[l][i] * kinv[l][j]).sum();
             }
         }
+        let lens = (!self.distortion.is_identity()).then(|| Lens {
+            kinv,
+            distortion: self.distortion,
+            rt: std::array::from_fn(|i| std::array::from_fn(|j| self.r[j][i])),
+        });
         RayGenerator {
             m,
             o: self.center(),
+            lens,
         }
     }
+}
+
+/// Inverse of an upper-triangular K.
+fn k_inverse(k: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    let (a, b, c, d, e, f) = (k[0][0], k[0][1], k[0][2], k[1][1], k[1][2], k[2][2]);
+    [
+        [1.0 / a, -b / (a * d), (b * e - c * d) / (a * d * f)],
+        [0.0, 1.0 / d, -e / (d * f)],
+        [0.0, 0.0, 1.0 / f],
+    ]
+}
+
+/// What a lens adds to ray generation: K⁻¹, the model and Rᵀ.
+#[derive(Clone, Debug)]
+struct Lens {
+    kinv: [[f64; 3]; 3],
+    distortion: Distortion,
+    rt: [[f64; 3]; 3],
 }
 
 /// Ray generation for one camera: the world ray through a pixel position (book §2.5–2.6).
@@ -226,13 +297,23 @@ impl Camera {
 pub struct RayGenerator {
     m: [[f64; 3]; 3],
     o: Vec3,
+    lens: Option<Lens>,
 }
 
 impl RayGenerator {
     /// The ray through the pixel position (x, y) (pixel-centre convention; fractional positions
-    /// allowed): direction Rᵀ K⁻¹ (x, y, 1), normalized.
+    /// allowed): direction Rᵀ K⁻¹ (x, y, 1), normalized; through a lens, Rᵀ (p, 1) with p the
+    /// undistorted point of K⁻¹ (x, y, 1). A validated camera's lens inverts over its frame;
+    /// far outside it, where Newton's method may not converge, the ray is the pinhole's.
     #[inline]
     pub fn ray(&self, x: f64, y: f64) -> Ray {
+        if let Some(lens) = &self.lens {
+            let q = mat_vec(&lens.kinv, Vec3::new(x, y, 1.0));
+            if let Ok(p) = lens.distortion.undistort([q.x / q.z, q.y / q.z]) {
+                let d = mat_vec(&lens.rt, Vec3::new(p[0], p[1], 1.0)).normalized();
+                return Ray::new(self.o, d);
+            }
+        }
         let d = mat_vec(&self.m, Vec3::new(x, y, 1.0)).normalized();
         Ray::new(self.o, d)
     }

@@ -144,7 +144,9 @@ impl Intrinsics {
     /// inverse of the distortion.
     pub fn normalized_of_pixel(&self, x: &Point2<f64>) -> Result<[f64; 2]> {
         let q = self.k_inv() * Vector3::new(x.x, x.y, 1.0);
-        self.distortion.undistort([q.x, q.y])
+        self.distortion
+            .undistort([q.x, q.y])
+            .map_err(VisionError::from)
     }
 
     /// The pixel an ideal pinhole with the same K would see where this lens images `x`

@@ -74,6 +74,12 @@ pub enum VisionError {
     Json(#[from] serde_json::Error),
 }
 
+impl From<vfxgraph_lens::LensError> for VisionError {
+    fn from(e: vfxgraph_lens::LensError) -> Self {
+        VisionError::InvalidInput(e.0)
+    }
+}
+
 /// Result alias of this crate.
 pub type Result<T> = std::result::Result<T, VisionError>;
 

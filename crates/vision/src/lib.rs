@@ -10,7 +10,9 @@
 //! - [`export`]: a solved shot for COLMAP, Blender, USD, Nuke, JSON and PLY (and COLMAP read back);
 //! - [`bundle`]: sparse bundle adjustment (§7.7, Schur-complement Levenberg–Marquardt);
 //! - [`camera_path`]: synthetic camera paths (orbit/dolly) and similarity alignment of a solve;
-//! - [`klt`]: KLT feature tracking (chapter 6): Shi–Tomasi corners, pyramidal Lucas–Kanade.
+//! - [`klt`]: KLT feature tracking (chapter 6): Shi–Tomasi corners, pyramidal Lucas–Kanade;
+//! - [`lens`]: lens distortion models (the `vfxgraph-lens` crate); [`undistort`]: plates
+//!   undistorted (with overscan) and redistorted; [`st_map`]: the same warps as Nuke ST-maps.
 //!
 //! Conventions: f64; pixels with the origin at the top-left pixel's centre, x right, y down;
 //! a camera maps X to K(RX + t) and looks down +z.
@@ -27,7 +29,8 @@ pub mod error;
 pub mod export;
 pub mod formats;
 pub mod klt;
-pub mod lens;
+/// Lens distortion models: the `vfxgraph-lens` crate (shared with the render crate).
+pub use vfxgraph_lens as lens;
 pub mod matchmove;
 pub mod modeling;
 pub mod normalize;
@@ -35,8 +38,10 @@ pub mod optimize;
 pub mod points;
 pub mod ransac;
 pub mod rotation;
+pub mod st_map;
 pub mod synthetic;
 pub mod two_view;
+pub mod undistort;
 
 pub use camera::{Camera, Frustum, Intrinsics, Pose};
 pub use error::{Result, VisionError};

@@ -20,11 +20,32 @@
 //! is only valid where its radial curve is monotonic: [`Distortion::check`] refuses parameters
 //! that fold the image over inside a given radius, so an inverse that does not exist is an error,
 //! not NaN cameras.
+//!
+//! A leaf crate (nalgebra and serde only) so that the vision crate (solving, exports: re-exported
+//! as `vfxgraph_vision::lens`) and the render crate (rays through the lens) share one type.
+
+#![warn(missing_docs)]
+// `!(x > 0.0)` is used on purpose: it is also true for NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 use nalgebra::{Matrix2, Vector2};
 use serde::{Deserialize, Serialize};
 
-use crate::error::{Result, VisionError};
+/// Why a lens cannot be used: bad parameters, or a point outside the region where the model
+/// is invertible. The message names the model, its parameters and the point.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LensError(pub String);
+
+impl std::fmt::Display for LensError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for LensError {}
+
+/// Result alias of this crate.
+pub type Result<T> = std::result::Result<T, LensError>;
 
 /// Newton steps of the inverses before they report non-convergence.
 const MAX_NEWTON_STEPS: usize = 30;
@@ -86,7 +107,7 @@ impl Distortion {
     /// The same model with parameters `v` (in [`Distortion::params`] order and length).
     pub fn with_params(&self, v: &[f64]) -> Result<Distortion> {
         if v.len() != self.params().len() {
-            return Err(VisionError::InvalidInput(format!(
+            return Err(LensError(format!(
                 "a {} lens has {} parameters, {} given",
                 self.name(),
                 self.params().len(),
@@ -222,7 +243,7 @@ impl Distortion {
     pub fn check(&self, r_max: f64) -> Result<()> {
         let params = self.params();
         if params.iter().any(|v| !v.is_finite()) || !(r_max.is_finite() && r_max >= 0.0) {
-            return Err(VisionError::InvalidInput(format!(
+            return Err(LensError(format!(
                 "{} lens: parameters {params:?} and radius {r_max} must be finite",
                 self.name()
             )));
@@ -244,7 +265,7 @@ impl Distortion {
                 Distortion::Division { k1, k2 } => division_radius(k1, k2, r).is_ok(),
             };
             if !ok {
-                return Err(VisionError::InvalidInput(format!(
+                return Err(LensError(format!(
                     "{} lens {params:?} folds over at normalized radius {r:.3} (inside the \
                      frame's {r_max:.3}): the radial curve stops increasing, so the image cannot \
                      be undistorted",
@@ -279,8 +300,8 @@ impl Distortion {
     }
 }
 
-fn not_invertible(d: &Distortion, q: [f64; 2]) -> VisionError {
-    VisionError::InvalidInput(format!(
+fn not_invertible(d: &Distortion, q: [f64; 2]) -> LensError {
+    LensError(format!(
         "{} lens {:?}: no undistorted point for ({:.4}, {:.4}) — outside the radius where the \
          model is monotonic",
         d.name(),
@@ -315,7 +336,7 @@ fn division_radius(k1: f64, k2: f64, rp: f64) -> Result<f64> {
             break;
         }
     }
-    Err(VisionError::InvalidInput(format!(
+    Err(LensError(format!(
         "division lens [{k1}, {k2}]: no distorted radius images the undistorted radius {rp:.4} \
          (the model folds over before it)"
     )))
@@ -330,7 +351,7 @@ fn division_dq(k1: f64, k2: f64, q: [f64; 2]) -> Result<(Matrix2<f64>, Matrix2<f
     let ds_dq = qv * (2.0 * k1 + 4.0 * k2 * r2);
     let du_dq = Matrix2::identity() / s - qv * ds_dq.transpose() / (s * s);
     let inv = du_dq.try_inverse().ok_or_else(|| {
-        VisionError::InvalidInput(format!(
+        LensError(format!(
             "division lens [{k1}, {k2}] is singular at ({:.4}, {:.4})",
             q[0], q[1]
         ))

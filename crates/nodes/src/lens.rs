@@ -1,0 +1,283 @@
+//! Lens nodes: `undistort`, `redistort` (plates through the lens model, with overscan) and
+//! `write_st_map` (the same warps as Nuke ST-maps). The algorithms and their options live in
+//! `vfxgraph_vision::undistort` and `vfxgraph_vision::st_map`.
+
+use vfxgraph_engine::{
+    ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, PathRole, PortSpec,
+    Registry, Threads,
+};
+use vfxgraph_imaging::io::write_image;
+use vfxgraph_vision::st_map::{st_map, StMapOptions};
+use vfxgraph_vision::undistort::{LensWarp, UndistortOptions};
+use vfxgraph_vision::Intrinsics;
+
+use crate::artifacts::{CameraPathArt, ImageArt, IntrinsicsArt};
+use crate::{output_path, FnNode};
+
+/// The lens: the `intrinsics` input, else the `cameras` path's K (a solve's, with its lens).
+fn lens_input(ctx: &Context<'_>, node: &str) -> Result<Intrinsics, NodeError> {
+    if let Some(k) = ctx.input_opt::<IntrinsicsArt>("intrinsics")? {
+        return Ok(k.0.clone());
+    }
+    match ctx.input_opt::<CameraPathArt>("cameras")? {
+        Some(p) => p.0.intrinsics.clone().ok_or_else(|| {
+            NodeError::msg(format!(
+                "{node}: the `cameras` path carries no K (connect `intrinsics`)"
+            ))
+        }),
+        None => Err(NodeError::msg(format!(
+            "{node}: no lens: connect `intrinsics` (K with its lens and image size) or a solved \
+             `cameras` path"
+        ))),
+    }
+}
+
+fn warp_of(ctx: &Context<'_>, node: &str, o: &UndistortOptions) -> Result<LensWarp, NodeError> {
+    let k = lens_input(ctx, node)?;
+    LensWarp::new(&k, o).map_err(|e| NodeError::msg(format!("{node}: {e}")))
+}
+
+fn run_undistort(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+    let o: UndistortOptions = ctx.options()?;
+    let warp = warp_of(ctx, "undistort", &o)?;
+    let img = &ctx.input::<ImageArt>("image")?.0;
+    let out = warp
+        .undistort(img)
+        .map_err(|e| NodeError::msg(format!("undistort: {e}")))?;
+    ctx.output("image", ImageArt(out));
+    ctx.output("intrinsics", IntrinsicsArt(warp.pinhole.clone()));
+    Ok(())
+}
+
+fn run_redistort(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+    let o: UndistortOptions = ctx.options()?;
+    let warp = warp_of(ctx, "redistort", &o)?;
+    let img = &ctx.input::<ImageArt>("image")?.0;
+    let out = warp
+        .redistort(img)
+        .map_err(|e| NodeError::msg(format!("redistort: {e}")))?;
+    ctx.output("image", ImageArt(out));
+    Ok(())
+}
+
+fn run_write_st_map(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+    let o: StMapOptions = ctx.options()?;
+    let path = output_path(ctx, "path")?;
+    if !path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("exr"))
+    {
+        return Err(NodeError::msg(format!(
+            "write_st_map: {}: an ST-map is a float EXR (use a .exr path)",
+            path.display()
+        )));
+    }
+    let warp = warp_of(ctx, "write_st_map", &o.framing)?;
+    write_image(&path, &st_map(&warp, o.direction))?;
+    Ok(())
+}
+
+fn lens_ports(spec: NodeSpec) -> NodeSpec {
+    spec.input(
+        PortSpec::one(
+            "intrinsics",
+            IntrinsicsArt::NAME,
+            "the plate's K with its lens (`distortion`) and image size",
+        )
+        .optional(),
+    )
+    .input(
+        PortSpec::one(
+            "cameras",
+            CameraPathArt::NAME,
+            "a solved camera path whose K carries the lens (when `intrinsics` is not connected)",
+        )
+        .optional(),
+    )
+}
+
+/// Registers the nodes of this module.
+pub fn register(r: &mut Registry) {
+    r.register_node(FnNode::new(
+        lens_ports(
+            NodeSpec::new(
+                "undistort",
+                "The plate as an ideal pinhole with the same focal length sees it: each output \
+                 pixel x′ samples the plate (bilinear) at K·distort(K′⁻¹x′). With overscan the \
+                 output is as large as the plate's undistorted footprint, so nothing is lost; \
+                 `intrinsics` out is K′ (no lens) with that size.",
+            )
+            .input(PortSpec::one(
+                "image",
+                ImageArt::NAME,
+                "the plate (the lens's size)",
+            )),
+        )
+        .output(PortSpec::one(
+            "image",
+            ImageArt::NAME,
+            "the undistorted image",
+        ))
+        .output(PortSpec::one(
+            "intrinsics",
+            IntrinsicsArt::NAME,
+            "K′ of the undistorted image: the same focal lengths, no lens, its size",
+        ))
+        .options::<UndistortOptions>(),
+        run_undistort,
+    ));
+    r.register_node(FnNode::new(
+        lens_ports(
+            NodeSpec::new(
+                "redistort",
+                "An undistorted image (a pinhole render with `undistort`'s K′, same framing \
+                 options) seen through the lens again: each plate pixel x samples it at \
+                 K′·undistort(K⁻¹x). The inverse of `undistort`.",
+            )
+            .input(PortSpec::one(
+                "image",
+                ImageArt::NAME,
+                "the undistorted image (K′'s size)",
+            )),
+        )
+        .output(PortSpec::one(
+            "image",
+            ImageArt::NAME,
+            "the image through the lens",
+        ))
+        .options::<UndistortOptions>(),
+        run_redistort,
+    ));
+    r.register_node(FnNode::new(
+        lens_ports(
+            NodeSpec::new(
+                "write_st_map",
+                "Writes the lens warp as a Nuke ST-map: a float EXR whose red/green hold, per \
+                 output pixel, the source position normalized 0–1, origin bottom-left (−1 where \
+                 there is none). `undistort`: sized as the undistorted image, sampling the \
+                 plate; `redistort`: sized as the plate, sampling the undistorted image. The \
+                 write is atomic.",
+            )
+            .mode(Mode::Once)
+            .threads(Threads::One)
+            .param(ParamSpec::required(
+                "path",
+                ParamType::Path(PathRole::Output),
+                "output .exr file",
+            )),
+        )
+        .options::<StMapOptions>(),
+        run_write_st_map,
+    ));
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::testing::{params, spec};
+    use vfxgraph_engine::{InputValue, ParamValue, Value};
+    use vfxgraph_imaging::Image;
+    use vfxgraph_vision::lens::Distortion;
+
+    fn lens() -> Intrinsics {
+        Intrinsics::new(92.0, 92.0, 47.5, 26.5)
+            .with_size(96, 54)
+            .with_distortion(Distortion::BrownConrady {
+                k1: -0.16,
+                k2: 0.045,
+                k3: 0.0,
+                p1: 0.0008,
+                p2: -0.0005,
+            })
+    }
+
+    /// The nodes wire to the algorithm: undistort's output is larger with K′, redistort of it
+    /// has the plate's size, write_st_map writes the map the algorithm computes; a missing lens
+    /// is an error naming the node.
+    #[test]
+    fn nodes_run_the_warps() {
+        let plate = Image::from_fn(96, 54, 3, |x, y, c| (x + 2 * y + c) as f32 / 200.0);
+        let sp = spec("undistort");
+        let ps = params(&sp, &[]);
+        let dir = tempfile::tempdir().unwrap();
+        let inputs = || {
+            vec![
+                (
+                    "image",
+                    InputValue::One(Value::new(ImageArt(plate.clone()))),
+                ),
+                (
+                    "intrinsics",
+                    InputValue::One(Value::new(IntrinsicsArt(lens()))),
+                ),
+            ]
+        };
+        let mut ctx = Context::for_test(&sp, &ps, dir.path(), None, inputs());
+        run_undistort(&mut ctx).unwrap();
+        let und = ctx.take_output::<ImageArt>("image").unwrap().0;
+        let k2 = ctx.take_output::<IntrinsicsArt>("intrinsics").unwrap().0;
+        let warp = LensWarp::new(&lens(), &UndistortOptions::default()).unwrap();
+        assert_eq!(k2, warp.pinhole);
+        assert_eq!(und, warp.undistort(&plate).unwrap());
+        assert!(und.width > 96 && und.height > 54);
+
+        let sp = spec("redistort");
+        let ps = params(&sp, &[]);
+        let mut ctx = Context::for_test(
+            &sp,
+            &ps,
+            dir.path(),
+            None,
+            vec![
+                ("image", InputValue::One(Value::new(ImageArt(und.clone())))),
+                (
+                    "intrinsics",
+                    InputValue::One(Value::new(IntrinsicsArt(lens()))),
+                ),
+            ],
+        );
+        run_redistort(&mut ctx).unwrap();
+        let back = ctx.take_output::<ImageArt>("image").unwrap().0;
+        assert_eq!((back.width, back.height), (96, 54));
+
+        let sp = spec("write_st_map");
+        let ps = params(
+            &sp,
+            &[
+                ("path", ParamValue::Str("map.exr".into())),
+                ("direction", ParamValue::Str("redistort".into())),
+            ],
+        );
+        let mut ctx = Context::for_test(
+            &sp,
+            &ps,
+            dir.path(),
+            None,
+            vec![(
+                "intrinsics",
+                InputValue::One(Value::new(IntrinsicsArt(lens()))),
+            )],
+        );
+        run_write_st_map(&mut ctx).unwrap();
+        let map = vfxgraph_imaging::io::read_image(&dir.path().join("map.exr")).unwrap();
+        assert_eq!(
+            map,
+            st_map(&warp, vfxgraph_vision::st_map::StMapDirection::Redistort)
+        );
+
+        let sp = spec("undistort");
+        let ps = params(&sp, &[]);
+        let mut ctx = Context::for_test(
+            &sp,
+            &ps,
+            dir.path(),
+            None,
+            vec![(
+                "image",
+                InputValue::One(Value::new(ImageArt(plate.clone()))),
+            )],
+        );
+        let e = run_undistort(&mut ctx).unwrap_err().to_string();
+        assert!(e.contains("undistort: no lens"), "{e}");
+    }
+}
