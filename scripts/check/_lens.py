@@ -25,6 +25,8 @@ def distort(model, params, x, y):
             return x, y
         rq = rp
         for _ in range(50):
+            if not abs(rq) < 1e6:
+                return math.nan, math.nan
             s = 1 + k1 * rq * rq + k2 * rq ** 4
             g = rq / s - rp
             dg = (s - rq * (2 * k1 * rq + 4 * k2 * rq ** 3)) / (s * s)

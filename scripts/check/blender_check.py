@@ -98,7 +98,7 @@ def main():
     ok = manual.finish() & own.finish()
     if truth.get("lens"):
         ok &= check_lens(namespace, truth, a.lens_tol, os.path.dirname(os.path.abspath(a.truth)))
-    elif namespace.get("LENS") is not None:
+    elif namespace.get("DISTORTION") is not None:
         fail("the script has a lens but the truth has none")
     raise SystemExit(0 if ok else 1)
 
@@ -106,9 +106,9 @@ def main():
 def check_lens(namespace, truth, tol, work):
     """Blender's distortion (Movie Distortion node, the script's tracking camera) against ours."""
     W, H = truth["width"], truth["height"]
-    lens = namespace.get("LENS")
+    lens = namespace.get("DISTORTION")
     if lens is None:
-        fail("the truth has a %s lens but the script's LENS is None" % truth["lens"]["model"])
+        fail("the truth has a %s lens but the script's DISTORTION is None" % truth["lens"]["model"])
     scene = bpy.context.scene
     ramp = bpy.data.images.new("vfxgraph_ramp", W, H, float_buffer=True, alpha=True)
     ramp.colorspace_settings.name = "Non-Color"

@@ -115,6 +115,8 @@ def main():
                 continue
             clip = Gf.Vec4d(pc[0], pc[1], pc[2], 1.0) * proj
             nx, ny = clip[0] / clip[3], clip[1] / clip[3]
+            if ours is None:  # behind the camera, or (with a lens) outside the frame
+                continue
             u, v = through_lens(lens, (nx + 1) / 2 * W - 0.5, (1 - ny) / 2 * H - 0.5)
             cmp.add(ours, (u, v), (fr["frame"], j))
     raise SystemExit(0 if cmp.finish() else 1)

@@ -418,7 +418,7 @@ fn blender_script_builds_the_camera_in_bpy() {
 
 /// Blender with a lens: the scene camera is the pinhole K, and Blender's own distortion of the
 /// script's tracking camera (the compositor's Movie Distortion node) equals ours within
-/// 0.01 px (Brown–Conrady) or within the refit's error (division).
+/// 5e-4 px (Brown–Conrady), plus the refit's error for the division lens.
 #[test]
 fn blender_tracking_camera_distorts_like_ours() {
     if !have("bpy") {
@@ -443,7 +443,10 @@ fn blender_tracking_camera_distorts_like_ours() {
             .unwrap()
             .unwrap()
             .fit_error_px;
-        let tol = fit.map_or(0.01, |e| 0.01 + e);
+        // The ramp is float32: 1.2e-4 px steps at 1024–2048 px; Blender's distortion agrees
+        // to 2.5e-4 px (bpy 5.0.1), the refit adds its own error.
+        let tol = 5e-4 + fit.unwrap_or(0.0);
+        eprintln!("{name}: Blender BROWN, refit error {fit:?} px");
         check("blender_check.py", &script, &t, &["--lens-tol", &tol.to_string()]);
         std::fs::remove_dir_all(&dir).unwrap();
     }

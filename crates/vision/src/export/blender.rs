@@ -164,7 +164,7 @@ SHIFT = ({}, {})
 CLIP = ({}, {})
 # The lens, for the movie clip's tracking camera (None: a pinhole). Blender's BROWN names the
 # tangential terms the other way round: brown_p1 = our p2, brown_p2 = -(our p1).
-LENS = {}
+DISTORTION = {}
 "#,
         cam.pixel_aspect.0,
         cam.pixel_aspect.1,
@@ -249,17 +249,17 @@ fn py_str(s: &str) -> String {
 const BODY: &str = r#"
 
 def tracking_camera(clip):
-    """Sets the movie clip's tracking camera to LENS (see LENS above)."""
-    if LENS is None:
+    """Sets the movie clip's tracking camera to DISTORTION (see DISTORTION above)."""
+    if DISTORTION is None:
         return
     cam = clip.tracking.camera
     cam.units = "PIXELS"
     cam.pixel_aspect = 1.0
-    cam.distortion_model = LENS["model"]
-    cam.focal_length_pixels = LENS["focal_pixels"]
-    cam.principal_point_pixels = LENS["principal_point_pixels"]
-    cam.brown_k1, cam.brown_k2, cam.brown_k3, cam.brown_k4 = LENS["k"]
-    cam.brown_p1, cam.brown_p2 = LENS["p"]
+    cam.distortion_model = DISTORTION["model"]
+    cam.focal_length_pixels = DISTORTION["focal_pixels"]
+    cam.principal_point_pixels = DISTORTION["principal_point_pixels"]
+    cam.brown_k1, cam.brown_k2, cam.brown_k3, cam.brown_k4 = DISTORTION["k"]
+    cam.brown_p1, cam.brown_p2 = DISTORTION["p"]
 
 
 def build():
@@ -323,7 +323,7 @@ def build():
             bg.image_user.frame_start = PLATE_START
             bg.image_user.frame_duration = PLATE_FRAMES
             data.show_background_images = True
-            if LENS is not None:
+            if DISTORTION is not None:
                 clip = bpy.data.movieclips.load(path, check_existing=True)
                 clip.frame_start = PLATE_START
                 tracking_camera(clip)
@@ -361,7 +361,7 @@ mod tests {
         assert!(text.contains("KEYS = [\n    (11, ("), "{text}");
         assert_eq!(text.matches("\n    (").count(), 12 + 40 + 40);
         assert!(text.contains("PLATE = \"plate/frame.0010.png\""));
-        assert!(text.contains("\nLENS = None\n"));
+        assert!(text.contains("\nDISTORTION = None\n"));
     }
 
     /// Our Brown–Conrady lens maps to Blender's BROWN with the tangential terms renamed and
