@@ -411,12 +411,21 @@ mod tests {
         Ok(ctx)
     }
 
-    /// Export to COLMAP through the node, import through the node: the same K, path and
-    /// points within 1e-9; every other format writes its files and reports them.
+    /// Export to COLMAP through the node, import through the node: the same K with its lens
+    /// (exactly), path and points within 1e-9; every other format writes its files and reports
+    /// them and the lens.
     #[test]
     fn export_then_import_round_trips_and_all_formats_write() {
         let dir = std::env::temp_dir().join(format!("vfxgraph-export-node-{}", std::process::id()));
-        let k = Intrinsics::new(1228.4, 1228.4, 639.5, 359.5).with_size(1280, 720);
+        let k = Intrinsics::new(1228.4, 1228.4, 639.5, 359.5)
+            .with_size(1280, 720)
+            .with_distortion(vfxgraph_vision::lens::Distortion::BrownConrady {
+                k1: -0.16,
+                k2: 0.045,
+                k3: 0.0,
+                p1: 0.0008,
+                p2: -0.0005,
+            });
         let inputs = || {
             vec![
                 (
@@ -454,6 +463,7 @@ mod tests {
             let rep = ctx.take_output::<ReportArt>("report").unwrap().0;
             let files = rep["files"].as_array().unwrap();
             assert_eq!(files.len(), n, "{fmt}: {rep}");
+            assert_eq!(rep["lens"], "brown_conrady");
             for f in files {
                 assert!(Path::new(f.as_str().unwrap()).is_file(), "{f}");
             }

@@ -251,10 +251,7 @@ fn brown() -> Distortion {
 
 /// A moderate division lens (Fitzgibbon's model), for the refits.
 fn division() -> Distortion {
-    Distortion::Division {
-        k1: 0.08,
-        k2: 0.0,
-    }
+    Distortion::Division { k1: 0.08, k2: 0.0 }
 }
 
 /// A square-pixel K with an off-centre principal point (Blender's tracking camera needs square
@@ -323,22 +320,34 @@ fn colmap_export_reads_in_pycolmap_and_round_trips() {
 #[test]
 fn colmap_export_with_a_lens_reads_in_pycolmap_and_round_trips() {
     let cases = [
-        ("opencv", odd_k().with_distortion(Distortion::BrownConrady {
-            k1: -0.16,
-            k2: 0.045,
-            k3: 0.0,
-            p1: 0.0008,
-            p2: -0.0005,
-        }), "OPENCV"),
+        (
+            "opencv",
+            odd_k().with_distortion(Distortion::BrownConrady {
+                k1: -0.16,
+                k2: 0.045,
+                k3: 0.0,
+                p1: 0.0008,
+                p2: -0.0005,
+            }),
+            "OPENCV",
+        ),
         ("full", odd_k().with_distortion(brown()), "FULL_OPENCV"),
-        ("radial", square_k().with_distortion(Distortion::BrownConrady {
-            k1: -0.16,
-            k2: 0.045,
-            k3: 0.0,
-            p1: 0.0,
-            p2: 0.0,
-        }), "RADIAL"),
-        ("division", square_k().with_distortion(division()), "FULL_OPENCV"),
+        (
+            "radial",
+            square_k().with_distortion(Distortion::BrownConrady {
+                k1: -0.16,
+                k2: 0.045,
+                k3: 0.0,
+                p1: 0.0,
+                p2: 0.0,
+            }),
+            "RADIAL",
+        ),
+        (
+            "division",
+            square_k().with_distortion(division()),
+            "FULL_OPENCV",
+        ),
     ];
     for (name, k, model) in cases {
         let dir = tmp(&format!("colmap-lens-{name}"));
@@ -447,7 +456,12 @@ fn blender_tracking_camera_distorts_like_ours() {
         // to 2.5e-4 px (bpy 5.0.1), the refit adds its own error.
         let tol = 5e-4 + fit.unwrap_or(0.0);
         eprintln!("{name}: Blender BROWN, refit error {fit:?} px");
-        check("blender_check.py", &script, &t, &["--lens-tol", &tol.to_string()]);
+        check(
+            "blender_check.py",
+            &script,
+            &t,
+            &["--lens-tol", &tol.to_string()],
+        );
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

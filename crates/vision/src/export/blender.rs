@@ -377,7 +377,10 @@ mod tests {
             p2: -5e-4,
         };
         s.intrinsics = s.intrinsics.clone().with_distortion(d);
-        assert!(tracking_camera(&s).unwrap_err().to_string().contains("square"));
+        assert!(tracking_camera(&s)
+            .unwrap_err()
+            .to_string()
+            .contains("square"));
         s.intrinsics.f2 = s.intrinsics.f1;
         let t = tracking_camera(&s).unwrap().unwrap();
         assert_eq!(t.k, [-0.16, 0.045, 0.001, 0.0]);

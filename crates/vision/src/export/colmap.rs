@@ -30,8 +30,8 @@ use nalgebra::Vector3;
 use super::{lens_fit, quaternion_wxyz, rotation_from_wxyz, Shot, N};
 use crate::camera::{Intrinsics, Pose};
 use crate::error::{Result, VisionError};
-use crate::lens::Distortion;
 use crate::formats::{data_lines, number, parse_error, read_text, CameraPath, FramePose};
+use crate::lens::Distortion;
 use crate::points::PointCloud;
 
 /// Offset from our pixel coordinates (origin at the first pixel's centre) to COLMAP's (origin
@@ -600,11 +600,36 @@ mod tests {
         let brown = |k1, k2, k3, p1, p2| Distortion::BrownConrady { k1, k2, k3, p1, p2 };
         let square = Intrinsics::new(1210.0, 1210.0, 651.25, 347.75).with_size(1280, 720);
         let cases = [
-            (square.clone(), brown(-0.16, 0.0, 0.0, 0.0, 0.0), "SIMPLE_RADIAL", 4),
-            (square.clone(), brown(-0.16, 0.045, 0.0, 0.0, 0.0), "RADIAL", 5),
-            (square.clone(), brown(-0.16, 0.045, 0.0, 8e-4, -5e-4), "OPENCV", 8),
-            (shot().intrinsics, brown(-0.16, 0.0, 0.0, 0.0, 0.0), "OPENCV", 8),
-            (square.clone(), brown(-0.16, 0.045, -0.004, 8e-4, -5e-4), "FULL_OPENCV", 12),
+            (
+                square.clone(),
+                brown(-0.16, 0.0, 0.0, 0.0, 0.0),
+                "SIMPLE_RADIAL",
+                4,
+            ),
+            (
+                square.clone(),
+                brown(-0.16, 0.045, 0.0, 0.0, 0.0),
+                "RADIAL",
+                5,
+            ),
+            (
+                square.clone(),
+                brown(-0.16, 0.045, 0.0, 8e-4, -5e-4),
+                "OPENCV",
+                8,
+            ),
+            (
+                shot().intrinsics,
+                brown(-0.16, 0.0, 0.0, 0.0, 0.0),
+                "OPENCV",
+                8,
+            ),
+            (
+                square.clone(),
+                brown(-0.16, 0.045, -0.004, 8e-4, -5e-4),
+                "FULL_OPENCV",
+                12,
+            ),
         ];
         for (k, d, model, n) in cases {
             let mut s = shot();

@@ -45,9 +45,9 @@ pub fn radial_polynomial(k: &Intrinsics, terms: usize) -> Result<RadialFit> {
             )));
         }
     }
-    let r_max = k.undistorted_corner_radius()?.ok_or_else(|| {
-        VisionError::InvalidInput("refitting a lens needs the image size".into())
-    })?;
+    let r_max = k
+        .undistorted_corner_radius()?
+        .ok_or_else(|| VisionError::InvalidInput("refitting a lens needs the image size".into()))?;
     if terms == 0 || !(r_max > 0.0) {
         return Err(VisionError::InvalidInput(format!(
             "a radial refit needs terms > 0 and a frame (got {terms} terms, radius {r_max})"
@@ -147,8 +147,14 @@ mod tests {
             let u = div.undistort_pixel(&q).unwrap();
             worst = worst.max((refit.distort_pixel(&u).unwrap() - q).norm());
         }
-        assert!(worst <= fit.max_error_px * 1.01 + 1e-12, "{worst} vs {fit:?}");
-        assert!(fit.max_error_px > 1e-4 && fit.max_error_px < MAX_FIT_ERROR_PX, "{fit:?}");
+        assert!(
+            worst <= fit.max_error_px * 1.01 + 1e-12,
+            "{worst} vs {fit:?}"
+        );
+        assert!(
+            fit.max_error_px > 1e-4 && fit.max_error_px < MAX_FIT_ERROR_PX,
+            "{fit:?}"
+        );
         let tangential = div.with_distortion(Distortion::BrownConrady {
             k1: 0.0,
             k2: 0.0,

@@ -220,16 +220,22 @@ mod tests {
         let mut s = shot();
         let o = SceneOptions::default();
         assert!(!filmback_note(&s, &o).unwrap().contains("Lens"));
-        s.intrinsics = s.intrinsics.clone().with_distortion(Distortion::BrownConrady {
-            k1: -0.16,
-            k2: 0.045,
-            k3: 0.0,
-            p1: 8e-4,
-            p2: -5e-4,
-        });
+        s.intrinsics = s
+            .intrinsics
+            .clone()
+            .with_distortion(Distortion::BrownConrady {
+                k1: -0.16,
+                k2: 0.045,
+                k3: 0.0,
+                p1: 8e-4,
+                p2: -5e-4,
+            });
         s.st_map = Some("lens/st_distort.exr".into());
         let note = filmback_note(&s, &o).unwrap();
-        let line = note.lines().find(|l| l.starts_with("coefficients")).unwrap();
+        let line = note
+            .lines()
+            .find(|l| l.starts_with("coefficients"))
+            .unwrap();
         let v: Vec<f64> = line
             .split_whitespace()
             .skip(1)
@@ -238,8 +244,14 @@ mod tests {
             .map(|c| c[1].parse().unwrap())
             .collect();
         assert_eq!(v, s.intrinsics.distortion.params());
-        assert!(note.contains("ST-map                lens/st_distort.exr"), "{note}");
-        assert!(note.contains("centre (px)           651.75, 348.25"), "{note}");
+        assert!(
+            note.contains("ST-map                lens/st_distort.exr"),
+            "{note}"
+        );
+        assert!(
+            note.contains("centre (px)           651.75, 348.25"),
+            "{note}"
+        );
     }
 
     #[test]
