@@ -10,9 +10,10 @@ the script's `tracking_camera(clip)` is applied to a movie clip of the plate's s
 own distortion is evaluated: its compositor's Movie Distortion node (Distort) warps a ramp image
 whose red/green hold each pixel's own position, so the output at pixel d holds the source
 position Blender's lens takes to d, which must be our u within --lens-tol px. The node's output
-is translated by a whole number of pixels (bpy 5.0.1: by (0, 1) to (4, 3) px depending on the
-lens, also with zero tangential terms; a pure translation, measured by the search below): the
-best whole-pixel translation in [-6, 6]² is found and reported, and everything else must agree.
+is translated by a whole number of pixels (bpy 5.0.1: 0 to 4 px in x and y depending on the
+lens, also for a purely radial one; (1, -1) px with zero distortion; a pure translation): the
+best whole-pixel translation in [-6, 6]² is found and reported, and everything else must agree
+(a half-pixel or principal-point error would not be a whole-pixel translation and would show).
 The scene camera renders the undistorted image: its projections are compared with the truth's
 "pixels" (our pinhole projections when there is a lens).
 """
