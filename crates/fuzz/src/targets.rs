@@ -667,6 +667,7 @@ fn seeds_colmap(_: &SeedDirs) -> Vec<Seed> {
         tracks: None,
         colors: None,
         image_pattern: Some("frame.%04d.png".into()),
+        st_map: None,
     };
     match colmap::format(&shot) {
         Ok(m) => vec![generated(

@@ -37,7 +37,10 @@ pub fn register(r: &mut Registry) {
              `<name>_filmback.txt` note), `json` (per frame K, R, t, centre, solve error) or `ply` \
              (the points, coloured from the plate). COLMAP, JSON and PLY stay in the solve's world; \
              Blender, USD and Nuke get scale · W · X with W turning `up_axis` into the target's up. \
-             Writes are atomic.",
+             A lens on K goes along: COLMAP's SIMPLE_RADIAL/RADIAL/OPENCV/FULL_OPENCV, Blender's \
+             movie-clip tracking camera (BROWN), USD `vfxgraph:lens:*` attributes, the Nuke note's \
+             Lens section, JSON `distortion` (a division lens is refitted where the target has no \
+             such model, with the fit error stated). Writes are atomic.",
         )
         .mode(Mode::Once)
         .input(PortSpec::one("cameras", CameraPathArt::NAME, "the solved cameras"))
@@ -125,6 +128,13 @@ pub fn register(r: &mut Registry) {
             "the plate's file names as a frame pattern relative to the export (e.g. \
              `plate/frame.%04d.png`); COLMAP image names, Blender's background, JSON",
         ))
+        .param(ParamSpec::optional(
+            "st_map",
+            ParamType::Str,
+            ParamValue::Str(String::new()),
+            "an ST-map of the lens (e.g. from `write_st_map`), relative to the export: \
+             referenced by the usd (`vfxgraph:lens:stMap`) and nuke (note) exports",
+        ))
         .output(PortSpec::one(
             "report",
             ReportArt::NAME,
@@ -136,7 +146,7 @@ pub fn register(r: &mut Registry) {
         NodeSpec::new(
             "import_cameras",
             "Reads a solve made elsewhere: a COLMAP text model (`path` is its cameras.txt; one \
-             pinhole K for every image; the frame is the last number in each image name) or the \
+             K for every image, with its lens from SIMPLE_RADIAL/RADIAL/OPENCV/FULL_OPENCV; the frame is the last number in each image name) or the \
              book's cameras file (`Frame i`, R, t; K from the `intrinsics` input).",
         )
         .mode(Mode::Once)
@@ -177,6 +187,7 @@ fn run_export(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let p = ctx.params();
     let format = p.str("format").to_string();
     let names = p.str("image_names").to_string();
+    let st_map = p.str("st_map").to_string();
     let options = SceneOptions {
         fps: p.f64("fps"),
         start_frame: p.i64("start_frame"),
@@ -237,6 +248,9 @@ fn run_export(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     if !names.is_empty() {
         shot.image_pattern = Some(names);
     }
+    if !st_map.is_empty() {
+        shot.st_map = Some(st_map);
+    }
     shot.validate()?;
     if !plate.is_empty() && shot.cloud.is_some() {
         shot.colors = Some(colors::sample_point_colors(&shot, &plate));
@@ -251,6 +265,7 @@ fn run_export(ctx: &mut Context<'_>) -> Result<(), NodeError> {
         "width": shot.intrinsics.width,
         "height": shot.intrinsics.height,
         "coloured": shot.colors.is_some(),
+        "lens": shot.intrinsics.distortion.name(),
     });
     ctx.output("report", ReportArt(report));
     Ok(())
@@ -396,12 +411,21 @@ mod tests {
         Ok(ctx)
     }
 
-    /// Export to COLMAP through the node, import through the node: the same K, path and
-    /// points within 1e-9; every other format writes its files and reports them.
+    /// Export to COLMAP through the node, import through the node: the same K with its lens
+    /// (exactly), path and points within 1e-9; every other format writes its files and reports
+    /// them and the lens.
     #[test]
     fn export_then_import_round_trips_and_all_formats_write() {
         let dir = std::env::temp_dir().join(format!("vfxgraph-export-node-{}", std::process::id()));
-        let k = Intrinsics::new(1228.4, 1228.4, 639.5, 359.5).with_size(1280, 720);
+        let k = Intrinsics::new(1228.4, 1228.4, 639.5, 359.5)
+            .with_size(1280, 720)
+            .with_distortion(vfxgraph_vision::lens::Distortion::BrownConrady {
+                k1: -0.16,
+                k2: 0.045,
+                k3: 0.0,
+                p1: 0.0008,
+                p2: -0.0005,
+            });
         let inputs = || {
             vec![
                 (
@@ -439,6 +463,7 @@ mod tests {
             let rep = ctx.take_output::<ReportArt>("report").unwrap().0;
             let files = rep["files"].as_array().unwrap();
             assert_eq!(files.len(), n, "{fmt}: {rep}");
+            assert_eq!(rep["lens"], "brown_conrady");
             for f in files {
                 assert!(Path::new(f.as_str().unwrap()).is_file(), "{f}");
             }

@@ -1,6 +1,10 @@
 //! The camera exports loaded in the real programs (issue 10): pycolmap, Blender's `bpy` and
 //! usd-core run the checkers of `scripts/check/` on our exports of shots with known truth, and
 //! compare their projections with ours (COLMAP within 1e-6 px, Blender and USD within 0.01 px).
+//! Shots through a lens (Brown–Conrady, division) check the distortion in each client: pycolmap's
+//! projection of the points (its OPENCV models), USD's frustum taken through the
+//! `vfxgraph:lens:*` attributes, Blender's Movie Distortion node with the script's tracking
+//! camera (see the checkers' docs).
 //!
 //! The Python comes from `VFXGRAPH_PYTHON` (default `python3`). A test whose module is missing
 //! prints a notice and passes, unless `VFXGRAPH_REQUIRE_CLIENTS=1` (set by `.ci/run`), where it
@@ -16,6 +20,7 @@ use vfxgraph_vision::camera::{Camera, Intrinsics, Pose};
 use vfxgraph_vision::export::{colmap, SceneOptions, Shot, UpAxis};
 use vfxgraph_vision::formats::{CameraPath, FramePose};
 use vfxgraph_vision::klt::{Track, Tracks};
+use vfxgraph_vision::lens::Distortion;
 use vfxgraph_vision::points::PointCloud;
 use vfxgraph_vision::rotation::axis_angle_to_r;
 
@@ -153,31 +158,57 @@ fn shot(k: Intrinsics) -> Shot {
 
 /// Our reprojections of every point in every frame (the checkers' truth).
 fn truth(shot: &Shot, o: &SceneOptions, path: &Path) {
+    write_truth(shot, o, path, Through::Lens);
+}
+
+/// Which pixels the truth holds.
+#[derive(Clone, Copy, PartialEq)]
+enum Through {
+    /// Through K's lens (the plate's pixels), only those inside the frame when there is a lens.
+    Lens,
+    /// The pinhole projections (what a render camera sees), plus a grid of our lens's
+    /// undistorted pixels of whole distorted pixels (`lens_grid`: d.x d.y u.x u.y).
+    PinholeAndGrid,
+}
+
+fn write_truth(shot: &Shot, o: &SceneOptions, path: &Path, through: Through) {
+    let k = &shot.intrinsics;
+    let (w, h) = (k.width.unwrap() as f64, k.height.unwrap() as f64);
+    let k_proj = match through {
+        Through::Lens => k.clone(),
+        Through::PinholeAndGrid => k.pinhole(),
+    };
     let frames: Vec<_> = shot
         .path
         .frames
         .iter()
         .map(|f| {
             let cam = Camera {
-                intrinsics: shot.intrinsics.clone(),
+                intrinsics: k_proj.clone(),
                 pose: f.pose.clone(),
             };
             let pixels: Vec<_> = shot
                 .points()
                 .iter()
-                .map(|p: &Point3<f64>| {
-                    if cam.depth(p) <= 0.0 {
-                        serde_json::Value::Null
-                    } else {
-                        let x = cam.project(p).unwrap();
+                .map(|p: &Point3<f64>| match cam.project(p) {
+                    Ok(x)
+                        if cam.depth(p) > 0.0
+                            && (k.is_pinhole()
+                                || through == Through::PinholeAndGrid
+                                || (x.x >= -0.5
+                                    && x.y >= -0.5
+                                    && x.x <= w - 0.5
+                                    && x.y <= h - 0.5)) =>
+                    {
                         json!([x.x, x.y])
                     }
+                    _ => serde_json::Value::Null,
                 })
                 .collect();
             json!({"frame": f.frame, "target_frame": o.target_frame(f.frame), "pixels": pixels})
         })
         .collect();
-    let doc = json!({
+    let mut doc = json!({
         "width": shot.intrinsics.width,
         "height": shot.intrinsics.height,
         "fps": o.fps,
@@ -185,7 +216,48 @@ fn truth(shot: &Shot, o: &SceneOptions, path: &Path) {
         "plate": shot.image_pattern.is_some(),
         "frames": frames,
     });
+    if !k.is_pinhole() {
+        doc["lens"] = serde_json::to_value(k.distortion).unwrap();
+    }
+    if let Some(st) = &shot.st_map {
+        doc["st_map"] = json!(st);
+    }
+    if through == Through::PinholeAndGrid && !k.is_pinhole() {
+        let mut grid = Vec::new();
+        for y in (4..h as u32 - 4).step_by(12) {
+            for x in (4..w as u32 - 4).step_by(12) {
+                let d = nalgebra::Point2::new(x as f64, y as f64);
+                let u = k.undistort_pixel(&d).unwrap();
+                if u.x >= 2.0 && u.y >= 2.0 && u.x <= w - 3.0 && u.y <= h - 3.0 {
+                    grid.push([d.x, d.y, u.x, u.y]);
+                }
+            }
+        }
+        doc["lens_grid"] = json!(grid);
+    }
     std::fs::write(path, serde_json::to_string(&doc).unwrap()).unwrap();
+}
+
+/// Brown–Conrady with the dev plate's coefficients (`blender_plate_dev/distorted`) and a k3.
+fn brown() -> Distortion {
+    Distortion::BrownConrady {
+        k1: -0.16,
+        k2: 0.045,
+        k3: -0.004,
+        p1: 0.0008,
+        p2: -0.0005,
+    }
+}
+
+/// A moderate division lens (Fitzgibbon's model), for the refits.
+fn division() -> Distortion {
+    Distortion::Division { k1: 0.08, k2: 0.0 }
+}
+
+/// A square-pixel K with an off-centre principal point (Blender's tracking camera needs square
+/// pixels).
+fn square_k() -> Intrinsics {
+    Intrinsics::new(920.0, 920.0, 652.25, 341.5).with_size(1280, 720)
 }
 
 fn tmp(name: &str) -> PathBuf {
@@ -242,6 +314,80 @@ fn colmap_export_reads_in_pycolmap_and_round_trips() {
     }
 }
 
+/// The COLMAP export of shots through a lens: the model that holds it, read back exactly, and
+/// pycolmap's projections through its distortion equal ours (1e-6 px for Brown–Conrady; for
+/// the division lens, refitted as FULL_OPENCV, within the refit's stated error).
+#[test]
+fn colmap_export_with_a_lens_reads_in_pycolmap_and_round_trips() {
+    let cases = [
+        (
+            "opencv",
+            odd_k().with_distortion(Distortion::BrownConrady {
+                k1: -0.16,
+                k2: 0.045,
+                k3: 0.0,
+                p1: 0.0008,
+                p2: -0.0005,
+            }),
+            "OPENCV",
+        ),
+        ("full", odd_k().with_distortion(brown()), "FULL_OPENCV"),
+        (
+            "radial",
+            square_k().with_distortion(Distortion::BrownConrady {
+                k1: -0.16,
+                k2: 0.045,
+                k3: 0.0,
+                p1: 0.0,
+                p2: 0.0,
+            }),
+            "RADIAL",
+        ),
+        (
+            "division",
+            square_k().with_distortion(division()),
+            "FULL_OPENCV",
+        ),
+    ];
+    for (name, k, model) in cases {
+        let dir = tmp(&format!("colmap-lens-{name}"));
+        let s = shot(k);
+        let o = SceneOptions::default();
+        let cams = dir.join("sparse/cameras.txt");
+        export("colmap", &cams, &s, &o).unwrap();
+        let text = std::fs::read_to_string(&cams).unwrap();
+        assert!(text.contains(&format!("\n1 {model} 1280 720 ")), "{text}");
+        let cam = colmap::camera_model(&s.intrinsics).unwrap();
+        let m = colmap::read(&cams).unwrap();
+        if cam.fit_error_px.is_none() {
+            assert_eq!(m.intrinsics, s.intrinsics, "{name}");
+        }
+        for (a, b) in s.path.frames.iter().zip(&m.path.frames) {
+            assert!((a.pose.r - b.pose.r).abs().max() < 1e-9);
+            assert!((a.pose.t - b.pose.t).abs().max() < 1e-9);
+        }
+        if have("pycolmap") {
+            let t = dir.join("truth.json");
+            truth(&s, &o, &t);
+            // The refit is within its error of our lens; Brown–Conrady is the same formula.
+            let tol = cam.fit_error_px.map_or(1e-6, |e| 1.01 * e + 1e-9);
+            eprintln!("{name}: {model}, refit error {:?} px", cam.fit_error_px);
+            check(
+                "colmap_check.py",
+                &dir.join("sparse"),
+                &t,
+                &[
+                    "--tol",
+                    &tol.to_string(),
+                    "--obs-tol",
+                    &(0.01105 + tol).to_string(),
+                ],
+            );
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}
+
 #[test]
 fn blender_script_builds_the_camera_in_bpy() {
     if !have("bpy") {
@@ -275,6 +421,72 @@ fn blender_script_builds_the_camera_in_bpy() {
         let t = dir.join("truth.json");
         truth(&s, &o, &t);
         check("blender_check.py", &script, &t, &[]);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}
+
+/// Blender with a lens: the scene camera is the pinhole K, and Blender's own distortion of the
+/// script's tracking camera (the compositor's Movie Distortion node) equals ours within
+/// 5e-4 px (Brown–Conrady), plus the refit's error for the division lens.
+#[test]
+fn blender_tracking_camera_distorts_like_ours() {
+    if !have("bpy") {
+        return;
+    }
+    for (name, d) in [("brown", brown()), ("division", division())] {
+        let dir = tmp(&format!("blender-lens-{name}"));
+        let k = square_k().with_distortion(d);
+        let mut s = shot(k);
+        s.image_pattern = Some("plate/frame.%04d.png".into());
+        std::fs::create_dir_all(dir.join("plate")).unwrap();
+        let first = s.path.frames[0].frame;
+        let img = vfxgraph_imaging::Image::from_fn(8, 8, 3, |_, _, c| 0.2 * c as f32);
+        vfxgraph_imaging::io::write_image(&dir.join(format!("plate/frame.{first:04}.png")), &img)
+            .unwrap();
+        let o = SceneOptions::default();
+        let script = dir.join("camera.py");
+        export("blender", &script, &s, &o).unwrap();
+        let t = dir.join("truth.json");
+        write_truth(&s, &o, &t, Through::PinholeAndGrid);
+        let fit = vfxgraph_vision::export::blender::tracking_camera(&s)
+            .unwrap()
+            .unwrap()
+            .fit_error_px;
+        // The ramp is float32: 1.2e-4 px steps at 1024–2048 px; Blender's distortion agrees
+        // to 2.5e-4 px (bpy 5.0.1), the refit adds its own error.
+        let tol = 5e-4 + fit.unwrap_or(0.0);
+        eprintln!("{name}: Blender BROWN, refit error {fit:?} px");
+        check(
+            "blender_check.py",
+            &script,
+            &t,
+            &["--lens-tol", &tol.to_string()],
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}
+
+/// USD with a lens and an ST-map: the camera prim's `vfxgraph:lens:*` attributes read in
+/// usd-core give back our lens, and the frustum's projections taken through it land on our
+/// distorted pixels within 0.01 px.
+#[test]
+fn usd_lens_attributes_reproject_like_ours() {
+    if !have("pxr.Usd") {
+        return;
+    }
+    for (name, k) in [
+        ("brown", odd_k().with_distortion(brown())),
+        ("division", square_k().with_distortion(division())),
+    ] {
+        let dir = tmp(&format!("usd-lens-{name}"));
+        let mut s = shot(k);
+        s.st_map = Some("lens/st_distort.exr".into());
+        let o = SceneOptions::default();
+        let stage = dir.join("shot.usda");
+        export("usd", &stage, &s, &o).unwrap();
+        let t = dir.join("truth.json");
+        truth(&s, &o, &t);
+        check("usd_check.py", &stage, &t, &[]);
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

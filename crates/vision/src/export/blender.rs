@@ -10,11 +10,28 @@
 //! principal point (cx, cy) = (u0 + ½, v0 + ½) (corner origin):
 //! shift_x = (W/2 − cx)/W, shift_y = (f1/f2)(cy − H/2)/W.
 //! Run it with `blender --python camera.py`, or `exec` it in Blender's Python (or in `bpy`).
+//!
+//! A lens goes on the movie clip's tracking camera (`MovieTrackingCamera`, what Blender's Movie
+//! Distortion node and its solver use): the script loads the plate as a movie clip and calls
+//! `tracking_camera(clip)`, which sets focal length and principal point in pixels
+//! (`principal_point_pixels` has its origin at the bottom-left corner: (cx, H − cy)) and the
+//! model. Conventions measured in bpy 5.0.1 through its Movie Distortion node
+//! (`scripts/check/blender_check.py`): `BROWN` is OpenCV's formula on y-up normalized
+//! coordinates with the tangential coefficients named the other way round, so ours map as
+//! brown_k1..k3 = k1..k3, brown_k4 = 0, **brown_p1 = p2, brown_p2 = −p1**; its `DIVISION` is not
+//! Fitzgibbon's (the node's distortion with division_k1, k2 equals the polynomial
+//! u · (1 + k1 r² + k2 r⁴) of the *undistorted* radius), so our division lens is written as
+//! `BROWN` with its radial refit k1..k4 ([`super::lens_fit`], the fit error in the script). The
+//! camera's K and render size stay the plate's: the scene camera renders the undistorted
+//! (pinhole) image, the clip's distortion maps it onto the plate. Non-square pixels with a lens
+//! are refused (Blender's pixel-aspect handling in the tracking camera did not match any
+//! convention we tested).
 
 use std::fmt::Write as _;
 
-use super::{continuous_quaternions, SceneOptions, Shot, TargetUp, FILM_BACK_MM, N};
-use crate::error::Result;
+use super::{continuous_quaternions, lens_fit, SceneOptions, Shot, TargetUp, FILM_BACK_MM, N};
+use crate::error::{Result, VisionError};
+use crate::lens::Distortion;
 
 /// The lens and film parameters of the Blender camera for a shot (see the module doc).
 #[derive(Clone, Debug, PartialEq)]
@@ -52,11 +69,64 @@ pub fn camera(shot: &Shot) -> Result<BlenderCamera> {
     })
 }
 
+/// The movie clip's tracking camera for a shot's lens (see the module doc); `None` for a
+/// pinhole.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TrackingCamera {
+    /// Focal length, px.
+    pub focal_pixels: f64,
+    /// Principal point, px, origin at the bottom-left corner (Blender's).
+    pub principal_point_pixels: (f64, f64),
+    /// brown_k1..brown_k4.
+    pub k: [f64; 4],
+    /// brown_p1, brown_p2 (Blender's names).
+    pub p: [f64; 2],
+    /// The refit's largest error (px) when our lens had no Blender model.
+    pub fit_error_px: Option<f64>,
+}
+
+/// The tracking camera of a shot's lens (module doc).
+pub fn tracking_camera(shot: &Shot) -> Result<Option<TrackingCamera>> {
+    let k = &shot.intrinsics;
+    if k.is_pinhole() {
+        return Ok(None);
+    }
+    shot.require_no_skew("Blender")?;
+    if k.f1 != k.f2 {
+        return Err(VisionError::InvalidInput(format!(
+            "Blender's tracking camera: a lens with non-square pixels (f1 = {}, f2 = {}) is not \
+             supported; export an ST-map instead",
+            k.f1, k.f2
+        )));
+    }
+    let (_, h) = shot.size()?;
+    let (kk, p, fit_error_px) = match k.distortion {
+        Distortion::BrownConrady { k1, k2, k3, p1, p2 } => ([k1, k2, k3, 0.0], [p2, -p1], None),
+        Distortion::Division { .. } => {
+            let fit = lens_fit::radial_polynomial_within(k, 4, "Blender")?;
+            (
+                [fit.k[0], fit.k[1], fit.k[2], fit.k[3]],
+                [0.0, 0.0],
+                Some(fit.max_error_px),
+            )
+        }
+        Distortion::None => return Ok(None),
+    };
+    Ok(Some(TrackingCamera {
+        focal_pixels: k.f1,
+        principal_point_pixels: (k.u0 + 0.5, h as f64 - (k.v0 + 0.5)),
+        k: kk,
+        p,
+        fit_error_px,
+    }))
+}
+
 /// The script.
 pub fn script(shot: &Shot, o: &SceneOptions) -> Result<String> {
     shot.validate()?;
     o.validate()?;
     let cam = camera(shot)?;
+    let lens = tracking_camera(shot)?;
     let (w, h) = shot.size()?;
     let (near, far) = shot.clip_range();
     let mats: Vec<_> = shot
@@ -92,6 +162,9 @@ FPS, FPS_BASE = {}, {}
 LENS, SENSOR_WIDTH = {}, {}
 SHIFT = ({}, {})
 CLIP = ({}, {})
+# The lens, for the movie clip's tracking camera (None: a pinhole). Blender's BROWN names the
+# tangential terms the other way round: brown_p1 = our p2, brown_p2 = -(our p1).
+DISTORTION = {}
 "#,
         cam.pixel_aspect.0,
         cam.pixel_aspect.1,
@@ -103,6 +176,24 @@ CLIP = ({}, {})
         cam.shift_y,
         near * o.scale,
         far * o.scale,
+        match &lens {
+            None => "None".to_string(),
+            Some(l) => format!(
+                "{{\"model\": \"BROWN\", \"focal_pixels\": {}, \"principal_point_pixels\": ({}, {}), \
+                 \"k\": ({}, {}, {}, {}), \"p\": ({}, {}), \"ours\": {}, \"fit_error_px\": {}}}",
+                N(l.focal_pixels),
+                N(l.principal_point_pixels.0),
+                N(l.principal_point_pixels.1),
+                N(l.k[0]),
+                N(l.k[1]),
+                N(l.k[2]),
+                N(l.k[3]),
+                N(l.p[0]),
+                N(l.p[1]),
+                py_str(shot.intrinsics.distortion.name()),
+                l.fit_error_px.map_or("None".to_string(), |e| N(e).to_string()),
+            ),
+        },
     );
     s.push_str(
         "# (frame, location xyz, rotation quaternion wxyz) in Blender's world (Z up)\nKEYS = [\n",
@@ -156,6 +247,20 @@ fn py_str(s: &str) -> String {
 }
 
 const BODY: &str = r#"
+
+def tracking_camera(clip):
+    """Sets the movie clip's tracking camera to DISTORTION (see DISTORTION above)."""
+    if DISTORTION is None:
+        return
+    cam = clip.tracking.camera
+    cam.units = "PIXELS"
+    cam.pixel_aspect = 1.0
+    cam.distortion_model = DISTORTION["model"]
+    cam.focal_length_pixels = DISTORTION["focal_pixels"]
+    cam.principal_point_pixels = DISTORTION["principal_point_pixels"]
+    cam.brown_k1, cam.brown_k2, cam.brown_k3, cam.brown_k4 = DISTORTION["k"]
+    cam.brown_p1, cam.brown_p2 = DISTORTION["p"]
+
 
 def build():
     scene = bpy.context.scene
@@ -218,6 +323,11 @@ def build():
             bg.image_user.frame_start = PLATE_START
             bg.image_user.frame_duration = PLATE_FRAMES
             data.show_background_images = True
+            if DISTORTION is not None:
+                clip = bpy.data.movieclips.load(path, check_existing=True)
+                clip.frame_start = PLATE_START
+                tracking_camera(clip)
+                scene.active_clip = clip
         else:
             print("vfxgraph: plate image %s not found; no background image" % path)
     return cam
@@ -251,5 +361,32 @@ mod tests {
         assert!(text.contains("KEYS = [\n    (11, ("), "{text}");
         assert_eq!(text.matches("\n    (").count(), 12 + 40 + 40);
         assert!(text.contains("PLATE = \"plate/frame.0010.png\""));
+        assert!(text.contains("\nDISTORTION = None\n"));
+    }
+
+    /// Our Brown–Conrady lens maps to Blender's BROWN with the tangential terms renamed and
+    /// the principal point from the bottom; non-square pixels with a lens are refused.
+    #[test]
+    fn lens_goes_on_the_tracking_camera() {
+        let mut s = shot();
+        let d = Distortion::BrownConrady {
+            k1: -0.16,
+            k2: 0.045,
+            k3: 0.001,
+            p1: 8e-4,
+            p2: -5e-4,
+        };
+        s.intrinsics = s.intrinsics.clone().with_distortion(d);
+        assert!(tracking_camera(&s)
+            .unwrap_err()
+            .to_string()
+            .contains("square"));
+        s.intrinsics.f2 = s.intrinsics.f1;
+        let t = tracking_camera(&s).unwrap().unwrap();
+        assert_eq!(t.k, [-0.16, 0.045, 0.001, 0.0]);
+        assert_eq!(t.p, [-5e-4, -8e-4]);
+        assert_eq!(t.principal_point_pixels, (651.75, 720.0 - 348.25));
+        let text = script(&s, &SceneOptions::default()).unwrap();
+        assert!(text.contains("\"p\": (-0.0005, -0.0008)"), "{text}");
     }
 }

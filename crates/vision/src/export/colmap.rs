@@ -1,8 +1,16 @@
 //! COLMAP's text model (`cameras.txt`, `images.txt`, `points3D.txt`): written from a shot and
 //! read back into a camera path, K and a point cloud.
 //!
-//! Conventions: one `PINHOLE` camera (fx fy cx cy; our K has no distortion, so `OPENCV` would
-//! only add zeros; a skewed K is refused), images with the world→camera rotation as a Hamilton
+//! Conventions: one camera, in the smallest COLMAP model that holds our lens exactly
+//! ([`camera_model`]): `PINHOLE` (fx fy cx cy) for a pinhole; for Brown–Conrady (OpenCV's
+//! k1 k2 k3 p1 p2 on normalized coordinates, COLMAP's `OpenCV` models are the same formula)
+//! `SIMPLE_RADIAL` (f cx cy k1) or `RADIAL` (f cx cy k1 k2) when the pixels are square and there
+//! is no tangential or k3 term, `OPENCV` (fx fy cx cy k1 k2 p1 p2) without k3, `FULL_OPENCV`
+//! (fx fy cx cy k1 k2 p1 p2 k3 k4 k5 k6, k4..k6 = 0: its rational denominator unused) with k3.
+//! A division lens has no COLMAP model: it is refitted as a radial polynomial over the frame
+//! ([`super::lens_fit`]), written as the model that holds the fit, with the fit's error in a
+//! comment of `cameras.txt`; a fit worse than [`super::lens_fit::MAX_FIT_ERROR_PX`] is an error.
+//! A skewed K is refused. Images with the world→camera rotation as a Hamilton
 //! quaternion `QW QX QY QZ` and t (x_cam = R X + t, as ours), and pixels whose origin is the
 //! top-left *corner* of the image: COLMAP's (cx, cy) and 2-D points are ours + 0.5.
 //! Image ids are 1, 2, … in path order; point ids 1, 2, … in cloud order. Each image's 2-D
@@ -19,10 +27,11 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::Vector3;
 
-use super::{quaternion_wxyz, rotation_from_wxyz, Shot, N};
+use super::{lens_fit, quaternion_wxyz, rotation_from_wxyz, Shot, N};
 use crate::camera::{Intrinsics, Pose};
 use crate::error::{Result, VisionError};
 use crate::formats::{data_lines, number, parse_error, read_text, CameraPath, FramePose};
+use crate::lens::Distortion;
 use crate::points::PointCloud;
 
 /// Offset from our pixel coordinates (origin at the first pixel's centre) to COLMAP's (origin
@@ -54,24 +63,81 @@ pub struct Model {
     pub cloud: PointCloud,
 }
 
+/// A COLMAP camera: model name and parameters (COLMAP's order, its pixel convention), and for a
+/// refitted lens the fit's largest error in pixels.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CameraModel {
+    /// `PINHOLE`, `SIMPLE_RADIAL`, `RADIAL`, `OPENCV` or `FULL_OPENCV`.
+    pub model: &'static str,
+    /// The parameters in COLMAP's order.
+    pub params: Vec<f64>,
+    /// The refit's largest error (px) when the lens had no COLMAP model (division).
+    pub fit_error_px: Option<f64>,
+}
+
+/// The smallest COLMAP camera model holding K and its lens (module docs).
+pub fn camera_model(k: &Intrinsics) -> Result<CameraModel> {
+    let (cx, cy) = (k.u0 + PIXEL_OFFSET, k.v0 + PIXEL_OFFSET);
+    let (mut k1, mut k2, mut k3, mut p1, mut p2) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    let mut fit_error_px = None;
+    match k.distortion {
+        Distortion::None => {}
+        Distortion::BrownConrady {
+            k1: a,
+            k2: b,
+            k3: c,
+            p1: d,
+            p2: e,
+        } => (k1, k2, k3, p1, p2) = (a, b, c, d, e),
+        Distortion::Division { .. } => {
+            let fit = lens_fit::radial_polynomial_within(k, 3, "COLMAP")?;
+            (k1, k2, k3) = (fit.k[0], fit.k[1], fit.k[2]);
+            fit_error_px = Some(fit.max_error_px);
+        }
+    }
+    let square = k.f1 == k.f2;
+    let (model, params) = if k1 == 0.0 && k2 == 0.0 && k3 == 0.0 && p1 == 0.0 && p2 == 0.0 {
+        ("PINHOLE", vec![k.f1, k.f2, cx, cy])
+    } else if k3 != 0.0 {
+        (
+            "FULL_OPENCV",
+            vec![k.f1, k.f2, cx, cy, k1, k2, p1, p2, k3, 0.0, 0.0, 0.0],
+        )
+    } else if p1 != 0.0 || p2 != 0.0 || !square {
+        ("OPENCV", vec![k.f1, k.f2, cx, cy, k1, k2, p1, p2])
+    } else if k2 == 0.0 {
+        ("SIMPLE_RADIAL", vec![k.f1, cx, cy, k1])
+    } else {
+        ("RADIAL", vec![k.f1, cx, cy, k1, k2])
+    };
+    Ok(CameraModel {
+        model,
+        params,
+        fit_error_px,
+    })
+}
+
 /// Formats the text model of a shot.
 pub fn format(shot: &Shot) -> Result<TextModel> {
     shot.validate()?;
-    shot.require_no_skew("COLMAP PINHOLE")?;
+    shot.require_no_skew("COLMAP")?;
     let (w, h) = shot.size()?;
-    let k = &shot.intrinsics;
+    let cam = camera_model(&shot.intrinsics)?;
     let mut cameras = String::from(
         "# Camera list with one line of data per camera:\n\
          #   CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[]\n# Number of cameras: 1\n",
     );
-    let _ = writeln!(
-        cameras,
-        "1 PINHOLE {w} {h} {} {} {} {}",
-        k.f1,
-        k.f2,
-        k.u0 + PIXEL_OFFSET,
-        k.v0 + PIXEL_OFFSET
-    );
+    if let Some(e) = cam.fit_error_px {
+        let _ = writeln!(
+            cameras,
+            "# vfxgraph: the {} lens has no COLMAP model; {} holds its radial polynomial refit \
+             over the frame, within {e:.3e} px of it",
+            shot.intrinsics.distortion.name(),
+            cam.model
+        );
+    }
+    let params: Vec<String> = cam.params.iter().map(|v| v.to_string()).collect();
+    let _ = writeln!(cameras, "1 {} {w} {h} {}", cam.model, params.join(" "));
 
     // The tracks' observations of the cloud's points, per image: the solve's inliers are
     // linked to their point (and listed in its track), the outliers stay unassigned 2-D
@@ -235,7 +301,10 @@ pub fn read(cameras: &Path) -> Result<Model> {
 }
 
 /// Parses a text model (text, file name for errors) × 3. Every image must use the same camera
-/// intrinsics (one K per shot); distortion models are accepted only with zero distortion.
+/// intrinsics (one K per shot). `SIMPLE_PINHOLE`, `PINHOLE`, `SIMPLE_RADIAL`, `RADIAL`, `OPENCV`
+/// and `FULL_OPENCV` (with k4 = k5 = k6 = 0: the rational denominator has no model here) are
+/// read, the distortion as Brown–Conrady (a pinhole when every coefficient is 0); a lens that
+/// folds over inside the frame is an error naming the line.
 pub fn parse(cameras: (&str, &str), images: (&str, &str), points3d: (&str, &str)) -> Result<Model> {
     // cameras.txt
     let (text, file) = cameras;
@@ -275,31 +344,40 @@ pub fn parse(cameras: (&str, &str), images: (&str, &str), points3d: (&str, &str)
                     file,
                     line,
                     format!(
-                        "camera model {} with non-zero distortion: our cameras are pinhole",
+                        "camera model {} with non-zero k4..k6 (the rational denominator): \
+                         our lens models have no equivalent",
                         t[1]
                     ),
                 ));
             }
             Ok(())
         };
-        let (f1, f2, cx, cy) = match t[1] {
+        // (f1, f2, cx, cy, [k1, k2, k3, p1, p2])
+        let (f1, f2, cx, cy, d) = match t[1] {
             "SIMPLE_PINHOLE" => {
                 need(3)?;
-                (v[0], v[0], v[1], v[2])
+                (v[0], v[0], v[1], v[2], [0.0; 5])
             }
             "PINHOLE" => {
                 need(4)?;
-                (v[0], v[1], v[2], v[3])
+                (v[0], v[1], v[2], v[3], [0.0; 5])
             }
-            "SIMPLE_RADIAL" | "RADIAL" => {
-                need(if t[1] == "RADIAL" { 5 } else { 4 })?;
-                zero_tail(3)?;
-                (v[0], v[0], v[1], v[2])
+            "SIMPLE_RADIAL" => {
+                need(4)?;
+                (v[0], v[0], v[1], v[2], [v[3], 0.0, 0.0, 0.0, 0.0])
             }
-            "OPENCV" | "FULL_OPENCV" => {
-                need(if t[1] == "OPENCV" { 8 } else { 12 })?;
-                zero_tail(4)?;
-                (v[0], v[1], v[2], v[3])
+            "RADIAL" => {
+                need(5)?;
+                (v[0], v[0], v[1], v[2], [v[3], v[4], 0.0, 0.0, 0.0])
+            }
+            "OPENCV" => {
+                need(8)?;
+                (v[0], v[1], v[2], v[3], [v[4], v[5], 0.0, v[6], v[7]])
+            }
+            "FULL_OPENCV" => {
+                need(12)?;
+                zero_tail(9)?;
+                (v[0], v[1], v[2], v[3], [v[4], v[5], v[8], v[6], v[7]])
             }
             m => {
                 return Err(parse_error(
@@ -309,7 +387,20 @@ pub fn parse(cameras: (&str, &str), images: (&str, &str), points3d: (&str, &str)
                 ))
             }
         };
-        let k = Intrinsics::new(f1, f2, cx - PIXEL_OFFSET, cy - PIXEL_OFFSET).with_size(w, h);
+        let distortion = if d.iter().all(|c| *c == 0.0) {
+            Distortion::None
+        } else {
+            Distortion::BrownConrady {
+                k1: d[0],
+                k2: d[1],
+                k3: d[2],
+                p1: d[3],
+                p2: d[4],
+            }
+        };
+        let k = Intrinsics::new(f1, f2, cx - PIXEL_OFFSET, cy - PIXEL_OFFSET)
+            .with_size(w, h)
+            .with_distortion(distortion);
         k.validate()
             .map_err(|e| parse_error(file, line, e.to_string()))?;
         cams.insert(id, (line, k));
@@ -501,6 +592,75 @@ mod tests {
         assert!(back.cloud.errors[0] == 0.0 && (back.cloud.errors[5] - 0.05).abs() < 1e-15);
     }
 
+    /// Each lens is written in the smallest COLMAP model that holds it and reads back exactly
+    /// (every f64 to the last bit); a zero lens stays a pinhole; a division lens is written as
+    /// its refit, whose error the header states.
+    #[test]
+    fn lenses_round_trip_in_their_models() {
+        let brown = |k1, k2, k3, p1, p2| Distortion::BrownConrady { k1, k2, k3, p1, p2 };
+        let square = Intrinsics::new(1210.0, 1210.0, 651.25, 347.75).with_size(1280, 720);
+        let cases = [
+            (
+                square.clone(),
+                brown(-0.16, 0.0, 0.0, 0.0, 0.0),
+                "SIMPLE_RADIAL",
+                4,
+            ),
+            (
+                square.clone(),
+                brown(-0.16, 0.045, 0.0, 0.0, 0.0),
+                "RADIAL",
+                5,
+            ),
+            (
+                square.clone(),
+                brown(-0.16, 0.045, 0.0, 8e-4, -5e-4),
+                "OPENCV",
+                8,
+            ),
+            (
+                shot().intrinsics,
+                brown(-0.16, 0.0, 0.0, 0.0, 0.0),
+                "OPENCV",
+                8,
+            ),
+            (
+                square.clone(),
+                brown(-0.16, 0.045, -0.004, 8e-4, -5e-4),
+                "FULL_OPENCV",
+                12,
+            ),
+        ];
+        for (k, d, model, n) in cases {
+            let mut s = shot();
+            s.intrinsics = k.with_distortion(d);
+            let m = format(&s).unwrap();
+            let line = m.cameras.lines().find(|l| l.starts_with("1 ")).unwrap();
+            assert_eq!(line.split(' ').nth(1), Some(model), "{line}");
+            assert_eq!(line.split(' ').count(), 4 + n, "{line}");
+            let back = parse(
+                (&m.cameras, "cameras.txt"),
+                (&m.images, "images.txt"),
+                (&m.points3d, "points3D.txt"),
+            )
+            .unwrap();
+            assert_eq!(back.intrinsics, s.intrinsics, "{model}");
+            assert_eq!(back.path.intrinsics.as_ref(), Some(&s.intrinsics));
+        }
+        let mut s = shot();
+        s.intrinsics = square.with_distortion(brown(0.0, 0.0, 0.0, 0.0, 0.0));
+        let m = format(&s).unwrap();
+        assert!(m.cameras.contains("\n1 PINHOLE "), "{}", m.cameras);
+        s.intrinsics = s
+            .intrinsics
+            .with_distortion(Distortion::Division { k1: 0.1, k2: 0.0 });
+        let cam = camera_model(&s.intrinsics).unwrap();
+        assert_eq!(cam.model, "FULL_OPENCV");
+        let e = cam.fit_error_px.unwrap();
+        let m = format(&s).unwrap();
+        assert!(m.cameras.contains("refit") && m.cameras.contains(&format!("{e:.3e} px")));
+    }
+
     /// The test shot with tracks (id, first frame index, positions), one slot each.
     fn shot_with_tracks(tracks: &[(u64, usize, &[[f64; 2]])]) -> Shot {
         let mut s = shot();
@@ -616,13 +776,22 @@ mod tests {
             "{e}"
         );
         let e = parse(
-            ("1 OPENCV 10 10 5 5 4 4 0.1 0 0 0", "c.txt"),
+            ("1 FULL_OPENCV 10 10 5 5 4 4 0.1 0 0 0 0 0.2 0 0", "c.txt"),
             ("", "i.txt"),
             ("", "p.txt"),
         )
         .unwrap_err()
         .to_string();
-        assert!(e.contains("c.txt:1:") && e.contains("distortion"), "{e}");
+        assert!(e.contains("c.txt:1:") && e.contains("k4..k6"), "{e}");
+        // A lens that folds over inside its frame.
+        let e = parse(
+            ("# c\n1 SIMPLE_RADIAL 640 480 500 320 240 -0.9", "c.txt"),
+            ("", "i.txt"),
+            ("", "p.txt"),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("c.txt:2:") && e.contains("lens"), "{e}");
         let e = parse(("1 PINHOLE 10 10 5 5 4", "c.txt"), ("", "i"), ("", "p"))
             .unwrap_err()
             .to_string();

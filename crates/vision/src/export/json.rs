@@ -1,7 +1,10 @@
 //! Our JSON export: per frame K, R, t (x ~ K(RX + t), rows first), the camera centre and the
 //! solve error when the tracks and points are known: `rms_px`, the RMS reprojection error over
 //! the observations the solve kept in that frame (its inliers, `observations` of them), and
-//! `outliers`, the observations of the frame's points that it rejected (not in `rms_px`).
+//! `outliers`, the observations of the frame's points that it rejected (not in `rms_px`). A lens
+//! is the top-level `distortion` (our [`Distortion`](crate::lens::Distortion) JSON, absent for a
+//! pinhole): a camera point X then images at K · d(X.xy / X.z), d the distortion on normalized
+//! coordinates.
 
 use serde_json::{json, Value};
 
@@ -10,6 +13,9 @@ use crate::error::Result;
 
 /// The format tag of the document.
 pub const FORMAT: &str = "vfxgraph-camera-export";
+
+/// The document's `convention` for a pinhole.
+const CONVENTION: &str = "x ~ K (R X + t); pixel origin at the centre of the top-left pixel, x right, y down; the camera looks down +z; matrices rows first; center = -R^T t";
 
 /// The export as a JSON value.
 pub fn to_value(shot: &Shot, fps: f64) -> Result<Value> {
@@ -44,16 +50,24 @@ pub fn to_value(shot: &Shot, fps: f64) -> Result<Value> {
             o
         })
         .collect();
-    Ok(json!({
+    let mut doc = json!({
         "format": FORMAT,
         "version": 1,
-        "convention": "x ~ K (R X + t); pixel origin at the centre of the top-left pixel, x right, y down; the camera looks down +z; matrices rows first; center = -R^T t",
+        "convention": CONVENTION,
         "width": shot.intrinsics.width,
         "height": shot.intrinsics.height,
         "fps": fps,
         "points": shot.cloud.as_ref().map_or(0, |c| c.points.len()),
         "frames": frames,
-    }))
+    });
+    if !shot.intrinsics.is_pinhole() {
+        doc["distortion"] = serde_json::to_value(shot.intrinsics.distortion)?;
+        doc["convention"] = json!(format!(
+            "{}; the lens: x = K d(X_c.xy / X_c.z), d the distortion on normalized coordinates",
+            CONVENTION
+        ));
+    }
+    Ok(doc)
 }
 
 /// The export as pretty JSON text.
@@ -160,6 +174,48 @@ mod tests {
             assert_eq!(fj["observations"], n - bad);
             assert_eq!(fj["outliers"], bad);
             assert!(fj["rms_px"].as_f64().unwrap() < 1e-9, "frame {i}: {fj}");
+        }
+    }
+
+    /// A lens travels as the top-level `distortion`: it reads back as the same model, and K, R, t
+    /// with it project the points where our cameras do (the distorted pixels); a pinhole has
+    /// none.
+    #[test]
+    fn distortion_round_trips() {
+        use crate::lens::Distortion;
+        let mut s = shot();
+        assert!(to_value(&s, 24.0).unwrap().get("distortion").is_none());
+        for d in [
+            Distortion::BrownConrady {
+                k1: -0.16,
+                k2: 0.045,
+                k3: -0.004,
+                p1: 8e-4,
+                p2: -5e-4,
+            },
+            Distortion::Division { k1: -0.1, k2: 0.01 },
+        ] {
+            s.intrinsics = s.intrinsics.clone().with_distortion(d);
+            let v: Value = serde_json::from_str(&format(&s, 24.0).unwrap()).unwrap();
+            let back: Distortion = serde_json::from_value(v["distortion"].clone()).unwrap();
+            assert_eq!(back, d);
+            let f0 = &v["frames"][0];
+            let k = crate::Intrinsics::from_k(&Matrix3::from_fn(|r, c| {
+                f0["K"][r][c].as_f64().unwrap()
+            }))
+            .unwrap()
+            .with_distortion(back);
+            let r = Matrix3::from_fn(|i, j| f0["R"][i][j].as_f64().unwrap());
+            let t = Vector3::from_fn(|i, _| f0["t"][i].as_f64().unwrap());
+            let cam = crate::Camera {
+                intrinsics: s.intrinsics.clone(),
+                pose: s.path.frames[0].pose.clone(),
+            };
+            for p in s.points() {
+                let theirs = k.project_camera_point(&(r * p.coords + t)).unwrap();
+                let ours = cam.project(&p).unwrap();
+                assert!((theirs - ours).norm() < 1e-9, "{theirs} vs {ours}");
+            }
         }
     }
 

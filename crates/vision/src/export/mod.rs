@@ -5,7 +5,7 @@
 //!
 //! | module | target | conventions of the target |
 //! | --- | --- | --- |
-//! | [`colmap`] | COLMAP text model | world→camera Hamilton quaternion (w x y z) + t; pixel origin at the top-left *corner* |
+//! | [`colmap`] | COLMAP text model | world→camera Hamilton quaternion (w x y z) + t; pixel origin at the top-left *corner*; the lens as `SIMPLE_RADIAL`/`RADIAL`/`OPENCV`/`FULL_OPENCV` |
 //! | [`blender`] | a Python script for Blender | Z up; camera looks down −Z, +Y up; lens/sensor in mm; shift in units of the image width |
 //! | [`usd`] | `.usda` stage | Y up (stage metadata); camera looks down −Z; focal/aperture in tenths of a scene unit |
 //! | [`nuke`] | `.chan` + film-back note | Y up; rotations in degrees, order ZXY (M = Ry·Rx·Rz) |
@@ -22,6 +22,7 @@ pub mod blender;
 pub mod colmap;
 pub mod colors;
 pub mod json;
+pub mod lens_fit;
 pub mod nuke;
 pub mod ply;
 pub mod usd;
@@ -54,6 +55,9 @@ pub struct Shot {
     pub colors: Option<Vec<[u8; 3]>>,
     /// The plate's file names as a frame pattern (`%04d` or `####`), relative to the export.
     pub image_pattern: Option<String>,
+    /// An ST-map of the lens (written elsewhere, e.g. by `write_st_map`), relative to the
+    /// export: referenced by the USD and Nuke exports.
+    pub st_map: Option<String>,
 }
 
 /// Which world axis of the solve points up.
@@ -197,6 +201,7 @@ impl Shot {
             tracks: None,
             colors: None,
             image_pattern: None,
+            st_map: None,
         }
     }
 
@@ -538,6 +543,7 @@ pub(crate) mod test_shot {
                     .collect(),
             ),
             image_pattern: Some("plate/frame.%04d.png".into()),
+            st_map: None,
         }
     }
 }

@@ -6,6 +6,14 @@
 //! up. Rotation order ZXY means the camera is turned about Z first, then X, then Y:
 //! M = Ry · Rx · Rz (column vectors). Angles are unwrapped from frame to frame so curves do not
 //! jump by 360°.
+//!
+//! A lens is described in the note's `Lens` section ([`lens_note`]): the model, its
+//! coefficients and the formula on normalized coordinates (principal point and focal length in
+//! pixels, y down), with how they map onto Nuke's LensDistortion and the ST-map to use with an
+//! `STMap` node when one is given. The .chan's camera is the pinhole (undistorted) one. No Nuke
+//! is available to check the note (unlike the COLMAP, Blender and USD exports, which are run in
+//! their programs): the ST-map, whose convention is Nuke's own (STMap: red/green = the source
+//! position normalized to 0–1, origin bottom-left), is the exact route.
 
 use std::fmt::Write as _;
 
@@ -13,6 +21,7 @@ use nalgebra::Matrix3;
 
 use super::{SceneOptions, Shot, TargetUp, FILM_BACK_MM, N};
 use crate::error::Result;
+use crate::lens::Distortion;
 
 /// The angles (x, y, z) in radians of a rotation M = Ry(y) · Rx(x) · Rz(z).
 pub fn euler_zxy(m: &Matrix3<f64>) -> [f64; 3] {
@@ -94,7 +103,9 @@ pub fn filmback_note(shot: &Shot, o: &SceneOptions) -> Result<String> {
          principal point (px)  {cx}, {cy}   (origin at the top-left corner, y down)\n\
          win_translate         {wu}, {wv}   (principal point offset in half-apertures; 0, 0 when centred)\n\
          \n\
-         World: Y up; 1 solve unit = {scale} scene units; frame = {start} + solve frame; {fps} fps.\n",
+         World: Y up; 1 solve unit = {scale} scene units; frame = {start} + solve frame; {fps} fps.\n\
+         {lens}",
+        lens = lens_note(shot)?,
         pa = k.f2 / k.f1,
         wu = 2.0 * (cx - wf / 2.0) / wf,
         wv = -2.0 * (cy - hf / 2.0) / hf + 0.0,
@@ -102,6 +113,73 @@ pub fn filmback_note(shot: &Shot, o: &SceneOptions) -> Result<String> {
         start = o.start_frame,
         fps = o.fps,
     ))
+}
+
+/// The note's lens section: empty for a pinhole without an ST-map (module docs).
+pub fn lens_note(shot: &Shot) -> Result<String> {
+    let k = &shot.intrinsics;
+    let mut s = String::new();
+    if !k.is_pinhole() {
+        let (cx, cy) = (k.u0 + 0.5, k.v0 + 0.5);
+        let _ = write!(
+            s,
+            "\nLens ({model}): the plate is distorted; the .chan camera renders the undistorted image.\n\
+             focal (px)            {f1}, {f2}\n\
+             centre (px)           {cx}, {cy}   (origin at the top-left corner, y down)\n\
+             normalized point      x = (u - cx) / f1, y = (v - cy) / f2 (u, v: pixel, corner origin)\n",
+            model = k.distortion.name(),
+            f1 = N(k.f1),
+            f2 = N(k.f2),
+            cx = N(cx),
+            cy = N(cy),
+        );
+        match k.distortion {
+            Distortion::BrownConrady { k1, k2, k3, p1, p2 } => {
+                let _ = write!(
+                    s,
+                    "coefficients          k1 {} k2 {} k3 {} p1 {} p2 {}\n\
+                     model (undistorted p = (x, y) -> distorted q, OpenCV's):\n  \
+                     r2 = x^2 + y^2, rho = 1 + k1 r2 + k2 r2^2 + k3 r2^3\n  \
+                     q = rho p + (2 p1 x y + p2 (r2 + 2 x^2), p1 (r2 + 2 y^2) + 2 p2 x y)\n\
+                     Nuke LensDistortion: a radial-tangential (Brown-Conrady) model with these \
+                     coefficients, normalized by the focal length in pixels and centred on the \
+                     principal point, applied undistorted -> distorted. Nuke's presets normalize \
+                     differently and measure y up (flip the sign of p1 for y up); check the \
+                     mapping on a grid before use, or use the ST-map below.\n",
+                    N(k1),
+                    N(k2),
+                    N(k3),
+                    N(p1),
+                    N(p2)
+                );
+            }
+            Distortion::Division { k1, k2 } => {
+                let _ = write!(
+                    s,
+                    "coefficients          k1 {} k2 {}\n\
+                     model (Fitzgibbon's division, distorted q -> undistorted p):\n  \
+                     p = q / (1 + k1 |q|^2 + k2 |q|^4)\n\
+                     Nuke LensDistortion: the same rational radial form as its distorted -> \
+                     undistorted division model (denominator coefficients k1, k2, numerator 0) \
+                     once normalized by the focal length in pixels about the principal point; \
+                     Nuke's presets normalize differently: check on a grid, or use the ST-map.\n",
+                    N(k1),
+                    N(k2)
+                );
+            }
+            Distortion::None => {}
+        }
+    }
+    if let Some(st) = &shot.st_map {
+        let _ = write!(
+            s,
+            "\nST-map                {st}\n\
+             Use: Read the ST-map, then STMap (its stmap input the Read, uv = rgb) on the \
+             undistorted render to put it through the lens (red/green hold the source position \
+             normalized to 0-1, origin bottom-left: Nuke's STMap convention).\n"
+        );
+    }
+    Ok(s)
 }
 
 #[cfg(test)]
@@ -133,6 +211,47 @@ mod tests {
         assert!(filmback_note(&s, &o)
             .unwrap()
             .contains("haperture (mm)        36"));
+    }
+
+    /// The note carries the lens's model and coefficients (they read back as the same f64s)
+    /// and the ST-map reference; a pinhole has no lens section.
+    #[test]
+    fn note_carries_the_lens_and_the_st_map() {
+        let mut s = shot();
+        let o = SceneOptions::default();
+        assert!(!filmback_note(&s, &o).unwrap().contains("Lens"));
+        s.intrinsics = s
+            .intrinsics
+            .clone()
+            .with_distortion(Distortion::BrownConrady {
+                k1: -0.16,
+                k2: 0.045,
+                k3: 0.0,
+                p1: 8e-4,
+                p2: -5e-4,
+            });
+        s.st_map = Some("lens/st_distort.exr".into());
+        let note = filmback_note(&s, &o).unwrap();
+        let line = note
+            .lines()
+            .find(|l| l.starts_with("coefficients"))
+            .unwrap();
+        let v: Vec<f64> = line
+            .split_whitespace()
+            .skip(1)
+            .collect::<Vec<_>>()
+            .chunks(2)
+            .map(|c| c[1].parse().unwrap())
+            .collect();
+        assert_eq!(v, s.intrinsics.distortion.params());
+        assert!(
+            note.contains("ST-map                lens/st_distort.exr"),
+            "{note}"
+        );
+        assert!(
+            note.contains("centre (px)           651.75, 348.25"),
+            "{note}"
+        );
     }
 
     #[test]

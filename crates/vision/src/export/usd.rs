@@ -9,11 +9,30 @@
 //! horizontalApertureOffset = (W/2 − cx) · hAperture / W, verticalApertureOffset =
 //! (cy − H/2) · vAperture / H. Matrices are written in USD's row-vector layout (translation in
 //! the last row). The camera looks down −Z with +Y up.
+//!
+//! USD's camera is an ideal pinhole; a lens is written as custom attributes on the camera prim
+//! (USD has no distortion schema), in the namespace `vfxgraph:lens:`:
+//!
+//! | attribute | type | meaning |
+//! | --- | --- | --- |
+//! | `vfxgraph:lens:model` | `string` | `brown_conrady` or `division` (absent: a pinhole) |
+//! | `vfxgraph:lens:k1`, `k2`, `k3`, `p1`, `p2` | `double` | Brown–Conrady (OpenCV's coefficients) |
+//! | `vfxgraph:lens:k1`, `k2` | `double` | division: p = q / (1 + k1 \|q\|² + k2 \|q\|⁴) |
+//! | `vfxgraph:lens:focalPixels` | `double2` | (f1, f2), px |
+//! | `vfxgraph:lens:principalPointPixels` | `double2` | (cx, cy), px, origin at the top-left *corner*, y down |
+//! | `vfxgraph:lens:imageSize` | `int2` | the plate's (W, H) |
+//! | `vfxgraph:lens:stMap` | `asset` | optional: an ST-map of the lens, relative to the stage |
+//!
+//! The plate's pixel of a camera-space point X (looking down −Z, so the normalized undistorted
+//! point is p = (X.x / −X.z, −X.y / −X.z) with y down) is (cx, cy) + (f1, f2) ⊙ d(p), d the model
+//! on normalized coordinates ([`crate::lens`]); the frustum above renders the undistorted
+//! image, the same K without d.
 
 use std::fmt::Write as _;
 
 use super::{SceneOptions, Shot, TargetUp, FILM_BACK_MM, N};
 use crate::error::Result;
+use crate::lens::Distortion;
 
 /// The lens parameters of the USD camera (tenths of a scene unit).
 #[derive(Clone, Debug, PartialEq)]
@@ -83,7 +102,7 @@ def Xform "World"
         token projection = "perspective"
         float verticalAperture = {}
         float verticalApertureOffset = {}
-        matrix4d xformOp:transform.timeSamples = {{
+{}        matrix4d xformOp:transform.timeSamples = {{
 "#,
         near * o.scale,
         far * o.scale,
@@ -92,6 +111,7 @@ def Xform "World"
         l.horizontal_aperture_offset,
         l.vertical_aperture,
         l.vertical_aperture_offset,
+        lens_attributes(shot)?,
         fps = o.fps,
     );
     for f in &shot.path.frames {
@@ -155,6 +175,48 @@ def Xform "World"
         s.push_str("    }\n");
     }
     s.push_str("}\n");
+    Ok(s)
+}
+
+/// The `vfxgraph:lens:*` attributes of the camera prim (module docs); empty for a pinhole
+/// without an ST-map.
+pub fn lens_attributes(shot: &Shot) -> Result<String> {
+    let k = &shot.intrinsics;
+    let (w, h) = shot.size()?;
+    let mut s = String::new();
+    if !k.is_pinhole() {
+        let names: &[&str] = match k.distortion {
+            Distortion::BrownConrady { .. } => &["k1", "k2", "k3", "p1", "p2"],
+            Distortion::Division { .. } => &["k1", "k2"],
+            Distortion::None => &[],
+        };
+        let _ = writeln!(
+            s,
+            "        custom string vfxgraph:lens:model = \"{}\"",
+            k.distortion.name()
+        );
+        for (n, v) in names.iter().zip(k.distortion.params()) {
+            let _ = writeln!(s, "        custom double vfxgraph:lens:{n} = {}", N(v));
+        }
+        let _ = writeln!(
+            s,
+            "        custom double2 vfxgraph:lens:focalPixels = ({}, {})\n        \
+             custom double2 vfxgraph:lens:principalPointPixels = ({}, {})\n        \
+             custom int2 vfxgraph:lens:imageSize = ({w}, {h})",
+            N(k.f1),
+            N(k.f2),
+            N(k.u0 + 0.5),
+            N(k.v0 + 0.5)
+        );
+    }
+    if let Some(st) = &shot.st_map {
+        if st.contains('@') {
+            return Err(crate::error::VisionError::InvalidInput(format!(
+                "an ST-map path cannot hold `@` in USD: {st}"
+            )));
+        }
+        let _ = writeln!(s, "        custom asset vfxgraph:lens:stMap = @{st}@");
+    }
     Ok(s)
 }
 
