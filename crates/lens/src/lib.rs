@@ -10,10 +10,12 @@
 //!   q = ρ p + (2 p1 x y + p2 (r² + 2x²), p1 (r² + 2y²) + 2 p2 x y). Forward in closed form;
 //!   inverse by Newton's method on the 2×2 system.
 //! - [`Distortion::Division`]: Fitzgibbon's division model (CVPR 2001, "Simultaneous linear
-//!   estimation of multiple view geometry and lens distortion"), as Blender's DIVISION: the
+//!   estimation of multiple view geometry and lens distortion"): the
 //!   *undistorted* point from the distorted one, p = q / (1 + k1 |q|² + k2 |q|⁴) — closed form in
 //!   that direction, which is why wide-angle solvers like it; forward by Newton's method on the
-//!   radius (the model is radial, so q = p · |q|/|p|).
+//!   radius (the model is radial, so q = p · |q|/|p|). Blender's tracking camera calls a
+//!   different model DIVISION (measured in bpy 5.0.1: a polynomial of the undistorted radius),
+//!   so the Blender export writes a division lens as its polynomial refit (`export::lens_fit`).
 //!
 //! Jacobians (of q with respect to p and to the parameters) are analytic — for the division
 //! model through the implicit function theorem — and tested against finite differences. A model
