@@ -102,8 +102,7 @@ fn a_material_change_reruns_the_renders_and_new_texture_frames_the_texture_never
     let tmp = tempfile::tempdir().unwrap();
     let g = common::scratch_graphs(tmp.path());
     let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
-    if vfxgraph_testdata::graph_with_data(&repo.join("graphs/dev_plate_shot.yaml"), &g).is_none()
-    {
+    if vfxgraph_testdata::graph_with_data(&repo.join("graphs/dev_plate_shot.yaml"), &g).is_none() {
         return;
     }
     let Some(dome) = vfxgraph_testdata::path("polyhaven_hdri_1k/empty_warehouse_01_1k.hdr") else {

@@ -220,7 +220,13 @@ fn run_proxy_from_points(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 fn run_add_objects(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let local = ctx.input::<SceneArt>("scene")?;
     let cg = ctx.input::<SceneArt>("objects")?;
-    let insert: Vec<_> = cg.scene.objects.iter().filter(|o| !o.catcher).cloned().collect();
+    let insert: Vec<_> = cg
+        .scene
+        .objects
+        .iter()
+        .filter(|o| !o.catcher)
+        .cloned()
+        .collect();
     if insert.is_empty() {
         return Err(NodeError::msg(format!(
             "the `objects` scene has no synthetic objects (its {} objects are all shadow \

@@ -129,7 +129,11 @@ pub fn box_faces(p: &[Vec3]) -> Result<Vec<Vec<[Vec3; 3]>>, ProxyError> {
 /// A box standing on a plane (through `origin`, normal `normal`: the ground catcher's) from 3
 /// corners of its top: `a`, `b`, `c` with b adjacent to both (the top is the parallelogram a, b,
 /// c, a + c − b); its base is the top projected onto the plane. The faces of [`box_faces`].
-pub fn box_on_plane(top: &[Vec3], origin: Vec3, normal: Vec3) -> Result<Vec<Vec<[Vec3; 3]>>, ProxyError> {
+pub fn box_on_plane(
+    top: &[Vec3],
+    origin: Vec3,
+    normal: Vec3,
+) -> Result<Vec<Vec<[Vec3; 3]>>, ProxyError> {
     let kind = "box";
     if top.len() < 3 {
         return Err(ProxyError::TooFewPoints {
@@ -209,7 +213,10 @@ mod tests {
         let faces = box_on_plane(&top, v(0.0, 0.0, 0.0), v(0.0, 0.0, 1.0)).unwrap();
         for side in &faces[1..] {
             let z: Vec<f64> = side.iter().flatten().map(|p| p.z).collect();
-            assert!(z.iter().all(|z| z.abs() < 1e-12 || (z - 0.5).abs() < 1e-12), "{z:?}");
+            assert!(
+                z.iter().all(|z| z.abs() < 1e-12 || (z - 0.5).abs() < 1e-12),
+                "{z:?}"
+            );
             assert!(z.iter().any(|z| z.abs() < 1e-12), "{z:?}");
         }
         let e = box_on_plane(&top[..2], v(0.0, 0.0, 0.0), v(0.0, 0.0, 1.0)).unwrap_err();
