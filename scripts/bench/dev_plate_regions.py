@@ -13,7 +13,8 @@ Regions, from the exact cameras (cameras_gt.json) and scene.json: `diffuse` and 
 whose ray passes within 0.85 r of the sphere's centre (the silhouette less its anti-aliased rim);
 `shadow` = ground pixels (no sphere hit) whose ground point lies within 2.5 r of the sphere's
 contact point; `mirror_floor`/`mirror_up` = mirror pixels whose reflected ray goes down (the floor's
-reflection) / up (dome and boxes); `far` = ground pixels 0.8–2 m from both spheres and off the boxes' footprints.
+reflection) / up (dome and boxes); `mirror_box` = mirror pixels whose reflected ray meets one of the
+set's boxes (exact, from scene.json's corners), `mirror_ground` = `mirror_floor` less those; `far` = ground pixels 0.8–2 m from both spheres and off the boxes' footprints.
 Figures per region on 4×4-pixel block means (blocks wholly inside the region; a pixel's σ at 32
 spp is ~80 % of its mean, too much to see a bias), relative to the truth's mean there (channel
 mean): `bias` = mean(comp − truth), `rms` = RMS over blocks of (comp − truth), `truth_noise` =
@@ -83,6 +84,21 @@ def masks(cam, K, w, h, scene, lens=None):
             refl = d - 2 * np.sum(d * n, 1, keepdims=True) * n
             out['mirror_floor'] = out[key] & (refl[:, 2] < -0.05)
             out['mirror_up'] = out[key] & (refl[:, 2] > 0.05)
+            # the mirror's pixels whose reflected ray meets a box (scene.json's, exact)
+            hb = np.zeros(len(d), bool)
+            p = C + th[:, None] * d
+            for b in scene['boxes']:
+                cs = np.array(b['corners']); e1 = cs[1] - cs[0]; e2 = cs[3] - cs[0]
+                l1, l2 = np.linalg.norm(e1), np.linalg.norm(e2); u1, u2 = e1 / l1, e2 / l2
+                po = p - cs[0]
+                lo = np.stack([po @ u1, po @ u2, po[:, 2]], -1)
+                ld = np.stack([refl @ u1, refl @ u2, refl[:, 2]], -1)
+                with np.errstate(divide='ignore', invalid='ignore'):
+                    t1 = -lo / ld; t2 = (np.array([l1, l2, cs[4, 2]]) - lo) / ld
+                tn = np.nanmax(np.minimum(t1, t2), 1); tf = np.nanmin(np.maximum(t1, t2), 1)
+                hb |= (tf >= np.maximum(tn, 0))
+            out['mirror_box'] = out[key] & hb
+            out['mirror_ground'] = out['mirror_floor'] & ~hb
         hit_any |= (closest < 1.05 * r) & (t > 0)
     tg = -C[2] / d[:, 2]
     g = C + tg[:, None] * d
@@ -153,7 +169,8 @@ def main():
         k = sig_far / np.sqrt(np.mean(res[far] ** 2))
         cb, _ = blocks(comp, m['far'])
         row = {'frame': f, 'far_sigma_scale': k}
-        for key in ('diffuse', 'mirror', 'mirror_floor', 'mirror_up', 'diffuse_shadow', 'mirror_shadow', 'far'):
+        for key in ('diffuse', 'mirror', 'mirror_floor', 'mirror_ground', 'mirror_box', 'mirror_up',
+                    'diffuse_shadow', 'mirror_shadow', 'far'):
             _, sel = blocks(truth, m[key])
             n = int(sel.sum())
             if n < 10:

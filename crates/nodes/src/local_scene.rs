@@ -1,15 +1,17 @@
 //! The local scene from the plate (issue 17; Debevec 1998 §4, book §10.10.1): `catcher_texture`
 //! estimates a shadow catcher's diffuse albedo per texel from clean plate frames (the algorithm:
 //! [`vfxgraph_render::catcher_texture`]); `proxy_from_points` adds boxes and plane patches of
-//! the real set, built from measured points, as catchers ([`vfxgraph_render::proxy`]).
+//! the real set, built from measured points, as catchers ([`vfxgraph_render::proxy`]);
+//! `add_objects` puts the designed CG objects into that local scene last, so the local scene's
+//! nodes never see them and a change of an object reruns only what renders it.
 
 use vfxgraph_engine::{ArtifactType, Context, NodeError, NodeSpec, PortSpec, Registry};
 use vfxgraph_imaging::Image;
 use vfxgraph_params::Options;
 use vfxgraph_render::catcher_texture::{catcher_texture, TextureError, TextureOptions, View};
 
-use vfxgraph_render::proxy::{box_faces, catchers, plane_patch};
-use vfxgraph_render::{Rgb, Vec3};
+use vfxgraph_render::proxy::{box_faces, box_on_plane, catchers, plane_patch};
+use vfxgraph_render::{Rgb, Shape, Vec3};
 
 use crate::artifacts::{ImageArt, Points3dArt, ReportArt};
 use crate::hdr::DomeArt;
@@ -86,6 +88,8 @@ impl Default for CatcherTextureParams {
 pub(crate) struct ProxyParams {
     /// boxes, 4 indices into `points3d` each: three base corners a, b, c (b adjacent to a and c) and the corner above a
     boxes: Vec<f64>,
+    /// boxes standing on the first catcher's plane (the ground), 3 indices into `points3d` each: top corners a, b, c (b adjacent to a and c) — for a box whose base corners are hidden
+    tops: Vec<f64>,
     /// plane patches, 4 indices into `points3d` each: the corners in order around the patch
     planes: Vec<f64>,
     /// the proxies' starting diffuse colour (catcher_texture then estimates it from the plate)
@@ -96,26 +100,32 @@ impl Default for ProxyParams {
     fn default() -> Self {
         ProxyParams {
             boxes: Vec::new(),
+            tops: Vec::new(),
             planes: Vec::new(),
             albedo: vec![0.18, 0.18, 0.18],
         }
     }
 }
 
-/// The measured points named by `indices` (groups of 4).
-fn groups(pts: &[Vec3], indices: &[f64], what: &str) -> Result<Vec<Vec<Vec3>>, NodeError> {
+/// The measured points named by `indices` (groups of `size`).
+fn groups(
+    pts: &[Vec3],
+    indices: &[f64],
+    what: &str,
+    size: usize,
+) -> Result<Vec<Vec<Vec3>>, NodeError> {
     indices
-        .chunks(4)
+        .chunks(size)
         .enumerate()
         .map(|(g, c)| {
-            let one = if what == "boxes" {
-                "box"
-            } else {
+            let one = if what == "planes" {
                 "plane patch"
+            } else {
+                "box"
             };
-            if c.len() < 4 {
+            if c.len() < size {
                 return Err(NodeError::msg(format!(
-                    "param `{what}`: {} {g} has {} point indices, a {} needs 4",
+                    "param `{what}`: {} {g} has {} point indices, a {} needs {size}",
                     one,
                     c.len(),
                     one
@@ -138,6 +148,23 @@ fn groups(pts: &[Vec3], indices: &[f64], what: &str) -> Result<Vec<Vec<Vec3>>, N
         .collect()
 }
 
+/// A point on the scene's first catcher (the ground) and its normal, from its first triangle.
+fn ground_plane(scene: &vfxgraph_render::Scene) -> Result<(Vec3, Vec3), NodeError> {
+    let tri = scene
+        .catchers()
+        .find_map(|o| match &o.shape {
+            Shape::Triangles { triangles } => triangles.first().copied(),
+            _ => None,
+        })
+        .ok_or_else(|| {
+            NodeError::msg(
+                "param `tops`: a box by its top stands on the first catcher's plane, but the \
+                 scene has no triangle catcher",
+            )
+        })?;
+    Ok((tri[0], (tri[1] - tri[0]).cross(tri[2] - tri[0])))
+}
+
 fn run_proxy_from_points(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let p: ProxyParams = ctx.options()?;
     let art = ctx.input::<SceneArt>("scene")?;
@@ -148,9 +175,9 @@ fn run_proxy_from_points(ctx: &mut Context<'_>) -> Result<(), NodeError> {
         .iter()
         .map(|p| Vec3::new(p.x, p.y, p.z))
         .collect();
-    if p.boxes.is_empty() && p.planes.is_empty() {
+    if p.boxes.is_empty() && p.tops.is_empty() && p.planes.is_empty() {
         return Err(NodeError::msg(
-            "no proxies: give `boxes` and/or `planes` (4 point indices each)",
+            "no proxies: give `boxes`, `planes` (4 point indices each) and/or `tops` (3)",
         ));
     }
     if p.albedo.len() != 3 || p.albedo.iter().any(|a| !(0.0..=1.0).contains(a)) {
@@ -159,18 +186,28 @@ fn run_proxy_from_points(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let albedo = Rgb::new(p.albedo[0], p.albedo[1], p.albedo[2]);
     let mut scene = art.scene.clone();
     let mut faces = 0;
-    for (g, q) in groups(&pts, &p.boxes, "boxes")?.iter().enumerate() {
+    for (g, q) in groups(&pts, &p.boxes, "boxes", 4)?.iter().enumerate() {
         let f = box_faces(q).map_err(|e| NodeError::msg(format!("box {g}: {e}")))?;
         faces += f.len();
         scene.objects.extend(catchers(f, albedo));
     }
-    for (g, q) in groups(&pts, &p.planes, "planes")?.iter().enumerate() {
+    let tops = groups(&pts, &p.tops, "tops", 3)?;
+    if !tops.is_empty() {
+        let (origin, normal) = ground_plane(&art.scene)?;
+        for (g, q) in tops.iter().enumerate() {
+            let f = box_on_plane(q, origin, normal)
+                .map_err(|e| NodeError::msg(format!("tops box {g}: {e}")))?;
+            faces += f.len();
+            scene.objects.extend(catchers(f, albedo));
+        }
+    }
+    for (g, q) in groups(&pts, &p.planes, "planes", 4)?.iter().enumerate() {
         let f = plane_patch(q).map_err(|e| NodeError::msg(format!("plane {g}: {e}")))?;
         faces += 1;
         scene.objects.extend(catchers(vec![f], albedo));
     }
     let report = serde_json::json!({
-        "boxes": p.boxes.len() / 4,
+        "boxes": p.boxes.len() / 4 + p.tops.len() / 3,
         "planes": p.planes.len() / 4,
         "catcher_faces": faces,
     });
@@ -180,8 +217,55 @@ fn run_proxy_from_points(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     Ok(())
 }
 
+fn run_add_objects(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+    let local = ctx.input::<SceneArt>("scene")?;
+    let cg = ctx.input::<SceneArt>("objects")?;
+    let insert: Vec<_> = cg
+        .scene
+        .objects
+        .iter()
+        .filter(|o| !o.catcher)
+        .cloned()
+        .collect();
+    if insert.is_empty() {
+        return Err(NodeError::msg(format!(
+            "the `objects` scene has no synthetic objects (its {} objects are all shadow \
+             catchers)",
+            cg.scene.objects.len()
+        )));
+    }
+    let mut scene = local.scene.clone();
+    scene.objects.extend(insert);
+    scene.lights.extend(cg.scene.lights.iter().cloned());
+    let dome = local.dome.clone();
+    ctx.output("scene", SceneArt { scene, dome });
+    Ok(())
+}
+
 /// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
+    r.register_node(FnNode::new(
+        NodeSpec::new(
+            "add_objects",
+            "The designed CG objects put into the local scene: `scene`'s camera, dome, lights \
+             and catchers (the fitted, textured, proxied local scene) with every non-catcher \
+             object and light of `objects` (the placed insert) added. Build the local scene \
+             from the set alone and add the objects last: a change of an object's material \
+             then reruns only this node and the renders, never the catcher fit or texture.",
+        )
+        .input(PortSpec::one("scene", SceneArt::NAME, "the local scene"))
+        .input(PortSpec::one(
+            "objects",
+            SceneArt::NAME,
+            "the placed insert (its catchers, camera and dome are not used)",
+        ))
+        .output(PortSpec::one(
+            "scene",
+            SceneArt::NAME,
+            "the local scene with the objects",
+        )),
+        run_add_objects,
+    ));
     r.register_node(FnNode::new(
         NodeSpec::new(
             "proxy_from_points",

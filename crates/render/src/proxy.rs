@@ -1,7 +1,8 @@
 //! Proxy geometry of the real set from measured points (issue 17; Debevec 1998 §4's local scene
 //! "approximated by simple geometry"; book ch. 8's point-cloud calibration measures the points):
 //! a plane patch from its 4 corners, a box from 3 corners of its base and the corner above the
-//! first. Each face is a separate planar shadow catcher, so [`crate::catcher_texture`] can
+//! first, or from 3 corners of its top standing on a known plane (the ground catcher's: for a box
+//! whose base corners are hidden behind it or out of frame). Each face is a separate planar shadow catcher, so [`crate::catcher_texture`] can
 //! texture it from the plate; as catchers they receive the objects' shadows, are seen in the
 //! objects' reflections and occlude the dome for the objects' lighting.
 
@@ -125,6 +126,34 @@ pub fn box_faces(p: &[Vec3]) -> Result<Vec<Vec<[Vec3; 3]>>, ProxyError> {
     ])
 }
 
+/// A box standing on a plane (through `origin`, normal `normal`: the ground catcher's) from 3
+/// corners of its top: `a`, `b`, `c` with b adjacent to both (the top is the parallelogram a, b,
+/// c, a + c − b); its base is the top projected onto the plane. The faces of [`box_faces`].
+pub fn box_on_plane(
+    top: &[Vec3],
+    origin: Vec3,
+    normal: Vec3,
+) -> Result<Vec<Vec<[Vec3; 3]>>, ProxyError> {
+    let kind = "box";
+    if top.len() < 3 {
+        return Err(ProxyError::TooFewPoints {
+            kind,
+            need: 3,
+            found: top.len(),
+        });
+    }
+    finite(kind, &top[..3])?;
+    if !(normal.length() > 0.0 && normal.is_finite()) {
+        return Err(ProxyError::Degenerate {
+            kind,
+            why: "the ground plane has no normal".into(),
+        });
+    }
+    let n = normal.normalized();
+    let down = |p: Vec3| p - n * (p - origin).dot(n);
+    box_faces(&[down(top[0]), down(top[1]), down(top[2]), top[0]])
+}
+
 /// Each face as a Lambertian shadow catcher of colour `albedo`.
 pub fn catchers(faces: Vec<Vec<[Vec3; 3]>>, albedo: Rgb) -> Vec<Object> {
     faces
@@ -163,6 +192,37 @@ mod tests {
             .sum();
         assert!((area - 5.0).abs() < 1e-12, "{area}");
         assert!(faces[0].iter().flatten().all(|p| (p.z - 0.5).abs() < 1e-12));
+    }
+
+    #[test]
+    fn a_box_from_its_top_stands_on_the_plane() {
+        let v = Vec3::new;
+        let top = [v(0.0, 0.0, 0.5), v(2.0, 0.0, 0.5), v(2.0, 1.0, 0.5)];
+        let a = box_on_plane(&top, v(0.0, 0.0, 0.0), v(0.0, 0.0, -3.0)).unwrap();
+        let b = box_faces(&[
+            v(0.0, 0.0, 0.0),
+            v(2.0, 0.0, 0.0),
+            v(2.0, 1.0, 0.0),
+            v(0.0, 0.0, 0.5),
+        ])
+        .unwrap();
+        assert_eq!(a, b);
+        // A tilted top (measurement noise): the base is its projection onto the plane, the top
+        // flat at the first corner's height.
+        let top = [v(0.0, 0.0, 0.5), v(2.0, 0.0, 0.6), v(2.0, 1.0, 0.6)];
+        let faces = box_on_plane(&top, v(0.0, 0.0, 0.0), v(0.0, 0.0, 1.0)).unwrap();
+        for side in &faces[1..] {
+            let z: Vec<f64> = side.iter().flatten().map(|p| p.z).collect();
+            assert!(
+                z.iter().all(|z| z.abs() < 1e-12 || (z - 0.5).abs() < 1e-12),
+                "{z:?}"
+            );
+            assert!(z.iter().any(|z| z.abs() < 1e-12), "{z:?}");
+        }
+        let e = box_on_plane(&top[..2], v(0.0, 0.0, 0.0), v(0.0, 0.0, 1.0)).unwrap_err();
+        assert_eq!(e.to_string(), "a box needs 3 measured points, found 2");
+        let e = box_on_plane(&top, v(0.0, 0.0, 0.5), v(0.0, 0.0, 1.0)).unwrap_err();
+        assert!(e.to_string().contains("zero height"), "{e}");
     }
 
     #[test]
