@@ -209,14 +209,7 @@ pub fn undistort_tracks(tracks: &Tracks, k: &Intrinsics) -> Result<Tracks> {
 /// matchmove, is the critical motion of two-view self-calibration (optical axes meeting, Sturm
 /// 2001): measured on the Blender dev plate it gives 490 px for a 920 px lens.
 pub fn estimate_focal(tracks: &Tracks, k: &Intrinsics, options: &MatchmoveOptions) -> Result<f64> {
-    use rayon::prelude::*;
-    let (Some(w), Some(h)) = (k.width, k.height) else {
-        return Err(VisionError::InvalidInput(
-            "an unknown focal length needs the image size (width and height of the intrinsics)"
-                .into(),
-        ));
-    };
-    let diag = ((w as f64).powi(2) + (h as f64).powi(2)).sqrt();
+    let diag = image_diagonal(k)?;
     let fragments = super::split_fragments(tracks, &options.fragments)?;
     let first = fragments.first().ok_or_else(|| {
         VisionError::Degenerate("no fragment to estimate the focal length".into())
@@ -232,8 +225,7 @@ pub fn estimate_focal(tracks: &Tracks, k: &Intrinsics, options: &MatchmoveOption
             .collect(),
         is_last: false,
     };
-    let cost = |log_f: f64| -> f64 {
-        let f = log_f.exp();
+    let cost = |f: f64| -> f64 {
         let kf = Intrinsics {
             f1: f,
             f2: f * k.f2 / k.f1,
@@ -245,37 +237,56 @@ pub fn estimate_focal(tracks: &Tracks, k: &Intrinsics, options: &MatchmoveOption
             _ => f64::INFINITY,
         }
     };
-    let (lo, hi) = ((0.3 * diag).ln(), (3.0 * diag).ln());
-    let step = (hi - lo) / (GRID - 1) as f64;
-    let grid: Vec<f64> = (0..GRID)
+    let (lo, hi) = (0.3 * diag, 3.0 * diag);
+    log_grid_minimum(lo, hi, GRID, &cost).ok_or_else(|| {
+        VisionError::Degenerate(format!(
+            "the first frames ({}..{}) solve with no focal length from {lo:.0} to {hi:.0} px: \
+             give the intrinsics with focal: refine",
+            tracks.frames[frag.first], tracks.frames[frag.last],
+        ))
+    })
+}
+
+/// The image diagonal of `k`, px; an error naming what is missing without an image size.
+pub(crate) fn image_diagonal(k: &Intrinsics) -> Result<f64> {
+    let (Some(w), Some(h)) = (k.width, k.height) else {
+        return Err(VisionError::InvalidInput(
+            "an unknown focal length needs the image size (width and height of the intrinsics)"
+                .into(),
+        ));
+    };
+    Ok(((w as f64).powi(2) + (h as f64).powi(2)).sqrt())
+}
+
+/// The minimum of `cost` over `n` focal lengths log-spaced from `lo` to `hi` (evaluated in
+/// parallel), refined by the parabola through the best one and its neighbours (in log f);
+/// `None` when no cost is finite.
+pub(crate) fn log_grid_minimum(
+    lo: f64,
+    hi: f64,
+    n: usize,
+    cost: &(dyn Fn(f64) -> f64 + Sync),
+) -> Option<f64> {
+    use rayon::prelude::*;
+    let (lo, hi) = (lo.ln(), hi.ln());
+    let step = (hi - lo) / (n - 1) as f64;
+    let grid: Vec<f64> = (0..n)
         .into_par_iter()
-        .map(|j| cost(lo + step * j as f64))
+        .map(|j| cost((lo + step * j as f64).exp()))
         .collect();
-    let (jbest, &best) = grid
-        .iter()
-        .enumerate()
-        .min_by(|a, b| a.1.total_cmp(b.1))
-        .expect("a non-empty grid");
+    let (jbest, &best) = grid.iter().enumerate().min_by(|a, b| a.1.total_cmp(b.1))?;
     if !best.is_finite() {
-        return Err(VisionError::Degenerate(format!(
-            "the first frames ({}..{}) solve with no focal length from {:.0} to {:.0} px: give \
-             the intrinsics with focal: refine",
-            tracks.frames[frag.first],
-            tracks.frames[frag.last],
-            lo.exp(),
-            hi.exp()
-        )));
+        return None;
     }
-    // The parabola through the best cell and its neighbours (in log f), when both are finite.
     let mut x = lo + step * jbest as f64;
-    if jbest > 0 && jbest + 1 < GRID {
+    if jbest > 0 && jbest + 1 < n {
         let (a, b, c) = (grid[jbest - 1], best, grid[jbest + 1]);
         let den = a - 2.0 * b + c;
         if a.is_finite() && c.is_finite() && den > 0.0 {
             x += (0.5 * step * (a - c) / den).clamp(-step, step);
         }
     }
-    Ok(x.exp())
+    Some(x.exp())
 }
 
 /// Fewest tracks (seen in 3 frames or more) a distortion solve accepts: the lens's radial

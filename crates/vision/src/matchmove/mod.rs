@@ -573,6 +573,7 @@ pub(crate) fn bundle_adjust_indexed(
         keep,
         loss,
         max_iterations,
+        false,
     )
     .map(|r| r.0)
 }
@@ -595,7 +596,7 @@ pub(crate) fn bundle_adjust_lens(
 ) -> Result<(Intrinsics, Option<BlockCovariance>)> {
     let gauge = crate::bundle::Gauge::FixFirstCameraAndScale;
     let block = lens_block(k, held);
-    let (_, b, cov) = adjust_with_block_cov(
+    let (_, b, cov) = adjust_with_block(
         tracks,
         block,
         gauge,
@@ -659,40 +660,15 @@ pub(crate) fn intrinsics_of_block(k: &Intrinsics, b: &crate::bundle::Intrinsics)
     out
 }
 
-/// The bundle adjustment of [`bundle_adjust_indexed`] with one shared intrinsics block and the
-/// given gauge; returns the solver's report and the adjusted block.
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn adjust_with_block(
-    tracks: &Tracks,
-    block: crate::bundle::Intrinsics,
-    gauge: crate::bundle::Gauge,
-    poses: &mut [Option<Pose>],
-    points: &mut [Option<Vector3<f64>>],
-    keep: &(dyn Fn(usize, usize) -> bool + Sync),
-    loss: crate::bundle::Loss,
-    max_iterations: usize,
-) -> Result<(crate::bundle::SolverReport, crate::bundle::Intrinsics)> {
-    adjust_with_block_cov(
-        tracks,
-        block,
-        gauge,
-        poses,
-        points,
-        keep,
-        loss,
-        max_iterations,
-        false,
-    )
-    .map(|(r, b, _)| (r, b))
-}
-
 /// The covariance of a lens block's `[f, k1, k2]` at the solution, with σ̂
 /// ([`crate::bundle::intrinsics_covariance`]), or why it is not available.
 pub(crate) type BlockCovariance = std::result::Result<(nalgebra::Matrix3<f64>, f64), String>;
 
-/// [`adjust_with_block`], with the covariance of the block at the solution when `covariance`.
+/// The bundle adjustment of [`bundle_adjust_indexed`] with one shared intrinsics block and the
+/// given gauge; returns the solver's report, the adjusted block and, when `covariance`, the
+/// block's covariance at the solution.
 #[allow(clippy::too_many_arguments, clippy::type_complexity)]
-pub(crate) fn adjust_with_block_cov(
+pub(crate) fn adjust_with_block(
     tracks: &Tracks,
     block: crate::bundle::Intrinsics,
     gauge: crate::bundle::Gauge,

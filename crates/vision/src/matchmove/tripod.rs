@@ -390,16 +390,8 @@ fn chain(tracks: &Tracks, k: &Intrinsics, seed: u64) -> Result<Chain> {
 /// logarithmic grid of [`FOCAL_GRID`] focal lengths from 0.3 to 3 image diagonals (in
 /// parallel), then the parabola through the best and its neighbours; the adjustment refines it.
 pub fn estimate_rotation_focal(tracks: &Tracks, k: &Intrinsics, seed: u64) -> Result<f64> {
-    use rayon::prelude::*;
-    let (Some(w), Some(h)) = (k.width, k.height) else {
-        return Err(VisionError::InvalidInput(
-            "an unknown focal length needs the image size (width and height of the intrinsics)"
-                .into(),
-        ));
-    };
-    let diag = ((w as f64).powi(2) + (h as f64).powi(2)).sqrt();
-    let cost = |log_f: f64| -> f64 {
-        let f = log_f.exp();
+    let diag = super::lens_solve::image_diagonal(k)?;
+    let cost = |f: f64| -> f64 {
         let kf = Intrinsics {
             f1: f,
             f2: f * k.f2 / k.f1,
@@ -424,34 +416,16 @@ pub fn estimate_rotation_focal(tracks: &Tracks, k: &Intrinsics, seed: u64) -> Re
             s / m as f64
         }
     };
-    let (lo, hi) = ((0.3 * diag).ln(), (3.0 * diag).ln());
-    let step = (hi - lo) / (FOCAL_GRID - 1) as f64;
-    let grid: Vec<f64> = (0..FOCAL_GRID)
-        .into_par_iter()
-        .map(|j| cost(lo + step * j as f64))
-        .collect();
-    let (jbest, &best) = grid
-        .iter()
-        .enumerate()
-        .min_by(|a, b| a.1.total_cmp(b.1))
-        .expect("a non-empty grid");
-    if !best.is_finite() {
+    let Some(f) = super::lens_solve::log_grid_minimum(0.3 * diag, 3.0 * diag, FOCAL_GRID, &cost)
+    else {
         return Err(VisionError::Degenerate(
             "the pan's rotations cannot be chained at any focal length".into(),
         ));
-    }
-    let mut x = lo + step * jbest as f64;
-    if jbest > 0 && jbest + 1 < FOCAL_GRID {
-        let (a, b, c) = (grid[jbest - 1], best, grid[jbest + 1]);
-        let den = a - 2.0 * b + c;
-        if a.is_finite() && c.is_finite() && den > 0.0 {
-            x += (0.5 * step * (a - c) / den).clamp(-step, step);
-        }
-    }
+    };
     // A camera that hardly turns fits every focal length alike.
     let kf = Intrinsics {
-        f1: x.exp(),
-        f2: x.exp() * k.f2 / k.f1,
+        f1: f,
+        f2: f * k.f2 / k.f1,
         ..k.pinhole()
     };
     let c = chain(tracks, &kf, seed)?;
@@ -466,7 +440,7 @@ pub fn estimate_rotation_focal(tracks: &Tracks, k: &Intrinsics, seed: u64) -> Re
              length cannot be measured; give it with focal: known or refine"
         )));
     }
-    Ok(x.exp())
+    Ok(f)
 }
 
 /// The least turn from the first frame that measures a pan's focal length, degrees.
@@ -545,7 +519,7 @@ pub fn solve_rotations(
             let keep = |ti: usize, f: usize| flags[ti][f - tracks.tracks[ti].first];
             let block = super::lens_block(&k, held);
             let last = round + 1 == thresholds.len();
-            let (_, b, c) = super::adjust_with_block_cov(
+            let (_, b, c) = super::adjust_with_block(
                 tracks,
                 block,
                 Gauge::RotationOnly,
