@@ -17,6 +17,9 @@ use super::error::BundleError;
 use super::problem::Problem;
 use super::residual::project_with_jacobians;
 
+/// Per intrinsics block its covariance (`None` when fixed), and σ̂.
+pub type Covariances = (Vec<Option<Matrix3<f64>>>, f64);
+
 /// Largest reduced (camera-side) dimension [`intrinsics_covariance`] inverts densely.
 pub const MAX_DIMENSION: usize = 2400;
 
@@ -24,9 +27,7 @@ pub const MAX_DIMENSION: usize = 2400;
 /// (`None` for a fixed block; rows and columns of held parameters are zero), and σ̂, the RMS
 /// residual per coordinate with the degrees of freedom removed. Errors when the reduced system
 /// is larger than [`MAX_DIMENSION`] or singular (a gauge left free).
-pub fn intrinsics_covariance(
-    problem: &Problem,
-) -> Result<(Vec<Option<Matrix3<f64>>>, f64), BundleError> {
+pub fn intrinsics_covariance(problem: &Problem) -> Result<Covariances, BundleError> {
     problem.validate()?;
     let masks = problem.pose_masks();
     // Index of every free camera-side parameter: per camera its 6 pose components, per
