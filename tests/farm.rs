@@ -339,25 +339,25 @@ fn fused_jobs_and_task_cpus_in_the_scripts_and_the_template() {
         "--task-cpus",
         "2",
     ];
-    let mut a = vec!["submit", "farm_shot.yaml", "--farm", "slurm", "--dry-run"];
-    a.extend(args);
-    let out = vfx(&g, &a);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let text = String::from_utf8_lossy(&out.stdout).into_owned();
-    let script = |name: &str| {
+    // The batch script of job `name` in a Slurm dry run with `extra` arguments.
+    let script = |extra: &[&str], name: &str| {
+        let mut a = vec!["submit", "farm_shot.yaml", "--farm", "slurm", "--dry-run"];
+        a.extend(extra);
+        let out = vfx(&g, &a);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let text = String::from_utf8_lossy(&out.stdout).into_owned();
         format!("\n{text}")
             .split("\n# ")
             .find(|s| s.starts_with(&format!("farm_shot/{name}/")))
             .unwrap_or_else(|| panic!("no job {name}: {text}"))
             .to_string()
     };
-    // The chain's task runs its three nodes with the CPUs it asked for; a node that runs
-    // once and uses every core still gets the whole host.
-    let fused = script("plate+graded+exr");
+    // The chain's task runs its three nodes with the CPUs it asked for.
+    let fused = script(&args, "plate+graded+exr");
     for line in [
         "#SBATCH --cpus-per-task=2\n",
         "#SBATCH --array=0,1,2\n",
@@ -368,12 +368,20 @@ fn fused_jobs_and_task_cpus_in_the_scripts_and_the_template() {
         assert!(fused.contains(line), "{line:?} not in {fused}");
     }
     assert!(!fused.contains("--exclusive"), "{fused}");
-    let path = script("path");
+    // Without --task-cpus it takes the whole host (a member, the render, uses every core),
+    // with as many threads as the host has; a one-core node's task one CPU and thread.
+    let whole = script(&args[..5], "plate+graded+exr");
     assert!(
-        path.contains("#SBATCH --exclusive\n") && path.contains("${SLURM_CPUS_ON_NODE:-1}"),
-        "{path}"
+        whole.contains("#SBATCH --exclusive\n")
+            && whole.contains(" --jobs \"${SLURM_CPUS_ON_NODE:-1}\" "),
+        "{whole}"
     );
-    assert!(script("movie").contains("#SBATCH --cpus-per-task=1\n"));
+    let movie = script(&args, "movie");
+    assert!(
+        movie.contains("#SBATCH --cpus-per-task=1\n")
+            && movie.contains(" --jobs \"${SLURM_CPUS_PER_TASK:-1}\" "),
+        "{movie}"
+    );
     // OpenJD: the same steps; the fused one asks a worker for 2 vCPUs and runs 2 threads.
     let mut a = vec!["submit", "farm_shot.yaml", "--farm", "openjd", "--json"];
     a.extend(args);
