@@ -1,31 +1,74 @@
-//! Fused farm tasks (`submit --fuse`): a chain of per-frame nodes run as one task per chunk.
+//! Fused farm tasks (`submit --fuse`): fewer, larger tasks with the same cache.
 //!
 //! Every farm task pays the farm's scheduling (on Slurm a dependency is released on the
 //! scheduler's next pass, ~0.7 s on the local cluster) and a process start, graph load and
-//! cache read. A render followed by cheap per-frame consumers (a layer write, a composite, a
-//! tonemap, a PNG write) is then mostly overhead: the book shot at `--chunk 10` is 24 chunks ×
-//! 5 nodes = 120 per-frame tasks. Fusing puts a per-frame node into the job of its per-frame
-//! producer when
+//! cache read. The book shot at `--chunk 10` is 11 once tasks in a chain of dependency hops
+//! (readers → solve → relax → ground points → placement) and 24 chunks × 5 per-frame nodes,
+//! a render and four cheap consumers (a layer write, a composite, a tonemap, a PNG write):
+//! 131 tasks, most of them overhead. Fusing makes it 25:
 //!
-//! - every per-frame producer it reads per chunk is in that one job, and
-//! - every other job it waits for, that job already waits for, at least as strongly (so
-//!   fusing adds no wait to the job's tasks, and the job graph stays acyclic);
+//! - **The prologue**: every node that runs once and reads no per-frame node (directly or
+//!   not) — the readers, the solve, everything before the per-frame work — is one task; one
+//!   `exec` runs its independent branches in parallel on the host's cores, and the chain of
+//!   hops becomes one. (Independent once branches no longer spread over hosts; per-frame work
+//!   that reads one of them waits for the whole prologue.)
+//! - **Per-frame chains**: a per-frame node joins the job of its per-frame producer when
+//!   every per-frame producer it reads per chunk is in that one job, and every other job it
+//!   waits for, that job already waits for, at least as strongly (so fusing adds no wait to
+//!   the job's tasks, and the job graph stays acyclic).
 //!
-//! its tasks then run `exec --node A --node B … --frames F` over the chunk: exec computes the
-//! same instances with the same keys as separate tasks would (a member's frame that is
-//! already cached is a cache hit), so the cache is the same as unfused or local. A consumer
-//! of any member waits for the fused task of its chunk (or the whole fused job). A fused
-//! job asks for the most any member needs (every core if one uses them all, the largest
-//! memory hint of those that have one) — like Meshroom's node chunks or a Snakemake group
-//! job.
+//! A fused task runs `exec --node A --node B … [--frames F]`: exec computes the same
+//! instances with the same keys as separate tasks would (a member's frame that is already
+//! cached is a cache hit), so the cache is the same as unfused or local. A consumer of any
+//! member waits for the fused task of its chunk (or the whole fused job). A fused job asks
+//! for the most any member needs (every core if one uses them all, the largest memory hint
+//! of those that have one) — like Meshroom's node chunks or a Snakemake group job.
 
 use vfxgraph_engine::Threads;
 
 use super::{FarmPlan, Job, Wait};
 
-/// `plan` with each fusable per-frame job merged into its producer's job (see the module
-/// doc); jobs stay in topological order.
+/// `plan` with its prologue one job and each fusable per-frame job merged into its
+/// producer's job (see the module doc); jobs stay in topological order.
 pub fn fuse(plan: FarmPlan) -> FarmPlan {
+    chains(prologue(plan))
+}
+
+/// `plan` with every once job that waits only for once jobs of the same kind (none
+/// downstream of a per-frame job) merged into the first of them.
+fn prologue(plan: FarmPlan) -> FarmPlan {
+    let mut first: Option<usize> = None;
+    let mut out: Vec<Job> = Vec::new();
+    // The new job of each old job, and whether it is in the prologue.
+    let mut job_of: Vec<usize> = Vec::with_capacity(plan.jobs.len());
+    let mut in_prologue: Vec<bool> = Vec::with_capacity(plan.jobs.len());
+    for mut job in plan.jobs {
+        let member = !job.per_frame && job.deps.iter().all(|(p, _)| in_prologue[*p]);
+        in_prologue.push(member);
+        match first.filter(|_| member) {
+            Some(h) => {
+                absorb(&mut out[h], job);
+                job_of.push(h);
+            }
+            None => {
+                let mut deps: Vec<(usize, Wait)> = Vec::new();
+                for &(p, w) in &job.deps {
+                    add_dep(&mut deps, job_of[p], w);
+                }
+                job.deps = deps;
+                if member {
+                    first = Some(out.len());
+                }
+                job_of.push(out.len());
+                out.push(job);
+            }
+        }
+    }
+    FarmPlan { jobs: out }
+}
+
+/// `plan` with each fusable per-frame job merged into its producer's job.
+fn chains(plan: FarmPlan) -> FarmPlan {
     let mut out: Vec<Job> = Vec::new();
     // The new job of each old job.
     let mut job_of: Vec<usize> = Vec::with_capacity(plan.jobs.len());
@@ -129,51 +172,54 @@ mod tests {
     }
 
     #[test]
-    fn a_render_and_its_per_frame_consumers_become_one_job() {
+    fn the_prologue_and_a_render_with_its_per_frame_consumers_become_one_job_each() {
         use Wait::*;
         let once = &[(0, &[][..])][..];
         let two = &[(0, &[1, 2][..]), (1, &[3][..])][..];
-        let mut render = job("render", true, two, &[(0, Whole), (1, Whole)]);
+        let mut solve = job("solve", false, once, &[(0, Whole)]);
+        solve.threads = Threads::All;
+        let mut render = job("render", true, two, &[(2, Whole), (1, Whole)]);
         render.threads = Threads::All;
         render.memory_mib = Some(300);
         let mut grade = job(
             "grade",
             true,
             &[(0, &[2][..]), (1, &[3, 4][..])],
-            &[(2, PerChunk)],
+            &[(3, PerChunk)],
         );
         grade.memory_mib = Some(100);
         let plan = FarmPlan {
             jobs: vec![
-                job("cameras", false, once, &[]),
+                job("tracks", false, once, &[]),
                 job("scene", false, once, &[]),
+                solve,
                 render,
                 grade,
-                // Reads the render per chunk and the cameras, which the render waits for.
-                job("write", true, two, &[(3, PerChunk), (0, Whole)]),
+                // Reads the grade per chunk and the solve, which the render waits for.
+                job("write", true, two, &[(4, PerChunk), (2, Whole)]),
                 // Whole-sequence consumers stay jobs of their own.
-                job("movie", false, once, &[(3, Whole)]),
-                job("frames_json", true, two, &[(4, Whole)]),
+                job("movie", false, once, &[(4, Whole)]),
+                job("frames_json", true, two, &[(5, Whole)]),
             ],
         };
         let f = fuse(plan);
         assert_eq!(
             names(&f),
             vec![
-                ("cameras", vec![]),
-                ("scene", vec![]),
-                ("render+grade+write", vec![(0, Whole), (1, Whole)]),
-                ("movie", vec![(2, Whole)]),
-                ("frames_json", vec![(2, Whole)]),
+                ("tracks+scene+solve", vec![]),
+                ("render+grade+write", vec![(0, Whole)]),
+                ("movie", vec![(1, Whole)]),
+                ("frames_json", vec![(1, Whole)]),
             ]
         );
-        let r = &f.jobs[2];
+        assert_eq!(f.jobs[0].threads, Threads::All, "the solve uses every core");
+        let r = &f.jobs[1];
         assert_eq!(r.nodes, ["render", "grade", "write"]);
         // Per chunk, the frames any member still has to run.
         let frames: Vec<Vec<i64>> = r.chunks.iter().map(|c| c.frames.clone()).collect();
         assert_eq!(frames, [vec![1, 2], vec![3, 4]]);
         assert_eq!((r.threads, r.memory_mib), (Threads::All, Some(300)));
-        assert_eq!(f.task_count(), 2 + 2 + 1 + 2);
+        assert_eq!(f.task_count(), 1 + 2 + 1 + 2);
     }
 
     #[test]
