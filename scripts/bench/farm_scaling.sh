@@ -8,12 +8,17 @@
 # mean time per task outside any computation ((wall − Σ exec runs) / tasks; with 1 slot every
 # task runs alone, so this is all the farm's overhead: scheduling, dependency release,
 # process start); the compute seconds of the nodes that run once (the serial part: tracks,
-# solve) and of the per-frame ones; then the wall ratio.
+# solve) and of the per-frame ones. Then per job: its tasks, the CPUs Slurm allocated each
+# (ProcCnt), the threads each ran (`exec --jobs`, from its log), mean run and CPU seconds
+# (bash's `time` of exec: user + system) and CPU/run (≈ the cores a task kept busy); how many
+# tasks ran at once; the serial part (submit → the first per-frame task started) as a
+# fraction of the wall. Last: the wall ratio and Amdahl's bound for 2 slots from the 1-slot
+# run's serial fraction.
 #   scripts/bench/farm_scaling.sh [GRAPH] [extra submit args…]
 # Default: graphs/book_shot.yaml, --chunk 10 (the book shot; at its full settings hours on 2
-# cores). The figures in ARCHITECTURE.md (farm section):
+# cores). The figures in README.md ("Render-farm scaling"):
 #   scripts/bench/farm_scaling.sh graphs/book_shot.yaml --frames 0..240 --chunk 10 \
-#     --set shot.width=320 --set shot.height=180 --set shot.spp=64
+#     --set shot.width=320 --set shot.height=180 --set shot.spp=64 --fuse --task-cpus 1
 # Needs a release build (cargo build --release; or VFXGRAPH_BIN=…) and root (it restarts the
 # local cluster, and leaves it running with all CPUs).
 set -euo pipefail
@@ -102,9 +107,10 @@ for job in sorted({l["job"] for l in logs}, key=lambda j: min(l["start"] for l i
     ls = [l for l in logs if l["job"] == job]
     run = sum(l["run"] for l in ls)
     cpu = sum(l["cpu"] for l in ls)
+    label = job if len(job) <= 34 else f"{job.split('+')[0]}+{job.count('+')} more"
     cpus = ",".join(str(c) for c in sorted(alloc.get(job, [])))
     threads = ",".join(str(t) for t in sorted({l["threads"] for l in ls}))
-    print(f"  {job:<34} {len(ls):>5} {cpus:>5} {threads:>7} {run / len(ls):>10.3f} "
+    print(f"  {label:<34} {len(ls):>5} {cpus:>5} {threads:>7} {run / len(ls):>10.3f} "
           f"{cpu / len(ls):>10.3f} {cpu / max(run, 1e-9):>7.2f}")
 # How many tasks ran at once (from the stamps): the time-weighted mean while any ran, the
 # most; and the same for the per-frame ones.
