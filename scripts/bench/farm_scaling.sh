@@ -82,6 +82,8 @@ for log in glob.glob(os.path.join(cache, "farm", "*", "logs", "*.log")):
     e = re.search(r"task end ([0-9.]+)", text)
     r = re.findall(r"; ([0-9.]+) s wall", text)
     c = re.search(r"task cpu ([0-9.]+) user ([0-9.]+) sys", text)
+    # exec's closing table: node, instances, cached, ran, failed, seconds (of computing).
+    computed = sum(float(m) for m in re.findall(r"^\S+ +\d+ +\d+ +\d+ +\d+ +([0-9.]+)$", text, re.M))
     if not (s and e and r and c):
         continue
     base = os.path.basename(log)
@@ -90,7 +92,7 @@ for log in glob.glob(os.path.join(cache, "farm", "*", "logs", "*.log")):
         # Per-frame tasks log as <job>.<array job>_<index>.log, once tasks <job>.<job id>.log.
         "per_frame": re.search(r"\.\d+_\d+\.log$", base) is not None,
         "start": float(s.group(1)), "end": float(e.group(1)), "threads": int(s.group(2)),
-        "run": float(r[-1]), "cpu": float(c.group(1)) + float(c.group(2)),
+        "run": float(r[-1]), "cpu": float(c.group(1)) + float(c.group(2)), "computed": computed,
     })
 n = max(len(logs), 1)
 proc = sum(l["end"] - l["start"] - l["run"] for l in logs)
@@ -101,8 +103,10 @@ print(f"{slots} slot(s): wall {wall:.1f} s, {tasks} tasks {states}; submit-to-st
       f"{delay / max(tasks, 1):.2f} s/task (Slurm, 1 s resolution); process overhead "
       f"{proc / n:.3f} s/task; outside computation {(wall - ran) / max(tasks, 1):.3f} "
       f"s/task; runs: once nodes {once:.1f} s, per-frame nodes {per_frame:.1f} s")
+# "cache I/O": a one-thread task's run minus the seconds its instances computed (reading its
+# inputs from the cache, storing its outputs, keys); "-" for a task with more threads.
 print(f"  {'job':<34} {'tasks':>5} {'CPUs':>5} {'threads':>7} {'run s/task':>10} "
-      f"{'CPU s/task':>10} {'CPU/run':>7}")
+      f"{'CPU s/task':>10} {'CPU/run':>7} {'cache I/O s/task':>16}")
 for job in sorted({l["job"] for l in logs}, key=lambda j: min(l["start"] for l in logs if l["job"] == j)):
     ls = [l for l in logs if l["job"] == job]
     run = sum(l["run"] for l in ls)
@@ -110,8 +114,10 @@ for job in sorted({l["job"] for l in logs}, key=lambda j: min(l["start"] for l i
     label = job if len(job) <= 34 else f"{job.split('+')[0]}+{job.count('+')} more"
     cpus = ",".join(str(c) for c in sorted(alloc.get(job, [])))
     threads = ",".join(str(t) for t in sorted({l["threads"] for l in ls}))
+    io = (f"{sum(l['run'] - l['computed'] for l in ls) / len(ls):.3f}"
+          if all(l["threads"] == 1 for l in ls) else "-")
     print(f"  {label:<34} {len(ls):>5} {cpus:>5} {threads:>7} {run / len(ls):>10.3f} "
-          f"{cpu / len(ls):>10.3f} {cpu / max(run, 1e-9):>7.2f}")
+          f"{cpu / len(ls):>10.3f} {cpu / max(run, 1e-9):>7.2f} {io:>16}")
 # How many tasks ran at once (from the stamps): the time-weighted mean while any ran, the
 # most; and the same for the per-frame ones.
 def concurrency(ls):
