@@ -143,6 +143,14 @@ print(f"  tasks at once: mean {mean_all:.2f}, most {most_all} (per-frame: mean {
       f"most {most_pf}); CPU of all tasks {cpu_all:.1f} s = {cpu_all / wall:.2f} cores over "
       f"the wall; serial part (submit → first per-frame task) {serial:.1f} s = "
       f"{100 * serial / wall:.1f} % of the wall, per-frame part {wall - serial:.1f} s")
+# With one slot, the farm's own time per task from the stamps: submit → the first task's
+# start, then each task's end → the next one's start (dependency release or the next pending
+# task, Slurm's scheduling pass, job launch, bash).
+if slots == "1" and logs:
+    by_start = sorted(logs, key=lambda l: l["start"])
+    gaps = [b["start"] - a["end"] for a, b in zip(by_start, by_start[1:])]
+    print(f"  submit → first task start {by_start[0]['start'] - t0:.2f} s; the slot idle between "
+          f"tasks: mean {sum(gaps) / max(len(gaps), 1):.3f} s, max {max(gaps, default=0):.3f} s")
 with open(os.path.join(os.path.dirname(cache), f"serial-{slots}"), "w") as f:
     f.write(f"{serial} {wall}\n")
 PY
