@@ -432,32 +432,7 @@ fn fused_jobs_and_task_cpus_in_the_scripts_and_the_template() {
     // The template is valid and runs to the local result.
     let Some(openjd) = openjd() else { return };
     let r = reference(&tmp.path().join("local"), &[]);
-    let mut run = vec![
-        "run".to_string(),
-        v["template"].as_str().unwrap().into(),
-        "--step".into(),
-        "movie".into(),
-        "--run-dependencies".into(),
-    ];
-    for (k, x) in v["parameters"].as_object().unwrap() {
-        run.extend(["-p".into(), format!("{k}={}", x.as_str().unwrap())]);
-    }
-    for args in [
-        vec!["check".to_string(), v["template"].as_str().unwrap().into()],
-        run,
-    ] {
-        let o = Command::new(&openjd)
-            .args(&args)
-            .current_dir(g.parent().unwrap())
-            .output()
-            .unwrap();
-        assert!(
-            o.status.success(),
-            "openjd {args:?}:\n{}\n{}",
-            String::from_utf8_lossy(&o.stdout),
-            String::from_utf8_lossy(&o.stderr)
-        );
-    }
+    openjd_check_and_run(&openjd, &g, &v, &["movie"]);
     assert_same_as(&g, &r);
 }
 
@@ -775,6 +750,40 @@ fn openjd() -> Option<PathBuf> {
     found
 }
 
+/// `openjd check` of the template `submit --farm openjd --json` wrote (its output `v`), then
+/// `openjd run` of each of `steps` with its dependencies, in the graph's folder: each must
+/// succeed.
+fn openjd_check_and_run(openjd: &Path, graph: &Path, v: &Json, steps: &[&str]) {
+    let template = v["template"].as_str().unwrap();
+    let run = |args: &[&str]| {
+        let o = Command::new(openjd)
+            .args(args)
+            .current_dir(graph.parent().unwrap())
+            .output()
+            .unwrap();
+        assert!(
+            o.status.success(),
+            "openjd {args:?}:\n{}\n{}",
+            String::from_utf8_lossy(&o.stdout),
+            String::from_utf8_lossy(&o.stderr)
+        );
+    };
+    run(&["check", template]);
+    let params: Vec<String> = v["parameters"]
+        .as_object()
+        .unwrap()
+        .iter()
+        .map(|(k, x)| format!("{k}={}", x.as_str().unwrap()))
+        .collect();
+    for step in steps {
+        let mut args = vec!["run", template, "--step", step, "--run-dependencies"];
+        for p in &params {
+            args.extend(["-p", p.as_str()]);
+        }
+        run(&args);
+    }
+}
+
 #[test]
 fn openjd_template_checks_and_runs_to_the_local_result() {
     let Some(openjd) = openjd() else { return };
@@ -795,7 +804,6 @@ fn openjd_template_checks_and_runs_to_the_local_result() {
             "--json",
         ],
     );
-    let template = v["template"].as_str().unwrap().to_string();
     let steps: Vec<String> = v["steps"]
         .as_array()
         .unwrap()
@@ -806,34 +814,8 @@ fn openjd_template_checks_and_runs_to_the_local_result() {
         steps,
         ["path", "plate_scene", "plate", "graded", "exr", "movie"]
     );
-    let run = |args: &[&str]| {
-        let o = Command::new(&openjd)
-            .args(args)
-            .current_dir(g.parent().unwrap())
-            .output()
-            .unwrap();
-        assert!(
-            o.status.success(),
-            "openjd {args:?}:\n{}\n{}",
-            String::from_utf8_lossy(&o.stdout),
-            String::from_utf8_lossy(&o.stderr)
-        );
-    };
-    run(&["check", &template]);
-    let params: Vec<String> = v["parameters"]
-        .as_object()
-        .unwrap()
-        .iter()
-        .map(|(k, x)| format!("{k}={}", x.as_str().unwrap()))
-        .collect();
     // The two sinks with their dependencies (the second finds its producers cached).
-    for sink in ["movie", "exr"] {
-        let mut args = vec!["run", &template, "--step", sink, "--run-dependencies"];
-        for p in &params {
-            args.extend(["-p", p.as_str()]);
-        }
-        run(&args);
-    }
+    openjd_check_and_run(&openjd, &g, &v, &["movie", "exr"]);
     assert_same_as(&g, &r);
     let again = ok_json(
         &g,
