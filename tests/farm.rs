@@ -145,6 +145,15 @@ fn entries(cache: &Path) -> BTreeMap<(String, Option<i64>), Entry> {
     out
 }
 
+/// Takes the local cluster's partition `down` (jobs queue, none starts) or `up`.
+fn partition(state: &str) {
+    let o = slurm(
+        &["update", "partitionname=farm", &format!("state={state}")],
+        "scontrol",
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
 /// Waits until no job of the graph is queued or running (a guard against a stuck cluster,
 /// not a measurement: 10 minutes).
 fn wait_idle() {
@@ -203,15 +212,7 @@ fn slurm_submission_equals_a_local_run_and_resubmits_nothing() {
     let r = reference(&tmp.path().join("local"), &[]);
     let g = shot(&tmp.path().join("farm"));
     let jobs = submit(&g, &["--chunk", "3"]);
-    let tasks: Vec<(String, u64)> = jobs
-        .iter()
-        .map(|j| {
-            (
-                j["node"].as_str().unwrap().into(),
-                j["tasks"].as_u64().unwrap(),
-            )
-        })
-        .collect();
+    let tasks = tasks_of(&jobs);
     let expect = [
         ("path", 1),
         ("plate_scene", 1),
@@ -243,11 +244,196 @@ fn slurm_submission_equals_a_local_run_and_resubmits_nothing() {
         assert_eq!((&n["running"], &n["queued"]), (&0.into(), &0.into()), "{n}");
     }
     // A log per task.
-    let logs: Vec<_> = fs::read_dir(g.parent().unwrap().join("cache/farm"))
+    let logs = task_logs(&g.parent().unwrap().join("cache"));
+    assert_eq!(logs.len(), 12);
+}
+
+/// The tasks of each submitted job: (job name, tasks).
+fn tasks_of(jobs: &[Json]) -> Vec<(String, u64)> {
+    jobs.iter()
+        .map(|j| {
+            (
+                j["node"].as_str().unwrap().into(),
+                j["tasks"].as_u64().unwrap(),
+            )
+        })
+        .collect()
+}
+
+/// Every task log of the submissions in `cache`: (file name, text).
+fn task_logs(cache: &Path) -> Vec<(String, String)> {
+    fs::read_dir(cache.join("farm"))
         .unwrap()
         .flat_map(|d| fs::read_dir(d.unwrap().path().join("logs")).unwrap())
+        .map(|f| {
+            let f = f.unwrap();
+            let text = fs::read_to_string(f.path()).unwrap();
+            (f.file_name().to_string_lossy().into_owned(), text)
+        })
+        .collect()
+}
+
+#[test]
+fn fused_chains_run_one_task_per_chunk_to_the_local_result() {
+    let _lock = CLUSTER.lock().unwrap_or_else(|e| e.into_inner());
+    if !slurm_up() {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let r = reference(&tmp.path().join("local"), &[]);
+    let g = shot(&tmp.path().join("farm"));
+    // Queued first: `status` reads a fused job's nodes from its name.
+    partition("down");
+    let jobs = submit(&g, &["--chunk", "3", "--fuse", "--task-cpus", "1"]);
+    let st = status(&g, &[]);
+    partition("up");
+    let fused = "plate+graded+exr";
+    // The two readers are one prologue task; each chunk's render, grade and write one task.
+    let expect: Vec<(String, u64)> = [("path+plate_scene", 1), (fused, 3), ("movie", 1)]
+        .iter()
+        .map(|(n, t)| (n.to_string(), *t))
         .collect();
-    assert_eq!(logs.len(), 12);
+    assert_eq!(tasks_of(&jobs), expect);
+    let dep = |n: &str| {
+        jobs.iter().find(|j| j["node"] == n).unwrap()["dependency"]
+            .as_str()
+            .unwrap()
+            .to_string()
+    };
+    assert_eq!(dep(fused).matches("afterok:").count(), 1, "{}", dep(fused));
+    assert!(dep("movie").starts_with("afterok:"), "{}", dep("movie"));
+    for n in ["plate", "graded", "exr"] {
+        let l = st.iter().find(|x| x["id"] == n).unwrap();
+        assert_eq!((&l["missing"], &l["queued"]), (&8.into(), &8.into()), "{l}");
+    }
+    wait_idle();
+    // The same files and cache entries (keys, digests) as the local run.
+    assert_same_as(&g, &r);
+    assert!(submit(&g, &["--fuse"]).is_empty(), "nothing left");
+    // One log per task; each fused task ran with its allocation's one thread, and logged
+    // its CPU time.
+    let logs = task_logs(&g.parent().unwrap().join("cache"));
+    assert_eq!(logs.len(), 5, "{logs:?}");
+    let chain: Vec<&(String, String)> = logs
+        .iter()
+        .filter(|(f, _)| f.starts_with(&format!("{fused}.")))
+        .collect();
+    assert_eq!(chain.len(), 3, "{logs:?}");
+    for (f, l) in chain {
+        assert!(
+            l.contains(" threads 1\n") && l.contains("task cpu "),
+            "{f}: {l}"
+        );
+    }
+}
+
+#[test]
+fn fused_jobs_and_task_cpus_in_the_scripts_and_the_template() {
+    let tmp = tempfile::tempdir().unwrap();
+    let g = shot(tmp.path());
+    let args = [
+        "--cache",
+        "cache",
+        "--chunk",
+        "3",
+        "--fuse",
+        "--task-cpus",
+        "2",
+    ];
+    // The batch script of job `name` in a Slurm dry run with `extra` arguments.
+    let script = |extra: &[&str], name: &str| {
+        let mut a = vec!["submit", "farm_shot.yaml", "--farm", "slurm", "--dry-run"];
+        a.extend(extra);
+        let out = vfx(&g, &a);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let text = String::from_utf8_lossy(&out.stdout).into_owned();
+        format!("\n{text}")
+            .split("\n# ")
+            .find(|s| s.starts_with(&format!("farm_shot/{name}/")))
+            .unwrap_or_else(|| panic!("no job {name}: {text}"))
+            .to_string()
+    };
+    // The chain's task runs its three nodes with the CPUs it asked for.
+    let fused = script(&args, "plate+graded+exr");
+    for line in [
+        "#SBATCH --cpus-per-task=2\n",
+        "#SBATCH --array=0,1,2\n",
+        "frames=( [0]=1-3 [1]=4-6 [2]=7-8 )",
+        " --node plate --node graded --node exr ",
+        " --jobs \"${SLURM_CPUS_PER_TASK:-2}\" ",
+    ] {
+        assert!(fused.contains(line), "{line:?} not in {fused}");
+    }
+    assert!(!fused.contains("--exclusive"), "{fused}");
+    // Without --task-cpus it takes the whole host (a member, the render, uses every core),
+    // with as many threads as the host has; a one-core node's task one CPU and thread.
+    let whole = script(&args[..5], "plate+graded+exr");
+    assert!(
+        whole.contains("#SBATCH --exclusive\n")
+            && whole.contains(" --jobs \"${SLURM_CPUS_ON_NODE:-1}\" "),
+        "{whole}"
+    );
+    let movie = script(&args, "movie");
+    assert!(
+        movie.contains("#SBATCH --cpus-per-task=1\n")
+            && movie.contains(" --jobs \"${SLURM_CPUS_PER_TASK:-1}\" "),
+        "{movie}"
+    );
+    // OpenJD: the same steps; the fused one asks a worker for 2 vCPUs and runs 2 threads.
+    let mut a = vec!["submit", "farm_shot.yaml", "--farm", "openjd", "--json"];
+    a.extend(args);
+    let v = ok_json(&g, &a);
+    let steps: Vec<&str> = v["steps"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s.as_str().unwrap())
+        .collect();
+    assert_eq!(steps, ["path+plate_scene", "plate+graded+exr", "movie"]);
+    let t: Json =
+        serde_json::from_str(&fs::read_to_string(v["template"].as_str().unwrap()).unwrap())
+            .unwrap();
+    let step = |n: &str| {
+        t["steps"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|s| s["name"] == n)
+            .unwrap()
+            .clone()
+    };
+    let f = step("plate+graded+exr");
+    let args: Vec<&str> = f["script"]["actions"]["onRun"]["args"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|a| a.as_str().unwrap())
+        .collect();
+    let joined = args.join(" ");
+    assert!(
+        joined.contains("--node plate --node graded --node exr ") && joined.ends_with("--jobs 2"),
+        "{joined}"
+    );
+    let amounts = f["hostRequirements"]["amounts"].as_array().unwrap();
+    assert!(
+        amounts
+            .iter()
+            .any(|a| a["name"] == "amount.worker.vcpu" && a["min"] == 2),
+        "{f}"
+    );
+    assert_eq!(
+        step("movie")["dependencies"],
+        serde_json::json!([{"dependsOn": "plate+graded+exr"}])
+    );
+    // The template is valid and runs to the local result.
+    let Some(openjd) = openjd() else { return };
+    let r = reference(&tmp.path().join("local"), &[]);
+    openjd_check_and_run(&openjd, &g, &v, &["movie"]);
+    assert_same_as(&g, &r);
 }
 
 /// Start and end times (s) of each finished task from Slurm's job completion log:
@@ -281,14 +467,7 @@ fn per_frame_dependencies_are_per_chunk() {
     let g = shot(tmp.path());
     // Hold the partition so nothing starts, make the render's chunk 0 the slow one (held),
     // then let the farm go.
-    let part = |state: &str| {
-        let o = slurm(
-            &["update", "partitionname=farm", &format!("state={state}")],
-            "scontrol",
-        );
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    };
-    part("down");
+    partition("down");
     let jobs = submit(&g, &["--chunk", "2"]);
     let id = |n: &str| {
         jobs.iter().find(|j| j["node"] == n).unwrap()["job_id"]
@@ -298,7 +477,7 @@ fn per_frame_dependencies_are_per_chunk() {
     };
     let (plate, graded) = (id("plate"), id("graded"));
     let held = slurm(&["hold", &format!("{plate}_0")], "scontrol");
-    part("up");
+    partition("up");
     assert!(
         held.status.success(),
         "{}",
@@ -571,6 +750,40 @@ fn openjd() -> Option<PathBuf> {
     found
 }
 
+/// `openjd check` of the template `submit --farm openjd --json` wrote (its output `v`), then
+/// `openjd run` of each of `steps` with its dependencies, in the graph's folder: each must
+/// succeed.
+fn openjd_check_and_run(openjd: &Path, graph: &Path, v: &Json, steps: &[&str]) {
+    let template = v["template"].as_str().unwrap();
+    let run = |args: &[&str]| {
+        let o = Command::new(openjd)
+            .args(args)
+            .current_dir(graph.parent().unwrap())
+            .output()
+            .unwrap();
+        assert!(
+            o.status.success(),
+            "openjd {args:?}:\n{}\n{}",
+            String::from_utf8_lossy(&o.stdout),
+            String::from_utf8_lossy(&o.stderr)
+        );
+    };
+    run(&["check", template]);
+    let params: Vec<String> = v["parameters"]
+        .as_object()
+        .unwrap()
+        .iter()
+        .map(|(k, x)| format!("{k}={}", x.as_str().unwrap()))
+        .collect();
+    for step in steps {
+        let mut args = vec!["run", template, "--step", step, "--run-dependencies"];
+        for p in &params {
+            args.extend(["-p", p.as_str()]);
+        }
+        run(&args);
+    }
+}
+
 #[test]
 fn openjd_template_checks_and_runs_to_the_local_result() {
     let Some(openjd) = openjd() else { return };
@@ -591,7 +804,6 @@ fn openjd_template_checks_and_runs_to_the_local_result() {
             "--json",
         ],
     );
-    let template = v["template"].as_str().unwrap().to_string();
     let steps: Vec<String> = v["steps"]
         .as_array()
         .unwrap()
@@ -602,34 +814,8 @@ fn openjd_template_checks_and_runs_to_the_local_result() {
         steps,
         ["path", "plate_scene", "plate", "graded", "exr", "movie"]
     );
-    let run = |args: &[&str]| {
-        let o = Command::new(&openjd)
-            .args(args)
-            .current_dir(g.parent().unwrap())
-            .output()
-            .unwrap();
-        assert!(
-            o.status.success(),
-            "openjd {args:?}:\n{}\n{}",
-            String::from_utf8_lossy(&o.stdout),
-            String::from_utf8_lossy(&o.stderr)
-        );
-    };
-    run(&["check", &template]);
-    let params: Vec<String> = v["parameters"]
-        .as_object()
-        .unwrap()
-        .iter()
-        .map(|(k, x)| format!("{k}={}", x.as_str().unwrap()))
-        .collect();
     // The two sinks with their dependencies (the second finds its producers cached).
-    for sink in ["movie", "exr"] {
-        let mut args = vec!["run", &template, "--step", sink, "--run-dependencies"];
-        for p in &params {
-            args.extend(["-p", p.as_str()]);
-        }
-        run(&args);
-    }
+    openjd_check_and_run(&openjd, &g, &v, &["movie", "exr"]);
     assert_same_as(&g, &r);
     let again = ok_json(
         &g,
@@ -740,29 +926,18 @@ fn tasks_on_a_cache_the_submit_did_not_write_fail_at_once() {
     }
     let tmp = tempfile::tempdir().unwrap();
     let g = shot(tmp.path());
-    let part = |state: &str| {
-        let o = slurm(
-            &["update", "partitionname=farm", &format!("state={state}")],
-            "scontrol",
-        );
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    };
     // Submitted with nothing started, then the token is gone, as on a host that mounts
     // another folder at the cache's path.
-    part("down");
+    partition("down");
     let jobs = submit(&g, &["--chunk", "4"]);
     let cache = g.parent().unwrap().join("cache");
     fs::remove_dir_all(cache.join("farm-tokens")).unwrap();
-    part("up");
+    partition("up");
     wait_idle();
     // Every task that started failed before computing anything; the farm cancelled the
     // rest (their dependencies can never be met).
     assert!(entries(&cache).is_empty(), "nothing computed");
-    let logs: Vec<String> = fs::read_dir(cache.join("farm"))
-        .unwrap()
-        .flat_map(|d| fs::read_dir(d.unwrap().path().join("logs")).unwrap())
-        .map(|f| fs::read_to_string(f.unwrap().path()).unwrap())
-        .collect();
+    let logs: Vec<String> = task_logs(&cache).into_iter().map(|(_, l)| l).collect();
     // Only the two jobs without producers started (the camera path, the scene reader).
     let roots = jobs.iter().filter(|j| j["dependency"] == "").count();
     assert_eq!((logs.len(), roots), (2, 2), "{logs:?}");

@@ -19,7 +19,7 @@ cpus="${VFXGRAPH_SLURM_CPUS:-$(nproc)}"
 mem="$(awk '/^MemTotal:/ {print int($2 / 1024 * 0.95)}' /proc/meminfo)"
 export SLURM_CONF="$conf"
 
-alive() { [ -f "$1" ] && kill -0 "$(cat "$1")" 2>/dev/null; }
+alive() { [ -f "$1" ] && kill -0 "$(cat "$1" 2>/dev/null)" 2>/dev/null; }
 
 write_conf() {
   mkdir -p "$dir"/{state,spool,log}

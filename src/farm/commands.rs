@@ -64,6 +64,16 @@ pub struct SubmitArgs {
     /// The shared cache folder (default: .vfxgraph/ beside the graph file).
     #[arg(long, value_name = "DIR")]
     pub cache: Option<PathBuf>,
+    /// Run a chain of per-frame nodes as one task per chunk (`exec --node A --node B …`):
+    /// a node joins its per-frame producer's job when it reads only that job per chunk and
+    /// waits for nothing that job does not (the book shot: 131 tasks → 35).
+    #[arg(long)]
+    pub fuse: bool,
+    /// CPUs a task of a per-frame node that uses every core (a render) asks for, instead of
+    /// the whole host: several such tasks then share a host, one's start and serial parts
+    /// overlapping another's compute.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    pub task_cpus: Option<u32>,
     /// Print the jobs (Slurm) or the template (OpenJD) without submitting or writing.
     #[arg(long)]
     pub dry_run: bool,
@@ -165,6 +175,7 @@ fn task_context(a: &SubmitArgs, cache: &std::path::Path) -> Result<TaskContext, 
             .file_stem()
             .map_or("graph".into(), |s| s.to_string_lossy().into_owned()),
         token: super::new_token(),
+        task_cpus: a.task_cpus,
     })
 }
 
@@ -190,7 +201,10 @@ pub fn submit_command(a: SubmitArgs, registry: &Registry) -> Result<u8, String> 
         ..Default::default()
     };
     let plan = exec::plan(&g, &opts).map_err(|e| e.to_string())?;
-    let farm = FarmPlan::new(&g, &plan, a.chunk as usize);
+    let mut farm = FarmPlan::new(&g, &plan, a.chunk as usize);
+    if a.fuse {
+        farm = super::fuse::fuse(farm);
+    }
     let dir = ctx
         .cache
         .join("farm")
@@ -272,7 +286,7 @@ fn write_openjd(
     let path = dir.join("job.template.json");
     vfxgraph_engine::fsutil::atomic_write(&path, text.as_bytes())
         .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
-    let steps: Vec<&str> = farm.jobs.iter().map(|j| j.node.as_str()).collect();
+    let steps: Vec<String> = farm.jobs.iter().map(super::openjd::step_name).collect();
     if json {
         let v = serde_json::json!({
             "farm": "openjd", "template": path, "steps": steps,
@@ -298,7 +312,7 @@ fn write_openjd(
         println!(
             "run it here: openjd run {} --step {} --run-dependencies {}",
             path.display(),
-            steps.last().copied().unwrap_or_default(),
+            steps.last().map(String::as_str).unwrap_or_default(),
             params.join(" ")
         );
     }

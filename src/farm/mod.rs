@@ -1,16 +1,19 @@
 //! Render farms: a graph's uncached instances compiled into farm jobs (`vfxgraph submit`),
 //! and a graph's progress on a shared cache (`vfxgraph status`).
 //!
-//! Every farm task is one `vfxgraph exec` of one node over one chunk of frames, reading its
-//! inputs from the shared cache and writing its results there; the farm's dependencies follow
-//! the graph's edges. The engine knows nothing of farms: this module only reads its plan.
+//! Every farm task is one `vfxgraph exec` of one node (or, fused, of a per-frame chain of
+//! nodes) over one chunk of frames, reading its inputs from the shared cache and writing its
+//! results there; the farm's dependencies follow the graph's edges. The engine knows nothing
+//! of farms: this module only reads its plan.
 //!
 //! - [`FarmPlan`] (here): jobs, chunks and dependencies, farm-neutral.
+//! - [`fuse`]: per-frame chains merged into one task per chunk (`submit --fuse`).
 //! - [`slurm`]: `sbatch` scripts and submission.
 //! - [`openjd`]: an Open Job Description job template.
 //! - [`status`]: per-node progress from the cache (and `squeue`).
 
 pub mod commands;
+pub mod fuse;
 pub mod openjd;
 pub mod slurm;
 pub mod status;
@@ -39,11 +42,14 @@ pub struct Chunk {
     pub frames: Vec<i64>,
 }
 
-/// One farm job: the uncached instances of one node.
+/// One farm job: the uncached instances of one node, or of a fused chain of per-frame nodes.
 #[derive(Clone, Debug)]
 pub struct Job {
-    /// Node id.
+    /// The job's name in job names, scripts and logs: its node id, or its nodes' ids joined
+    /// by `+` (node ids never hold a `+`).
     pub node: String,
+    /// The nodes its tasks run (`exec --node` each), in graph order: one unless fused.
+    pub nodes: Vec<String>,
     /// True for a per-frame node (an array of chunks), false for a node that runs once.
     pub per_frame: bool,
     /// The chunks to run (one, with no frames, for a once node).
@@ -85,20 +91,25 @@ pub struct TaskContext {
     pub graph_name: String,
     /// The submission's token (see [`write_token`]), passed to every task as `exec --token`.
     pub token: String,
+    /// CPUs a task of a per-frame node that uses every core asks for (`submit --task-cpus`),
+    /// so several such tasks share a host; `None`: the whole host (Slurm `--exclusive`).
+    pub task_cpus: Option<u32>,
 }
 
 impl TaskContext {
-    /// The `vfxgraph exec` arguments of a task of `node`, with `frames` (a frame list, or
-    /// `None` for a node that runs once) and `threads` cores.
-    pub fn exec_args(&self, node: &str, frames: Option<&str>, jobs: Option<&str>) -> Vec<String> {
-        let mut a = vec![
-            "exec".to_string(),
-            self.graph.display().to_string(),
-            "--node".into(),
-            node.into(),
-            "--cache".into(),
-            self.cache.display().to_string(),
-        ];
+    /// The `vfxgraph exec` arguments of a task of `nodes`, with `frames` (a frame list, or
+    /// `None` for a node that runs once) and `jobs` worker threads (`None`: exec's default).
+    pub fn exec_args(
+        &self,
+        nodes: &[String],
+        frames: Option<&str>,
+        jobs: Option<&str>,
+    ) -> Vec<String> {
+        let mut a = vec!["exec".to_string(), self.graph.display().to_string()];
+        for n in nodes {
+            a.extend(["--node".into(), n.clone()]);
+        }
+        a.extend(["--cache".into(), self.cache.display().to_string()]);
         if let Some(f) = frames {
             a.extend(["--frames".into(), f.into()]);
         }
@@ -151,6 +162,7 @@ impl FarmPlan {
             };
             let mut job = Job {
                 node: node.id.clone(),
+                nodes: vec![node.id.clone()],
                 per_frame: node.per_frame,
                 chunks,
                 deps: Vec::new(),

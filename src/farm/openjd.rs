@@ -7,6 +7,8 @@
 
 use serde_json::{json, Value};
 
+use vfxgraph_engine::Threads;
+
 use super::{FarmPlan, Job, TaskContext};
 
 /// The job template of `plan`, chunks of `chunk` frames.
@@ -48,20 +50,33 @@ fn step(ctx: &TaskContext, plan: &FarmPlan, job: &Job, chunk: usize) -> Value {
         ..ctx.clone()
     }
     .exec_args(
-        &job.node,
+        &job.nodes,
         job.per_frame.then_some("{{Task.Param.Frame}}"),
         None,
     );
-    if job.threads == vfxgraph_engine::Threads::One {
-        args.extend(["--jobs".into(), "1".into()]);
-    }
+    let cpus = match super::slurm::cpus(ctx, job) {
+        super::slurm::Cpus::Some(n) => {
+            args.extend(["--jobs".into(), n.to_string()]);
+            Some(n)
+        }
+        super::slurm::Cpus::Host => None,
+    };
     let mut s = json!({
-        "name": job.node,
+        "name": step_name(job),
         "description": format!("{}/{}/{}", ctx.graph_name, job.node, job.frames_label()),
         "script": {"actions": {"onRun": {"command": "{{Param.Vfxgraph}}", "args": args}}},
     });
+    let mut amounts = Vec::new();
     if let Some(m) = job.memory_mib {
-        s["hostRequirements"] = json!({"amounts": [{"name": "amount.worker.memory", "min": m}]});
+        amounts.push(json!({"name": "amount.worker.memory", "min": m}));
+    }
+    // Only a shared-host request (`--task-cpus`) states a vCPU count; one-core tasks and
+    // whole-host ones run on any worker.
+    if let Some(n) = cpus.filter(|_| job.threads == Threads::All) {
+        amounts.push(json!({"name": "amount.worker.vcpu", "min": n}));
+    }
+    if !amounts.is_empty() {
+        s["hostRequirements"] = json!({ "amounts": amounts });
     }
     if job.per_frame {
         s["parameterSpace"] = json!({"taskParameterDefinitions": [{
@@ -75,8 +90,18 @@ fn step(ctx: &TaskContext, plan: &FarmPlan, job: &Job, chunk: usize) -> Value {
         s["dependencies"] = job
             .deps
             .iter()
-            .map(|(p, _)| json!({"dependsOn": plan.jobs[*p].node}))
+            .map(|(p, _)| json!({"dependsOn": step_name(&plan.jobs[*p])}))
             .collect();
     }
     s
+}
+
+/// A step's name: the job's (`a+b+c` when fused), or its first node and how many more when
+/// that is longer than OpenJD's 64 characters (unique: a node is in one job only).
+pub fn step_name(job: &Job) -> String {
+    if job.node.chars().count() <= 64 {
+        job.node.clone()
+    } else {
+        format!("{}+{}more", job.nodes[0], job.nodes.len() - 1)
+    }
 }

@@ -3,8 +3,10 @@
 //! the same index and `aftercorr` pairs them); a whole-sequence consumer waits `afterok` for
 //! the whole array. `--kill-on-invalid-dep=yes` cancels the dependants of a failed task.
 //! Resources from the node type: `--cpus-per-task=1` for a one-core node, `--exclusive` for
-//! one that uses every core, `--mem` from its memory hint (`Memory`: a fixed amount for a
-//! reader, an image-sized one for a renderer from its width × height).
+//! one that uses every core (or, per frame with `submit --task-cpus N`, `--cpus-per-task=N`,
+//! so tasks share a host), `--mem` from its memory hint (`Memory`: a fixed amount for a
+//! reader, an image-sized one for a renderer from its width × height). A task's worker threads
+//! are its allocation's CPUs (`exec --jobs`).
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -34,6 +36,26 @@ pub fn job_name(ctx: &TaskContext, job: &Job) -> String {
     format!("{}/{}/{}", ctx.graph_name, job.node, job.frames_label())
 }
 
+/// The CPUs a task of `job` asks for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Cpus {
+    /// This many (`--cpus-per-task`).
+    Some(u32),
+    /// The whole host (`--exclusive`).
+    Host,
+}
+
+/// A one-core node's task asks for one CPU; one that uses every core the whole host, or, per
+/// frame, `--task-cpus` when given (per-frame tasks are many and independent: sharing a
+/// host lets one task's start overlap another's compute).
+pub fn cpus(ctx: &TaskContext, job: &Job) -> Cpus {
+    match (job.threads, ctx.task_cpus) {
+        (Threads::One, _) => Cpus::Some(1),
+        (Threads::All, Some(n)) if job.per_frame => Cpus::Some(n.max(1)),
+        (Threads::All, _) => Cpus::Host,
+    }
+}
+
 /// The batch script of `job`, logging each task to `logs/<node>.<job>_<task>.log`.
 pub fn script(ctx: &TaskContext, job: &Job, logs: &Path) -> String {
     let mut s = String::from("#!/bin/bash\n");
@@ -45,10 +67,16 @@ pub fn script(ctx: &TaskContext, job: &Job, logs: &Path) -> String {
         logs.join(format!("{}.{log}.log", job.node)).display()
     );
     let _ = writeln!(s, "#SBATCH --kill-on-invalid-dep=yes");
-    match job.threads {
-        Threads::One => s.push_str("#SBATCH --cpus-per-task=1\n"),
-        Threads::All => s.push_str("#SBATCH --exclusive\n"),
-    }
+    let jobs = match cpus(ctx, job) {
+        Cpus::Some(n) => {
+            let _ = writeln!(s, "#SBATCH --cpus-per-task={n}");
+            format!("${{SLURM_CPUS_PER_TASK:-{n}}}")
+        }
+        Cpus::Host => {
+            s.push_str("#SBATCH --exclusive\n");
+            "${SLURM_CPUS_ON_NODE:-1}".to_string()
+        }
+    };
     if let Some(m) = job.memory_mib {
         let _ = writeln!(s, "#SBATCH --mem={m}M");
     }
@@ -57,10 +85,6 @@ pub fn script(ctx: &TaskContext, job: &Job, logs: &Path) -> String {
         let _ = writeln!(s, "#SBATCH --array={}", idx.join(","));
     }
     s.push_str("set -euo pipefail\n");
-    let jobs = match job.threads {
-        Threads::One => "1",
-        Threads::All => "${SLURM_CPUS_ON_NODE:-1}",
-    };
     if job.per_frame {
         s.push_str("frames=(");
         for c in &job.chunks {
@@ -70,11 +94,16 @@ pub fn script(ctx: &TaskContext, job: &Job, logs: &Path) -> String {
         s.push_str(" )\n");
     }
     let frames = job.per_frame.then_some("@FRAMES@");
-    // Start and end stamps in the log: a wrangler sees where and when a task ran, and the
-    // farm benchmark (scripts/bench/farm_scaling.sh) the time outside `vfxgraph exec`'s run.
-    s.push_str("echo \"task start $(date +%s.%N) on $(hostname)\"\n");
+    // Start and end stamps in the log: a wrangler sees where and when a task ran, with how
+    // many threads, and the farm benchmark (scripts/bench/farm_scaling.sh) the time outside
+    // `vfxgraph exec`'s run and its CPU time (bash's `time`: user and system seconds).
+    let _ = writeln!(
+        s,
+        "echo \"task start $(date +%s.%N) on $(hostname) threads {jobs}\""
+    );
+    s.push_str("TIMEFORMAT='task cpu %U user %S sys %R wall'\ntime ");
     let mut line = sh_quote(&ctx.exe.display().to_string());
-    for a in ctx.exec_args(&job.node, frames, Some("@JOBS@")) {
+    for a in ctx.exec_args(&job.nodes, frames, Some("@JOBS@")) {
         let word = match a.as_str() {
             "@FRAMES@" => "\"${frames[$SLURM_ARRAY_TASK_ID]}\"".to_string(),
             "@JOBS@" => format!("\"{jobs}\""),
@@ -228,7 +257,9 @@ pub fn queued(graph_name: &str) -> Option<std::collections::BTreeMap<String, Que
         if parts.next() != Some(graph_name) {
             continue;
         }
-        let Some(node) = parts.next() else { continue };
+        let Some(job_nodes) = parts.next() else {
+            continue;
+        };
         let frames: Vec<Option<i64>> = match index.parse::<usize>() {
             // An array task: the frames of its chunk.
             Ok(k) => scripts
@@ -244,11 +275,16 @@ pub fn queued(graph_name: &str) -> Option<std::collections::BTreeMap<String, Que
                 .unwrap_or_default(),
             Err(_) => vec![None],
         };
-        let e: &mut Queued = per_node.entry(node.to_string()).or_default();
-        match state {
-            "RUNNING" | "COMPLETING" => e.running.extend(frames),
-            "PENDING" | "CONFIGURING" | "REQUEUED" | "SUSPENDED" => e.pending.extend(frames),
-            _ => {}
+        // A fused job's name holds its nodes joined by `+`: its task runs each of them.
+        for node in job_nodes.split('+') {
+            let e: &mut Queued = per_node.entry(node.to_string()).or_default();
+            match state {
+                "RUNNING" | "COMPLETING" => e.running.extend(frames.iter().copied()),
+                "PENDING" | "CONFIGURING" | "REQUEUED" | "SUSPENDED" => {
+                    e.pending.extend(frames.iter().copied())
+                }
+                _ => {}
+            }
         }
     }
     Some(per_node)
