@@ -237,6 +237,36 @@ impl Distortion {
         }
     }
 
+    /// The largest undistorted normalized radius of a `width`×`height` frame's outer corners
+    /// (pixel edges, where a pixel's footprint reaches), a little beyond (×1.02): how far out the
+    /// lens must be invertible and monotonic ([`Distortion::check`]) for every pixel.
+    /// `normalize` maps a pixel to its distorted normalized point (K⁻¹x). An error names the
+    /// corner the lens cannot undistort.
+    pub fn frame_radius(
+        &self,
+        width: f64,
+        height: f64,
+        normalize: impl Fn([f64; 2]) -> [f64; 2],
+    ) -> Result<f64> {
+        let (w, h) = (width, height);
+        let mut r: f64 = 0.0;
+        for (x, y) in [
+            (-0.5, -0.5),
+            (w - 0.5, -0.5),
+            (-0.5, h - 0.5),
+            (w - 0.5, h - 0.5),
+        ] {
+            let p = self.undistort(normalize([x, y])).map_err(|e| {
+                LensError(format!(
+                    "the {} lens cannot be inverted at the frame's corner ({x}, {y}): {e}",
+                    self.name()
+                ))
+            })?;
+            r = r.max(p[0].hypot(p[1]));
+        }
+        Ok(r * 1.02)
+    }
+
     /// Checks the model is usable out to the undistorted normalized radius `r_max` (the image's
     /// corners, say): finite parameters and a radial curve that keeps increasing there, so
     /// distinct points stay distinct and the inverse exists. The radial part is checked on a fine

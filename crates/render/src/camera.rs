@@ -144,24 +144,16 @@ impl Camera {
     /// jitter reaches) and monotonic out to 2 % beyond their largest undistorted radius, so every
     /// primary ray's Newton inverse converges.
     fn check_lens(&self) -> Result<(), CameraError> {
-        let (w, h) = (self.width as f64, self.height as f64);
         let kinv = k_inverse(&self.k);
-        let mut r: f64 = 0.0;
-        for (x, y) in [
-            (-0.5, -0.5),
-            (w - 0.5, -0.5),
-            (-0.5, h - 0.5),
-            (w - 0.5, h - 0.5),
-        ] {
-            let q = mat_vec(&kinv, Vec3::new(x, y, 1.0));
-            let p = self
-                .distortion
-                .undistort([q.x / q.z, q.y / q.z])
-                .map_err(|e| CameraError::BadLens(format!("at the corner ({x}, {y}): {e}")))?;
-            r = r.max(p[0].hypot(p[1]));
-        }
+        let r = self
+            .distortion
+            .frame_radius(self.width as f64, self.height as f64, |[x, y]| {
+                let q = mat_vec(&kinv, Vec3::new(x, y, 1.0));
+                [q.x / q.z, q.y / q.z]
+            })
+            .map_err(|e| CameraError::BadLens(e.to_string()))?;
         self.distortion
-            .check(r * 1.02)
+            .check(r)
             .map_err(|e| CameraError::BadLens(e.to_string()))
     }
 

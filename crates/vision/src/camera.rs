@@ -112,23 +112,15 @@ impl Intrinsics {
         let (Some(w), Some(h)) = (self.width, self.height) else {
             return Ok(None);
         };
-        let (w, h) = (w as f64, h as f64);
-        let mut r: f64 = 0.0;
-        for (x, y) in [
-            (-0.5, -0.5),
-            (w - 0.5, -0.5),
-            (-0.5, h - 0.5),
-            (w - 0.5, h - 0.5),
-        ] {
-            let p = self.normalized_of_pixel(&Point2::new(x, y)).map_err(|e| {
-                VisionError::InvalidInput(format!(
-                    "the {} lens cannot be inverted at the frame's corner ({x}, {y}): {e}",
-                    self.distortion.name()
-                ))
-            })?;
-            r = r.max((p[0] * p[0] + p[1] * p[1]).sqrt());
-        }
-        Ok(Some(r * 1.02))
+        let kinv = self.k_inv();
+        let r = self
+            .distortion
+            .frame_radius(w as f64, h as f64, |[x, y]| {
+                let q = kinv * Vector3::new(x, y, 1.0);
+                [q.x / q.z, q.y / q.z]
+            })
+            .map_err(|e| VisionError::InvalidInput(e.to_string()))?;
+        Ok(Some(r))
     }
 
     /// The pixel where the lens images the undistorted normalized point `p` (= X.xy / X.z).
