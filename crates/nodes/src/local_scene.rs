@@ -8,7 +8,8 @@
 use vfxgraph_engine::{ArtifactType, Context, NodeError, NodeSpec, PortSpec, Registry};
 use vfxgraph_imaging::Image;
 use vfxgraph_params::Options;
-use vfxgraph_render::catcher_texture::{catcher_texture, TextureError, TextureOptions, View};
+use vfxgraph_render::catcher_texture::{TextureOptions, View};
+use vfxgraph_render::local_scene::{texture_local_scene, FaceTexture};
 
 use vfxgraph_render::proxy::{box_faces, box_on_plane, catchers, plane_patch};
 use vfxgraph_render::{Rgb, Shape, Vec3};
@@ -48,7 +49,7 @@ pub(crate) struct CatcherTextureParams {
     /// estimates, each rendering the irradiance with the previous texture (catchers that see one another)
     #[param(range = 1..=10)]
     iterations: usize,
-    /// also texture every other planar catcher the frames see (proxy faces), after `catcher`
+    /// also texture every other planar catcher the frames see (proxy faces), after `catcher`; a proxy's faces and texels no frame sees take the median albedo of its seen texels
     others: bool,
     /// texels along the longer side of each other catcher
     #[param(range = 1..=8192)]
@@ -300,10 +301,12 @@ pub fn register(r: &mut Registry) {
                  local scene (catchers, no synthetic objects), the plate read where each \
                  pixel's ray meets the catcher first; combined over the frames by the median, \
                  clamped to [0, max_albedo]. Texels never seen keep the catcher's (fitted) \
-                 uniform colour. The plate frames must be clean: give the frames without the \
-                 objects in `frames`. Outputs the scene with the texture on the catcher \
-                 (sampled bilinearly by the renders), the albedo image (write it as EXR), the \
-                 frames-seen count per texel and a report (texels estimated, clamped fraction).",
+                 uniform colour; with `others`, a proxy's unseen faces and texels take the \
+                 median albedo of its seen texels. The plate frames must be clean: give the \
+                 frames without the objects in `frames`. Outputs the scene with the texture \
+                 on the catcher (sampled bilinearly by the renders), the albedo image (write it \
+                 as EXR), the frames-seen count per texel and a report (texels estimated, \
+                 clamped fraction, what became of each proxy face).",
             )
             .seeded()
             .options::<CatcherTextureParams>(),
@@ -382,45 +385,27 @@ fn run_catcher_texture(ctx: &mut Context<'_>) -> Result<(), NodeError> {
         max_albedo: p.max_albedo,
         iterations: p.iterations,
     };
-    let (scene, rep) = catcher_texture(
+    let (scene, rep, others) = texture_local_scene(
         &art.scene,
         light.env(),
         &views,
         &options,
+        p.others.then_some(p.others_resolution),
         Some(ctx.cancel_flag()),
     )
     .map_err(|e| NodeError::msg(e.to_string()))?;
-    // The other catchers (proxy faces): those no frame sees, or not planar, keep their colour.
-    let mut scene = scene;
-    let mut others = Vec::new();
-    if p.others {
-        let n = scene.objects.iter().filter(|o| o.catcher).count();
-        for k in (0..n).filter(|&k| k != p.catcher) {
-            let o = TextureOptions {
-                catcher: k,
-                resolution: p.others_resolution,
-                irradiance_cell: p.irradiance_cell.min(p.others_resolution),
-                ..options
-            };
-            match catcher_texture(&scene, light.env(), &views, &o, Some(ctx.cancel_flag())) {
-                Ok((s, r)) => {
-                    scene = s;
-                    others.push(
-                        serde_json::json!({"catcher": k, "texels_estimated": r.estimated,
-                        "clamped_fraction": r.clamped_fraction}),
-                    );
-                }
-                Err(
-                    e @ (TextureError::NotSeen { .. }
-                    | TextureError::NotPlanar(_)
-                    | TextureError::NotDiffuse(_)),
-                ) => {
-                    others.push(serde_json::json!({"catcher": k, "skipped": e.to_string()}));
-                }
-                Err(e) => return Err(NodeError::msg(format!("catcher {k}: {e}"))),
-            }
-        }
-    }
+    let others: Vec<serde_json::Value> = others
+        .iter()
+        .map(|c| match &c.texture {
+            FaceTexture::Estimated {
+                texels_estimated,
+                clamped_fraction,
+            } => serde_json::json!({"catcher": c.catcher, "proxy": c.proxy,
+                "texels_estimated": texels_estimated, "clamped_fraction": clamped_fraction}),
+            FaceTexture::Unestimated { why, filled } => serde_json::json!({"catcher": c.catcher,
+                "proxy": c.proxy, "skipped": why, "filled_with_proxy_median": filled}),
+        })
+        .collect();
     let m = &rep.map;
     let seen = Image::from_fn(m.width, m.height, 1, |x, y, _| {
         rep.seen[y * m.width + x] as f32

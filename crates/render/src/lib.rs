@@ -23,6 +23,7 @@ pub mod dome;
 pub mod environment;
 pub mod integrator;
 pub mod light;
+pub mod local_scene;
 pub mod math;
 pub mod obj;
 pub mod placement;

@@ -1,0 +1,378 @@
+//! The local scene's textures (Debevec 1998 §4: the local scene's reflectance solved from the
+//! photograph): the main shadow catcher (the ground) by [`catcher_texture`], then every other
+//! planar catcher the frames see (the faces of proxy boxes and patches, [`crate::proxy`]) the
+//! same way, at a coarser resolution.
+//!
+//! A proxy is rarely seen whole: the face of a box that turns away from every camera is exactly
+//! the one an inserted mirror object between the camera and the box reflects. Such a face, and
+//! the texels of a partly seen face that no frame sees, take the **median albedo of the
+//! estimated texels of the same proxy** (its faces are the catchers connected to it by shared
+//! corners), not the proxy's starting colour: a real object's sides are usually of one material,
+//! and the median of what the plate shows of it is the best estimate the plate gives. A proxy no
+//! frame sees at all keeps its colour. The main catcher is left as its estimate makes it (its
+//! unseen texels keep its fitted uniform colour, [`crate::catcher_fit`]).
+
+use std::sync::atomic::AtomicBool;
+
+use crate::brdf::Brdf;
+use crate::catcher_texture::{catcher_texture, TextureError, TextureOptions, TextureReport, View};
+use crate::environment::Environment;
+use crate::math::{Rgb, Vec3};
+use crate::scene::{Scene, Shape};
+use crate::texture::Texture;
+
+/// What became of one of the other catchers.
+#[derive(Clone, Debug, PartialEq)]
+pub enum FaceTexture {
+    /// Estimated from the plate.
+    Estimated {
+        /// Texels seen by enough frames.
+        texels_estimated: usize,
+        /// Fraction of estimated channel values clamped to the physical range.
+        clamped_fraction: f64,
+    },
+    /// Not estimated (`why`: not seen, not planar, not diffuse); its colour is `filled` — the
+    /// median albedo of its proxy's seen texels — or unchanged when `None`.
+    Unestimated {
+        /// Why not.
+        why: String,
+        /// The colour it was given.
+        filled: Option<[f64; 3]>,
+    },
+}
+
+/// One of the other catchers: its index among the scene's catchers, the proxy it belongs to
+/// (the index of its connected group of catchers, in order of first face) and the outcome.
+#[derive(Clone, Debug, PartialEq)]
+pub struct OtherCatcher {
+    /// Index among the scene's catchers.
+    pub catcher: usize,
+    /// Connected group (proxy) number.
+    pub proxy: usize,
+    /// What was done.
+    pub texture: FaceTexture,
+}
+
+/// The textures of the main catcher (`o.catcher`) and, when `others_resolution` is given, of
+/// every other catcher, with the report of the main one and the outcome of each other.
+pub fn texture_local_scene(
+    scene: &Scene,
+    env: &dyn Environment,
+    views: &[View<'_>],
+    o: &TextureOptions,
+    others_resolution: Option<usize>,
+    cancel: Option<&AtomicBool>,
+) -> Result<(Scene, TextureReport, Vec<OtherCatcher>), TextureError> {
+    let (mut scene, report) = catcher_texture(scene, env, views, o, cancel)?;
+    let Some(resolution) = others_resolution else {
+        return Ok((scene, report, Vec::new()));
+    };
+    let catchers: Vec<usize> = (0..scene.objects.len())
+        .filter(|&i| scene.objects[i].catcher)
+        .collect();
+    let others: Vec<usize> = (0..catchers.len()).filter(|&k| k != o.catcher).collect();
+    let proxy = proxies(&scene, &catchers, &others);
+    // Per other catcher: its estimate (absolute albedo of the estimated texels) or why not.
+    let mut outcome: Vec<Result<TextureReport, String>> = Vec::new();
+    for &k in &others {
+        let ok = TextureOptions {
+            catcher: k,
+            resolution,
+            irradiance_cell: o.irradiance_cell.min(resolution),
+            ..*o
+        };
+        match catcher_texture(&scene, env, views, &ok, cancel) {
+            Ok((s, r)) => {
+                scene = s;
+                outcome.push(Ok(r));
+            }
+            Err(
+                e @ (TextureError::NotSeen { .. }
+                | TextureError::NotPlanar(_)
+                | TextureError::NotDiffuse(_)),
+            ) => outcome.push(Err(e.to_string())),
+            Err(e) => return Err(e),
+        }
+    }
+    // The median albedo of each proxy's estimated texels.
+    let groups = proxy.iter().copied().max().map_or(0, |g| g + 1);
+    let mut samples: Vec<[Vec<f64>; 3]> = vec![Default::default(); groups];
+    for (i, r) in outcome.iter().enumerate() {
+        let Ok(r) = r else { continue };
+        for (t, &s) in r.seen.iter().enumerate() {
+            if (s as usize) >= o.min_frames.max(1) {
+                let (x, y) = (t % r.map.width, t / r.map.width);
+                for (c, v) in samples[proxy[i]].iter_mut().enumerate() {
+                    v.push(r.albedo.get(x, y, c) as f64);
+                }
+            }
+        }
+    }
+    let median_of = |g: usize| -> Option<[f64; 3]> {
+        let s = &samples[g];
+        if s[0].is_empty() {
+            return None;
+        }
+        Some([0, 1, 2].map(|c| {
+            let mut v = s[c].clone();
+            v.sort_by(f64::total_cmp);
+            v[v.len() / 2]
+        }))
+    };
+    let mut out = Vec::new();
+    for (i, (&k, r)) in others.iter().zip(outcome).enumerate() {
+        let fill = median_of(proxy[i]);
+        let object = &mut scene.objects[catchers[k]];
+        let texture = match r {
+            Ok(r) => {
+                if let Some(m) = fill {
+                    refill_unseen(object, &r, m, o.min_frames.max(1));
+                }
+                FaceTexture::Estimated {
+                    texels_estimated: r.estimated,
+                    clamped_fraction: r.clamped_fraction,
+                }
+            }
+            Err(why) => {
+                let filled = fill.filter(|_| set_diffuse(&mut object.material, rgb(fill)));
+                FaceTexture::Unestimated { why, filled }
+            }
+        };
+        out.push(OtherCatcher {
+            catcher: k,
+            proxy: proxy[i],
+            texture,
+        });
+    }
+    Ok((scene, report, out))
+}
+
+fn rgb(c: Option<[f64; 3]>) -> Rgb {
+    let c = c.unwrap_or([0.0; 3]);
+    Rgb::new(c[0], c[1], c[2])
+}
+
+/// Sets a diffuse material's colour; false for a mirror.
+fn set_diffuse(b: &mut Brdf, c: Rgb) -> bool {
+    match b {
+        Brdf::Lambert(l) => l.albedo = c,
+        Brdf::BlinnPhong(p) => p.diffuse = c,
+        Brdf::Mirror(_) => return false,
+    }
+    true
+}
+
+/// A textured face's unseen texels take the proxy's median `m`: the colour becomes `m` and the
+/// estimated texels' factors are rescaled to keep their albedo.
+fn refill_unseen(object: &mut crate::scene::Object, r: &TextureReport, m: [f64; 3], min: usize) {
+    if m.iter().any(|&c| c <= 0.0) || !set_diffuse(&mut object.material, rgb(Some(m))) {
+        return;
+    }
+    let Some(Texture::Planar(map)) = object.texture.as_mut() else {
+        return;
+    };
+    for (t, &s) in r.seen.iter().enumerate() {
+        let (x, y) = (t % map.width, t / map.width);
+        for (c, mc) in m.iter().enumerate() {
+            map.texels[3 * t + c] = if (s as usize) >= min {
+                (r.albedo.get(x, y, c) as f64 / mc) as f32
+            } else {
+                1.0
+            };
+        }
+    }
+}
+
+/// For each of `others` (indices into `catchers`), its proxy: the connected group of the others
+/// that share a corner with it (within 1 µm), numbered in order of first appearance.
+fn proxies(scene: &Scene, catchers: &[usize], others: &[usize]) -> Vec<usize> {
+    let corners: Vec<Vec<Vec3>> = others
+        .iter()
+        .map(|&k| match &scene.objects[catchers[k]].shape {
+            Shape::Triangles { triangles } => triangles.iter().flatten().copied().collect(),
+            Shape::Sphere(_) => Vec::new(),
+        })
+        .collect();
+    let touch = |a: &[Vec3], b: &[Vec3]| {
+        a.iter()
+            .any(|p| b.iter().any(|q| (*p - *q).length() <= 1e-6))
+    };
+    // Union–find over the others.
+    let mut parent: Vec<usize> = (0..others.len()).collect();
+    fn root(p: &mut [usize], mut i: usize) -> usize {
+        while p[i] != i {
+            p[i] = p[p[i]];
+            i = p[i];
+        }
+        i
+    }
+    for i in 0..others.len() {
+        for j in 0..i {
+            if touch(&corners[i], &corners[j]) {
+                let (a, b) = (root(&mut parent, i), root(&mut parent, j));
+                parent[a.max(b)] = a.min(b);
+            }
+        }
+    }
+    let mut number = vec![usize::MAX; others.len()];
+    let mut next = 0;
+    (0..others.len())
+        .map(|i| {
+            let r = root(&mut parent, i);
+            if number[r] == usize::MAX {
+                number[r] = next;
+                next += 1;
+            }
+            number[r]
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::brdf::Lambert;
+    use crate::camera::Camera;
+    use crate::environment::ConstantEnvironment;
+    use crate::proxy::{box_faces, catchers};
+    use crate::render::{render, RenderSettings};
+    use crate::scene::Object;
+    use crate::world::World;
+
+    fn scene(objects: Vec<Object>) -> Scene {
+        Scene {
+            camera: None,
+            objects,
+            lights: vec![],
+            background: Rgb::BLACK,
+            dome: None,
+        }
+    }
+
+    /// A box of one albedo on a grey ground, under a uniform sky, seen from one side: the faces
+    /// the camera sees are estimated near the truth; the faces it never sees take their median,
+    /// not the starting grey.
+    #[test]
+    fn unseen_faces_of_a_proxy_take_its_seen_faces_median() {
+        let truth = Rgb::new(0.6, 0.3, 0.15);
+        let corners = [
+            Vec3::new(-0.3, -0.3, 0.0),
+            Vec3::new(0.3, -0.3, 0.0),
+            Vec3::new(0.3, 0.3, 0.0),
+            Vec3::new(-0.3, -0.3, 0.5),
+        ];
+        let faces = box_faces(&corners).unwrap();
+        let ground = Object {
+            catcher: true,
+            ..Object::new(
+                Shape::Triangles {
+                    triangles: vec![
+                        [
+                            Vec3::new(-3.0, -3.0, 0.0),
+                            Vec3::new(3.0, -3.0, 0.0),
+                            Vec3::new(3.0, 3.0, 0.0),
+                        ],
+                        [
+                            Vec3::new(-3.0, -3.0, 0.0),
+                            Vec3::new(3.0, 3.0, 0.0),
+                            Vec3::new(-3.0, 3.0, 0.0),
+                        ],
+                    ],
+                },
+                Brdf::Lambert(Lambert {
+                    albedo: Rgb::new(0.4, 0.4, 0.4),
+                }),
+            )
+        };
+        let mut real = scene(vec![ground.clone()]);
+        real.objects.extend(catchers(faces.clone(), truth));
+        // The camera looks at the box from -y and above: it sees the top and the -y face (and
+        // grazes ±x); the +y face is hidden.
+        let camera = Camera::look_at(
+            Vec3::new(0.4, -2.5, 1.6),
+            Vec3::new(0.0, 0.0, 0.25),
+            Vec3::new(0.0, 0.0, 1.0),
+            45.0,
+            96,
+            72,
+        )
+        .unwrap();
+        let env = ConstantEnvironment {
+            radiance: Rgb::new(1.0, 1.0, 1.0),
+        };
+        let settings = RenderSettings {
+            spp: 256,
+            max_depth: 3,
+            seed: 3,
+            ..RenderSettings::default()
+        };
+        let plate = render(&World::new(&real), &env, &camera, &settings, &|_| {}, None)
+            .unwrap()
+            .image;
+        let mut model = scene(vec![ground]);
+        model
+            .objects
+            .extend(catchers(faces, Rgb::new(0.18, 0.18, 0.18)));
+        let views = [View {
+            frame: 0,
+            camera: &camera,
+            plate: &plate,
+        }];
+        let o = TextureOptions {
+            resolution: 32,
+            irradiance_samples: 256,
+            ..TextureOptions::default()
+        };
+        let (textured, _, others) =
+            texture_local_scene(&model, &env, &views, &o, Some(8), None).unwrap();
+        assert_eq!(others.len(), 5, "a box proxy has 5 faces (no base)");
+        assert!(others.iter().all(|c| c.proxy == 0), "{others:?}");
+        let filled: Vec<_> = others
+            .iter()
+            .filter_map(|c| match &c.texture {
+                FaceTexture::Unestimated { filled, .. } => Some(filled.unwrap()),
+                _ => None,
+            })
+            .collect();
+        assert!(!filled.is_empty(), "{others:?}");
+        for f in filled {
+            for (c, t) in f.iter().zip([truth.r, truth.g, truth.b]) {
+                assert!((c / t - 1.0).abs() < 0.10, "filled {f:?} for {truth:?}");
+            }
+        }
+        // Every face's colour (the unseen texels' value) is the median, not 0.18.
+        for c in &others {
+            let Brdf::Lambert(l) = &textured.objects[c.catcher].material else {
+                panic!()
+            };
+            assert!((l.albedo.r / truth.r - 1.0).abs() < 0.10, "{l:?}");
+        }
+    }
+
+    #[test]
+    fn faces_sharing_corners_are_one_proxy() {
+        let a = box_faces(&[
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(1.0, 1.0, 0.0),
+            Vec3::new(0.0, 0.0, 1.0),
+        ])
+        .unwrap();
+        let b = box_faces(&[
+            Vec3::new(5.0, 0.0, 0.0),
+            Vec3::new(6.0, 0.0, 0.0),
+            Vec3::new(6.0, 1.0, 0.0),
+            Vec3::new(5.0, 0.0, 1.0),
+        ])
+        .unwrap();
+        let mut s = scene(vec![]);
+        let grey = Rgb::new(0.5, 0.5, 0.5);
+        s.objects.extend(catchers(a.clone(), grey));
+        s.objects.extend(catchers(b.clone(), grey));
+        let n = a.len() + b.len();
+        let all: Vec<usize> = (0..n).collect();
+        let p = proxies(&s, &all, &all);
+        assert_eq!(p[..a.len()], vec![0; a.len()][..]);
+        assert_eq!(p[a.len()..], vec![1; b.len()][..]);
+    }
+}
