@@ -15,7 +15,9 @@
 use std::sync::atomic::AtomicBool;
 
 use crate::brdf::Brdf;
-use crate::catcher_texture::{catcher_texture, TextureError, TextureOptions, TextureReport, View};
+use crate::catcher_texture::{
+    catcher_texture, median, TextureError, TextureOptions, TextureReport, View,
+};
 use crate::environment::Environment;
 use crate::math::{Rgb, Vec3};
 use crate::scene::{Scene, Shape};
@@ -113,11 +115,7 @@ pub fn texture_local_scene(
         if s[0].is_empty() {
             return None;
         }
-        Some([0, 1, 2].map(|c| {
-            let mut v = s[c].clone();
-            v.sort_by(f64::total_cmp);
-            v[v.len() / 2]
-        }))
+        Some([0, 1, 2].map(|c| median(&mut s[c].clone())))
     };
     let mut out = Vec::new();
     for (i, (&k, r)) in others.iter().zip(outcome).enumerate() {
@@ -134,7 +132,7 @@ pub fn texture_local_scene(
                 }
             }
             Err(why) => {
-                let filled = fill.filter(|_| set_diffuse(&mut object.material, rgb(fill)));
+                let filled = fill.filter(|&m| set_diffuse(&mut object.material, rgb(m)));
                 FaceTexture::Unestimated { why, filled }
             }
         };
@@ -147,8 +145,7 @@ pub fn texture_local_scene(
     Ok((scene, report, out))
 }
 
-fn rgb(c: Option<[f64; 3]>) -> Rgb {
-    let c = c.unwrap_or([0.0; 3]);
+fn rgb(c: [f64; 3]) -> Rgb {
     Rgb::new(c[0], c[1], c[2])
 }
 
@@ -165,7 +162,7 @@ fn set_diffuse(b: &mut Brdf, c: Rgb) -> bool {
 /// A textured face's unseen texels take the proxy's median `m`: the colour becomes `m` and the
 /// estimated texels' factors are rescaled to keep their albedo.
 fn refill_unseen(object: &mut crate::scene::Object, r: &TextureReport, m: [f64; 3], min: usize) {
-    if m.iter().any(|&c| c <= 0.0) || !set_diffuse(&mut object.material, rgb(Some(m))) {
+    if m.iter().any(|&c| c <= 0.0) || !set_diffuse(&mut object.material, rgb(m)) {
         return;
     }
     let Some(Texture::Planar(map)) = object.texture.as_mut() else {
