@@ -14,7 +14,8 @@ whose ray passes within 0.85 r of the sphere's centre (the silhouette less its a
 `shadow` = ground pixels (no sphere hit) whose ground point lies within 2.5 r of the sphere's
 contact point; `mirror_floor`/`mirror_up` = mirror pixels whose reflected ray goes down (the floor's
 reflection) / up (dome and boxes); `mirror_box` = mirror pixels whose reflected ray meets one of the
-set's boxes (exact, from scene.json's corners), `mirror_ground` = `mirror_floor` less those; `far` = ground pixels 0.8–2 m from both spheres and off the boxes' footprints.
+set's boxes (exact, from scene.json's corners), split per box as `mirror_<box name>` (the nearest
+box the reflected ray meets), `mirror_ground` = `mirror_floor` less those; `far` = ground pixels 0.8–2 m from both spheres and off the boxes' footprints.
 Figures per region on 4×4-pixel block means (blocks wholly inside the region; a pixel's σ at 32
 spp is ~80 % of its mean, too much to see a bias), relative to the truth's mean there (channel
 mean): `bias` = mean(comp − truth), `rms` = RMS over blocks of (comp − truth), `truth_noise` =
@@ -87,7 +88,9 @@ def masks(cam, K, w, h, scene, lens=None):
             # the mirror's pixels whose reflected ray meets a box (scene.json's, exact)
             hb = np.zeros(len(d), bool)
             p = C + th[:, None] * d
-            for b in scene['boxes']:
+            nearest = np.full(len(d), np.inf)
+            which = np.full(len(d), -1)
+            for bi, b in enumerate(scene['boxes']):
                 cs = np.array(b['corners']); e1 = cs[1] - cs[0]; e2 = cs[3] - cs[0]
                 l1, l2 = np.linalg.norm(e1), np.linalg.norm(e2); u1, u2 = e1 / l1, e2 / l2
                 po = p - cs[0]
@@ -96,8 +99,15 @@ def masks(cam, K, w, h, scene, lens=None):
                 with np.errstate(divide='ignore', invalid='ignore'):
                     t1 = -lo / ld; t2 = (np.array([l1, l2, cs[4, 2]]) - lo) / ld
                 tn = np.nanmax(np.minimum(t1, t2), 1); tf = np.nanmin(np.maximum(t1, t2), 1)
-                hb |= (tf >= np.maximum(tn, 0))
+                hit = (tf >= np.maximum(tn, 0))
+                hb |= hit
+                closer = hit & (np.maximum(tn, 0) < nearest)
+                nearest[closer] = np.maximum(tn, 0)[closer]
+                which[closer] = bi
             out['mirror_box'] = out[key] & hb
+            # per box (the nearest one the reflected ray meets): which proxy a bias comes from
+            for bi, b in enumerate(scene['boxes']):
+                out['mirror_' + b['name']] = out[key] & (which == bi)
             out['mirror_ground'] = out['mirror_floor'] & ~hb
         hit_any |= (closest < 1.05 * r) & (t > 0)
     tg = -C[2] / d[:, 2]
@@ -169,7 +179,8 @@ def main():
         k = sig_far / np.sqrt(np.mean(res[far] ** 2))
         cb, _ = blocks(comp, m['far'])
         row = {'frame': f, 'far_sigma_scale': k}
-        for key in ('diffuse', 'mirror', 'mirror_floor', 'mirror_ground', 'mirror_box', 'mirror_up',
+        for key in ('diffuse', 'mirror', 'mirror_floor', 'mirror_ground', 'mirror_box',
+                    *['mirror_' + b['name'] for b in scene['boxes']], 'mirror_up',
                     'diffuse_shadow', 'mirror_shadow', 'far'):
             _, sel = blocks(truth, m[key])
             n = int(sel.sum())
@@ -185,7 +196,7 @@ def main():
         print('frame %d' % f)
         for key, v in row.items():
             if isinstance(v, dict):
-                print('  %-15s blocks=%5d bias %+6.1f%%  rms %5.1f%%  truth σ %5.1f%%  rms/σ %.2f' % (
+                print('  %-20s blocks=%5d bias %+6.1f%%  rms %5.1f%%  truth σ %5.1f%%  rms/σ %.2f' % (
                     key, v['pixels'], 100 * v['bias'], 100 * v['rms'], 100 * v['truth_noise'],
                     v['rms_over_noise']))
     if jpath:
