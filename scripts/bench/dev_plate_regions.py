@@ -184,7 +184,7 @@ def main():
                     'diffuse_shadow', 'mirror_shadow', 'far'):
             _, sel = blocks(truth, m[key])
             n = int(sel.sum())
-            if n < 10:
+            if n < (3 if key.startswith('mirror_box_') else 10):
                 continue
             mt = tb[sel].mean()
             e = cb[sel] - tb[sel]

@@ -309,6 +309,10 @@ pub fn register(r: &mut Registry) {
                  clamped fraction, what became of each proxy face).",
             )
             .seeded()
+            // 2: the report gives each proxy face's centre, normal, median albedo, irradiance;
+            // 3: a face's irradiance on the side the plate sees it from, and the irradiance
+            // grid's points no camera sees (under a box) left out of the interpolation.
+            .version(3)
             .options::<CatcherTextureParams>(),
         ))
         .input(PortSpec::sequence(
@@ -400,10 +404,15 @@ fn run_catcher_texture(ctx: &mut Context<'_>) -> Result<(), NodeError> {
             FaceTexture::Estimated {
                 texels_estimated,
                 clamped_fraction,
+                median_albedo,
+                mean_irradiance,
             } => serde_json::json!({"catcher": c.catcher, "proxy": c.proxy,
-                "texels_estimated": texels_estimated, "clamped_fraction": clamped_fraction}),
+                "centre": c.centre, "normal": c.normal,
+                "texels_estimated": texels_estimated, "clamped_fraction": clamped_fraction,
+                "median_albedo": median_albedo, "mean_irradiance": mean_irradiance}),
             FaceTexture::Unestimated { why, filled } => serde_json::json!({"catcher": c.catcher,
-                "proxy": c.proxy, "skipped": why, "filled_with_proxy_median": filled}),
+                "proxy": c.proxy, "centre": c.centre, "normal": c.normal, "skipped": why,
+                "filled_with_proxy_median": filled}),
         })
         .collect();
     let m = &rep.map;

@@ -12,7 +12,10 @@
 //! The albedo is clamped to `[0, max_albedo]` (a physical range) and the clamped fraction
 //! reported. E is smooth away from contact shadows, so it is estimated on a coarser grid than
 //! the texels (`irradiance_cell` texels apart, `irradiance_samples` cosine-distributed paths per
-//! point) and interpolated bilinearly. When catchers see one another (proxy boxes next to the
+//! point) and interpolated bilinearly over the grid points some camera centre sees (a point
+//! under a proxy box standing on the catcher has E ≈ 0 and would inflate the albedo of the
+//! seen texels next to the box). E is gathered on the side of the catcher the plate's rays
+//! meet it from (a proxy box's face is seen from outside only). When catchers see one another (proxy boxes next to the
 //! ground) E depends on their albedos, so the estimate repeats with the textured catcher in the
 //! local scene (`iterations`), as [`crate::catcher_fit`] repeats its colour fit.
 //!
@@ -169,7 +172,13 @@ fn diffuse(b: &Brdf) -> Option<Rgb> {
     }
 }
 
-/// The catcher's plane rectangle: origin, u, v edges and the unit normal facing `eye`.
+/// One image row's pixels that meet the catcher first: (texel, plate radiance) each, and how
+/// many of their rays meet it from the normal's side and from the other.
+type RowHits = (Vec<(usize, [f64; 3])>, [usize; 2]);
+
+/// The catcher's plane rectangle: origin, u, v edges and the unit normal facing `eye`. (The
+/// estimate then turns the normal to the side the plate's rays meet the catcher from: a face
+/// of a proxy box is seen only from outside, which need not be the first frame's side.)
 fn rectangle(shape: &Shape, eye: Vec3) -> Option<(Vec3, Vec3, Vec3, Vec3)> {
     let Shape::Triangles { triangles } = shape else {
         return None;
@@ -262,7 +271,7 @@ pub fn catcher_texture(
             });
         }
     }
-    let (origin, u, v, n) = rectangle(&obj.shape, views[0].camera.center())
+    let (origin, u, v, mut n) = rectangle(&obj.shape, views[0].camera.center())
         .ok_or(TextureError::NotPlanar(o.catcher))?;
     let (lu, lv) = (u.length(), v.length());
     let texel = lu.max(lv) / o.resolution as f64;
@@ -289,6 +298,7 @@ pub fn catcher_texture(
     let world0 = World::new(&local);
     let mut per_texel: Vec<Vec<[f32; 3]>> = vec![Vec::new(); w * h];
     let mut pixels_per_frame = Vec::new();
+    let (mut front, mut back) = (0usize, 0usize);
     for view in views {
         if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
             return Err(TextureError::Cancelled);
@@ -296,10 +306,13 @@ pub fn catcher_texture(
         let (cw, ch) = (view.camera.width, view.camera.height);
         let rays = view.camera.rays();
         let gray = view.plate.color_channels() == 1;
-        let rows: Vec<Vec<(usize, [f64; 3])>> = (0..ch)
+        // Per row: (texel, radiance) of each pixel that meets the catcher first, and how many
+        // of those rays meet it from the side `n` points to (the rest from the other side).
+        let rows: Vec<RowHits> = (0..ch)
             .into_par_iter()
             .map(|y| {
                 let mut out = Vec::new();
+                let mut sides = [0usize; 2];
                 for x in 0..cw {
                     let ray = rays.ray(x as f64, y as f64);
                     let Some(hit) = world0.intersect(&ray, f64::INFINITY) else {
@@ -308,6 +321,7 @@ pub fn catcher_texture(
                     if hit.surface != Surface::Material(local_index) {
                         continue;
                     }
+                    sides[usize::from(ray.d.dot(n) > 0.0)] += 1;
                     let (s, t) = map.coords(hit.p);
                     if !(0.0..1.0).contains(&s) || !(0.0..1.0).contains(&t) {
                         continue;
@@ -319,12 +333,16 @@ pub fn catcher_texture(
                         out.push((j * w + i, l));
                     }
                 }
-                out
+                (out, sides)
             })
             .collect();
         let mut sum = vec![[0.0f64; 4]; w * h];
         let mut used = 0;
-        for (k, l) in rows.into_iter().flatten() {
+        for (_, s) in &rows {
+            front += s[0];
+            back += s[1];
+        }
+        for (k, l) in rows.into_iter().flat_map(|(r, _)| r) {
             let s = &mut sum[k];
             s[0] += l[0];
             s[1] += l[1];
@@ -342,6 +360,11 @@ pub fn catcher_texture(
             }
         }
         pixels_per_frame.push((view.frame, used));
+    }
+    // The irradiance is gathered on the side the plate sees (most of its rays: a box face is
+    // seen from outside only, whatever side the first frame's camera is on).
+    if back > front {
+        n = -n;
     }
     let seen: Vec<u16> = per_texel.iter().map(|v| v.len() as u16).collect();
     if seen.iter().all(|&s| s == 0) {
@@ -373,16 +396,34 @@ pub fn catcher_texture(
         );
         let eps = 1e-6 * (1.0 + origin.max_abs() + u.length() + v.length());
         let frame = Frame::from_normal(n);
+        let grid_point = |g: usize| {
+            let (gi, gj) = (g % gw, g / gw);
+            let s = (gi as f64 * cell / w as f64).min(1.0);
+            let t = (gj as f64 * cell / h as f64).min(1.0);
+            map.point(s, t) + n * eps
+        };
+        // A grid point some camera centre sees is in the open; one no camera sees may be
+        // under a proxy box standing on the catcher (its irradiance ≈ 0), and interpolating
+        // it would darken the irradiance of the seen texels next to the box (and brighten
+        // their albedo): such points are left out of the interpolation.
+        let open: Vec<bool> = (0..gw * gh)
+            .into_par_iter()
+            .map(|g| {
+                let q = grid_point(g);
+                views.iter().any(|view| {
+                    let to = view.camera.center() - q;
+                    let d = to.length();
+                    d > 0.0 && !world.occluded(&Ray::new(q, to * (1.0 / d)), d * (1.0 - 1e-9))
+                })
+            })
+            .collect();
         let grid: Vec<Rgb> = (0..gw * gh)
             .into_par_iter()
             .map(|g| {
-                if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+                if !open[g] || cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
                     return Rgb::BLACK;
                 }
-                let (gi, gj) = (g % gw, g / gw);
-                let s = (gi as f64 * cell / w as f64).min(1.0);
-                let t = (gj as f64 * cell / h as f64).min(1.0);
-                let q = map.point(s, t) + n * eps;
+                let q = grid_point(g);
                 let mut sampler = PixelSampler::new(o.seed, g as u64);
                 let mut acc = Rgb::BLACK;
                 let finite = |l: Rgb| l.r.is_finite() && l.g.is_finite() && l.b.is_finite();
@@ -426,20 +467,34 @@ pub fn catcher_texture(
             return Err(TextureError::Cancelled);
         }
         mean_irradiance = [0.0; 3];
-        for e in &grid {
-            mean_irradiance[0] += e.r / grid.len() as f64;
-            mean_irradiance[1] += e.g / grid.len() as f64;
-            mean_irradiance[2] += e.b / grid.len() as f64;
+        let n_open = open.iter().filter(|&&o| o).count().max(1) as f64;
+        for (e, _) in grid.iter().zip(&open).filter(|(_, &o)| o) {
+            mean_irradiance[0] += e.r / n_open;
+            mean_irradiance[1] += e.g / n_open;
+            mean_irradiance[2] += e.b / n_open;
         }
-        let irradiance = |i: usize, j: usize| -> Rgb {
+        // Bilinear over the open grid points of the texel's cell (weights renormalised);
+        // `None` when none of them is open (the texel is then not estimated).
+        let irradiance = |i: usize, j: usize| -> Option<Rgb> {
             let x = ((i as f64 + 0.5) / cell).min((gw - 1) as f64);
             let y = ((j as f64 + 0.5) / cell).min((gh - 1) as f64);
             let (x0, y0) = (x.floor() as usize, y.floor() as usize);
             let (x1, y1) = ((x0 + 1).min(gw - 1), (y0 + 1).min(gh - 1));
             let (fx, fy) = (x - x0 as f64, y - y0 as f64);
-            let at = |a: usize, b: usize| grid[b * gw + a];
-            (at(x0, y0) * (1.0 - fx) + at(x1, y0) * fx) * (1.0 - fy)
-                + (at(x0, y1) * (1.0 - fx) + at(x1, y1) * fx) * fy
+            let mut acc = Rgb::BLACK;
+            let mut wsum = 0.0;
+            for (a, b, wt) in [
+                (x0, y0, (1.0 - fx) * (1.0 - fy)),
+                (x1, y0, fx * (1.0 - fy)),
+                (x0, y1, (1.0 - fx) * fy),
+                (x1, y1, fx * fy),
+            ] {
+                if open[b * gw + a] && wt > 0.0 {
+                    acc += grid[b * gw + a] * wt;
+                    wsum += wt;
+                }
+            }
+            (wsum > 1e-9).then(|| acc * (1.0 / wsum))
         };
         estimated = 0;
         clamped = 0;
@@ -448,9 +503,13 @@ pub fn catcher_texture(
                 let k = j * w + i;
                 let ests = &per_texel[k];
                 let mut a = [uniform.r, uniform.g, uniform.b];
-                if ests.len() >= o.min_frames.max(1) {
+                let e = if ests.len() >= o.min_frames.max(1) {
+                    irradiance(i, j)
+                } else {
+                    None
+                };
+                if let Some(e) = e {
                     estimated += 1;
-                    let e = irradiance(i, j);
                     let e = [e.r, e.g, e.b];
                     for c in 0..3 {
                         let mut vals: Vec<f64> = ests.iter().map(|l| l[c] as f64).collect();

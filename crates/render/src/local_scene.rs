@@ -32,6 +32,10 @@ pub enum FaceTexture {
         texels_estimated: usize,
         /// Fraction of estimated channel values clamped to the physical range.
         clamped_fraction: f64,
+        /// Median albedo of the estimated texels (after the proxy fill: what the render uses).
+        median_albedo: [f64; 3],
+        /// Mean irradiance over the face's grid (per channel).
+        mean_irradiance: [f64; 3],
     },
     /// Not estimated (`why`: not seen, not planar, not diffuse); its colour is `filled` — the
     /// median albedo of its proxy's seen texels — or unchanged when `None`.
@@ -44,19 +48,27 @@ pub enum FaceTexture {
 }
 
 /// One of the other catchers: its index among the scene's catchers, the proxy it belongs to
-/// (the index of its connected group of catchers, in order of first face) and the outcome.
+/// (the index of its connected group of catchers, in order of first face), where it is and
+/// the outcome.
 #[derive(Clone, Debug, PartialEq)]
 pub struct OtherCatcher {
     /// Index among the scene's catchers.
     pub catcher: usize,
     /// Connected group (proxy) number.
     pub proxy: usize,
+    /// The centre of its triangles' corners (scene coordinates).
+    pub centre: [f64; 3],
+    /// Its unit normal (of its first triangle, as wound).
+    pub normal: [f64; 3],
     /// What was done.
     pub texture: FaceTexture,
 }
 
 /// The textures of the main catcher (`o.catcher`) and, when `others_resolution` is given, of
 /// every other catcher, with the report of the main one and the outcome of each other.
+/// (Estimating the whole local scene a second time with the first pass's textures, as the
+/// catchers light one another, changed a box side's albedo by 0.3 % in
+/// `faces_seen_only_from_a_later_frame_face_that_frame`: one pass.)
 pub fn texture_local_scene(
     scene: &Scene,
     env: &dyn Environment,
@@ -126,9 +138,19 @@ pub fn texture_local_scene(
                 if let Some(m) = fill {
                     refill_unseen(object, &r, m, o.min_frames.max(1));
                 }
+                let min = o.min_frames.max(1) as u16;
+                let mut v: [Vec<f64>; 3] = Default::default();
+                for (t, _) in r.seen.iter().enumerate().filter(|(_, &s)| s >= min) {
+                    let (x, y) = (t % r.map.width, t / r.map.width);
+                    for (c, v) in v.iter_mut().enumerate() {
+                        v.push(r.albedo.get(x, y, c) as f64);
+                    }
+                }
                 FaceTexture::Estimated {
                     texels_estimated: r.estimated,
                     clamped_fraction: r.clamped_fraction,
+                    median_albedo: v.map(|mut v| if v.is_empty() { 0.0 } else { median(&mut v) }),
+                    mean_irradiance: r.mean_irradiance,
                 }
             }
             Err(why) => {
@@ -136,13 +158,35 @@ pub fn texture_local_scene(
                 FaceTexture::Unestimated { why, filled }
             }
         };
+        let (centre, normal) = placement(&object.shape);
         out.push(OtherCatcher {
             catcher: k,
             proxy: proxy[i],
+            centre,
+            normal,
             texture,
         });
     }
     Ok((scene, report, out))
+}
+
+/// The centre of a shape's triangle corners and its first triangle's unit normal (zeros for
+/// a shape without triangles).
+fn placement(shape: &Shape) -> ([f64; 3], [f64; 3]) {
+    let Shape::Triangles { triangles } = shape else {
+        return ([0.0; 3], [0.0; 3]);
+    };
+    let Some(first) = triangles.first() else {
+        return ([0.0; 3], [0.0; 3]);
+    };
+    let sum = triangles
+        .iter()
+        .flat_map(|t| t.iter())
+        .fold(Vec3::new(0.0, 0.0, 0.0), |a, &p| a + p);
+    let c = sum * (1.0 / (3 * triangles.len()) as f64);
+    let n = (first[1] - first[0]).cross(first[2] - first[0]);
+    let n = n * (1.0 / n.length().max(1e-300));
+    ([c.x, c.y, c.z], [n.x, n.y, n.z])
 }
 
 fn rgb(c: [f64; 3]) -> Rgb {
@@ -344,6 +388,126 @@ mod tests {
             };
             assert!((l.albedo.r / truth.r - 1.0).abs() < 0.10, "{l:?}");
         }
+    }
+
+    /// A box face seen only by a later frame, from the side opposite the first frame's camera:
+    /// its irradiance is gathered on the side the plate sees (outside the box), so its albedo
+    /// is estimated near the truth (gathered inside, towards the first camera, it was the
+    /// starting grey, 70 % off, or clamped).
+    #[test]
+    fn faces_seen_only_from_a_later_frame_face_that_frame() {
+        let truth = Rgb::new(0.6, 0.3, 0.15);
+        let corners = [
+            Vec3::new(-0.3, -0.3, 0.0),
+            Vec3::new(0.3, -0.3, 0.0),
+            Vec3::new(0.3, 0.3, 0.0),
+            Vec3::new(-0.3, -0.3, 0.5),
+        ];
+        let faces = box_faces(&corners).unwrap();
+        let ground = |albedo| {
+            catchers(
+                vec![vec![
+                    [
+                        Vec3::new(-3.0, -3.0, 0.0),
+                        Vec3::new(3.0, -3.0, 0.0),
+                        Vec3::new(3.0, 3.0, 0.0),
+                    ],
+                    [
+                        Vec3::new(-3.0, -3.0, 0.0),
+                        Vec3::new(3.0, 3.0, 0.0),
+                        Vec3::new(-3.0, 3.0, 0.0),
+                    ],
+                ]],
+                albedo,
+            )
+        };
+        let grey = Rgb::new(0.4, 0.4, 0.4);
+        let mut real = scene(ground(grey));
+        real.objects.extend(catchers(faces.clone(), truth));
+        let env = ConstantEnvironment {
+            radiance: Rgb::new(1.0, 1.0, 1.0),
+        };
+        let settings = RenderSettings {
+            spp: 256,
+            max_depth: 3,
+            seed: 5,
+            ..RenderSettings::default()
+        };
+        // Frame 0 from +y, frame 1 from -y: the -y face is seen by frame 1 alone.
+        let cameras: Vec<Camera> = [Vec3::new(0.3, 2.5, 1.4), Vec3::new(-0.3, -2.5, 1.4)]
+            .iter()
+            .map(|&eye| {
+                Camera::look_at(
+                    eye,
+                    Vec3::new(0.0, 0.0, 0.25),
+                    Vec3::new(0.0, 0.0, 1.0),
+                    45.0,
+                    96,
+                    72,
+                )
+                .unwrap()
+            })
+            .collect();
+        let world = World::new(&real);
+        let plates: Vec<_> = cameras
+            .iter()
+            .map(|c| {
+                render(&world, &env, c, &settings, &|_| {}, None)
+                    .unwrap()
+                    .image
+            })
+            .collect();
+        let views: Vec<View<'_>> = (0..2)
+            .map(|i| View {
+                frame: i as i64,
+                camera: &cameras[i],
+                plate: &plates[i],
+            })
+            .collect();
+        let mut model = scene(ground(grey));
+        model
+            .objects
+            .extend(catchers(faces, Rgb::new(0.18, 0.18, 0.18)));
+        let o = TextureOptions {
+            resolution: 16,
+            irradiance_samples: 256,
+            min_frames: 1,
+            ..TextureOptions::default()
+        };
+        let (_, main, others) =
+            texture_local_scene(&model, &env, &views, &o, Some(16), None).unwrap();
+        let mut checked = 0;
+        let medians = others.iter().filter_map(|c| match &c.texture {
+            FaceTexture::Estimated { median_albedo, .. } => Some(*median_albedo),
+            _ => None,
+        });
+        for m in medians {
+            checked += 1;
+            for (c, t) in m.iter().zip([truth.r, truth.g, truth.b]) {
+                assert!((c / t - 1.0).abs() < 0.02, "median {m:?} for {truth:?}");
+            }
+        }
+        assert_eq!(checked, 3, "the top and the ±y faces: {others:?}");
+        // The ground's texels next to the box (within 0.3 m of its footprint): the irradiance
+        // grid's points under the box are left out, so their albedo is not inflated (with
+        // them interpolated it was 0.80 for the truth's 0.40).
+        let mut near = Vec::new();
+        for (t, &seen) in main.seen.iter().enumerate() {
+            let (x, y) = (t % main.map.width, t / main.map.width);
+            let p = main.map.point(
+                (x as f64 + 0.5) / main.map.width as f64,
+                (y as f64 + 0.5) / main.map.height as f64,
+            );
+            if seen > 0 && p.x.abs().max(p.y.abs()) < 0.6 {
+                near.push(main.albedo.get(x, y, 0) as f64);
+            }
+        }
+        assert!(near.len() >= 8, "{} texels", near.len());
+        let m = median(&mut near);
+        assert!(
+            (m / 0.4 - 1.0).abs() < 0.15,
+            "ground next to the box: {m} for 0.4"
+        );
     }
 
     #[test]
