@@ -2,8 +2,8 @@
 """Our differential render of the dev plate's insert against Blender Cycles' shadow catcher (issue 17).
 
     ~/.cache/vfxgraph/pyenv-export/bin/python scripts/bench/shot_vs_cycles.py \
-        --frames 24 [--samples 16,64,256] [--default] [--ours-spp 64] [--out DIR] [--json out.json] \
-        [--cycles-only] [--reuse [--rescore]]
+        --frames 24 [--samples 16,64,256] [--default] [--camera true|solved] [--ours-spp 64] \
+        [--out DIR] [--json out.json] [--cycles-only] [--reuse [--rescore]]
 
 (VFXGRAPH=path/to/vfxgraph, default target/release/vfxgraph; the once-nodes of
 graphs/dev_plate_shot.yaml must be in its cache.)
@@ -16,7 +16,9 @@ spheres, a 10 m ground plane flagged as shadow catcher with a uniform diffuse co
 the colour is frame-free), the set's dome (`empty_warehouse_01`, Blender Z rotation 40°, strength
 1), the truth's pixel filter and bounce limits, no denoising; the camera is the **true** one
 (cameras_gt.json) and the spheres sit at their true positions — Cycles is given the exact camera
-and placement that our composite has to solve and measure. Composited over the plate as Blender's
+and placement that our composite has to solve and measure. With `--camera solved` it gets ours
+instead (the solved camera mapped to the set's world by the placement's similarity: the
+registration our composite uses; `solved_camera`), so the comparison is of the renderers alone. Composited over the plate as Blender's
 manual says: `combined.rgb + (1 − combined.a) · plate · shadow_catcher`. No proxies and no
 textured catcher: Cycles' catcher is one plane of one colour, so its mirror sees a flat floor.
 
@@ -142,7 +144,26 @@ def regions_border(scene_j, K, R, t, w, h):
     return x0, x1, 1 - y1, 1 - y0
 
 
-def render_cycles(frame, samples, adaptive, colour, out_path, border=False):
+def solved_camera(frame):
+    """Our solved camera of `frame` in the set's world: K, R, t, C.
+
+    graphs/out/dev_plate_shot/cameras.json holds the solve's cameras (x_cam = R x_s + t) and
+    place.json the placement's similarity (x_s = s·Q·x_w + u, from the clicked marks); with both,
+    x_cam = s·(R Q x_w + (R u + t)/s), the same projection as R_w = R Q, t_w = (R u + t)/s. The
+    spheres and the catcher plane are placed by the same similarity, so in the world they are
+    where scene.json has them, and Cycles gets exactly the registration our composite uses."""
+    import numpy as np
+    out = os.path.join(REPO, 'graphs', 'out', 'dev_plate_shot')
+    cams = json.load(open(os.path.join(out, 'cameras.json')))
+    sim = json.load(open(os.path.join(out, 'place.json')))['similarity']
+    c = [c for c in cams['frames'] if c['frame'] == frame][0]
+    Q, u, sc = np.array(sim['rotation']), np.array(sim['translation']), sim['scale']
+    R, t = np.array(c['R']), np.array(c['t'])
+    Rw, tw = R @ Q, (R @ u + t) / sc
+    return np.array(c['K']), Rw, tw, -Rw.T @ tw
+
+
+def render_cycles(frame, samples, adaptive, colour, out_path, border=False, solved=False):
     import bpy
     import numpy as np
     scene_j = json.load(open(os.path.join(DATA, 'scene.json')))
@@ -220,9 +241,13 @@ def render_cycles(frame, samples, adaptive, colour, out_path, border=False):
     nt.links.new(env.outputs['Color'], bg.inputs['Color'])
     nt.links.new(bg.outputs['Background'], wo.inputs['Surface'])
 
-    # The true camera: x ~ K(RX + t), looking down +z with y down; Blender's looks down −z, y up.
+    # The true camera (or ours, `solved`): x ~ K(RX + t), looking down +z with y down;
+    # Blender's looks down −z, y up.
     cam_j = [c for c in cams['frames'] if c['frame'] == frame][0]
     K = np.array(cams['K']); R = np.array(cam_j['R']); C = np.array(cam_j['C'])
+    t_cam = np.array(cam_j['t'])
+    if solved:
+        K, R, t_cam, C = solved_camera(frame)
     cd = bpy.data.cameras.new('cam')
     cam = bpy.data.objects.new('cam', cd)
     sc.collection.objects.link(cam)
@@ -239,7 +264,7 @@ def render_cycles(frame, samples, adaptive, colour, out_path, border=False):
     cam.matrix_world = mathutils.Matrix.Translation(C) @ mathutils.Matrix(M.tolist()).to_4x4()
 
     if border:
-        b = regions_border(scene_j, K, R, np.array(cam_j['t']), w, h)
+        b = regions_border(scene_j, K, R, t_cam, w, h)
         sc.render.use_border = True
         sc.render.use_crop_to_border = False
         sc.render.border_min_x, sc.render.border_max_x, sc.render.border_min_y, sc.render.border_max_y = b
@@ -365,7 +390,8 @@ def main():
     if args and args[0] == '--render-one':
         frame, samples, adaptive, out = int(args[1]), int(args[2]), args[3] == '1', args[5]
         colour = [float(x) for x in args[4].split(',')]
-        render_cycles(frame, samples, adaptive, colour, out, border=args[6:7] == ['border'])
+        render_cycles(frame, samples, adaptive, colour, out, border='border' in args[6:],
+                      solved='solved' in args[6:])
         return
 
     def opt(name, default):
@@ -378,6 +404,8 @@ def main():
     jpath = opt('--json', None)
     ours_spp = opt('--ours-spp', '64')
     default = '--default' in args
+    # --camera solved: Cycles gets our solved camera and measured placement (solved_camera).
+    solved = opt('--camera', 'true') == 'solved'
     # --reuse: Cycles runs whose composite and timing are already in --out are read, not redone;
     # --cycles-only: only the Cycles runs (ours later, with --reuse).
     reuse, cycles_only = '--reuse' in args, '--cycles-only' in args
@@ -393,7 +421,7 @@ def main():
         runs = []
         todo = [(s, False) for s in ladder] + ([(4096, True)] if default else [])
         for s, adaptive in todo:
-            name = 'cycles_%d%s' % (s, '_adaptive' if adaptive else '')
+            name = 'cycles_%d%s%s' % (s, '_adaptive' if adaptive else '', '_solved' if solved else '')
             path = os.path.join(out, name + '.%04d.exr')
             stamp = (path % f) + '.json'
             if reuse and os.path.exists(stamp):
@@ -405,7 +433,8 @@ def main():
                 cpu, wall, p = timed([sys.executable, os.path.abspath(__file__), '--render-one',
                                       str(f), str(s), '1' if adaptive else '0',
                                       ','.join(map(str, colour)), path % f]
-                                     + (['border'] if adaptive else []))
+                                     + (['border'] if adaptive else [])
+                                     + (['solved'] if solved else []))
                 inner = json.loads(p.stdout.strip().splitlines()[-1])
                 r = {'samples': s, 'adaptive': adaptive, 'cpu': cpu, 'wall': wall,
                      'render_cpu': inner['render_cpu'], 'render_wall': inner['render_wall'],
