@@ -15,8 +15,8 @@
 //! point) and interpolated bilinearly over the grid points some camera centre sees (a point
 //! under a proxy box standing on the catcher has E ≈ 0 and would inflate the albedo of the
 //! seen texels next to the box). E is gathered on the side of the catcher the plate's rays
-//! meet it from (a proxy box's face is seen from outside only). When catchers see one another (proxy boxes next to the
-//! ground) E depends on their albedos, so the estimate repeats with the textured catcher in the
+//! meet it from (a proxy box's face is seen from outside only). When catchers see one another
+//! (proxy boxes next to the ground) E depends on their albedos, so the estimate repeats with the textured catcher in the
 //! local scene (`iterations`), as [`crate::catcher_fit`] repeats its colour fit.
 //!
 //! The plate frames must be clean: if they already contain the objects (a shot filmed with the
@@ -380,6 +380,35 @@ pub fn catcher_texture(
     let mut estimated = 0;
     let mut clamped = 0;
     let mut mean_irradiance = [0.0; 3];
+    // The irradiance grid's points (`irradiance_cell` texels apart, just off the plane).
+    let cell = o.irradiance_cell as f64;
+    let (gw, gh) = (
+        (w as f64 / cell).ceil() as usize + 1,
+        (h as f64 / cell).ceil() as usize + 1,
+    );
+    let eps = 1e-6 * (1.0 + origin.max_abs() + u.length() + v.length());
+    let points: Vec<Vec3> = (0..gw * gh)
+        .map(|g| {
+            let (gi, gj) = (g % gw, g / gw);
+            let s = (gi as f64 * cell / w as f64).min(1.0);
+            let t = (gj as f64 * cell / h as f64).min(1.0);
+            map.point(s, t) + n * eps
+        })
+        .collect();
+    // A grid point some camera centre sees is in the open; one no camera sees may be under a
+    // proxy box standing on the catcher (its irradiance ≈ 0), and interpolating it would
+    // darken the irradiance of the seen texels next to the box (and brighten their albedo):
+    // such points are left out of the interpolation. (Geometry only: the same every iteration.)
+    let open: Vec<bool> = points
+        .par_iter()
+        .map(|&q| {
+            views.iter().any(|view| {
+                let to = view.camera.center() - q;
+                let d = to.length();
+                d > 0.0 && !world0.occluded(&Ray::new(q, to * (1.0 / d)), d * (1.0 - 1e-9))
+            })
+        })
+        .collect();
     for _ in 0..o.iterations {
         let world = World::new(&local);
         let tracer = PathTracer {
@@ -389,41 +418,14 @@ pub fn catcher_texture(
             rr_depth: 3,
             strategy: Strategy::Mis,
         };
-        let cell = o.irradiance_cell as f64;
-        let (gw, gh) = (
-            (w as f64 / cell).ceil() as usize + 1,
-            (h as f64 / cell).ceil() as usize + 1,
-        );
-        let eps = 1e-6 * (1.0 + origin.max_abs() + u.length() + v.length());
         let frame = Frame::from_normal(n);
-        let grid_point = |g: usize| {
-            let (gi, gj) = (g % gw, g / gw);
-            let s = (gi as f64 * cell / w as f64).min(1.0);
-            let t = (gj as f64 * cell / h as f64).min(1.0);
-            map.point(s, t) + n * eps
-        };
-        // A grid point some camera centre sees is in the open; one no camera sees may be
-        // under a proxy box standing on the catcher (its irradiance ≈ 0), and interpolating
-        // it would darken the irradiance of the seen texels next to the box (and brighten
-        // their albedo): such points are left out of the interpolation.
-        let open: Vec<bool> = (0..gw * gh)
-            .into_par_iter()
-            .map(|g| {
-                let q = grid_point(g);
-                views.iter().any(|view| {
-                    let to = view.camera.center() - q;
-                    let d = to.length();
-                    d > 0.0 && !world.occluded(&Ray::new(q, to * (1.0 / d)), d * (1.0 - 1e-9))
-                })
-            })
-            .collect();
         let grid: Vec<Rgb> = (0..gw * gh)
             .into_par_iter()
             .map(|g| {
                 if !open[g] || cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
                     return Rgb::BLACK;
                 }
-                let q = grid_point(g);
+                let q = points[g];
                 let mut sampler = PixelSampler::new(o.seed, g as u64);
                 let mut acc = Rgb::BLACK;
                 let finite = |l: Rgb| l.r.is_finite() && l.g.is_finite() && l.b.is_finite();

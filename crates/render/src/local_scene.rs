@@ -113,13 +113,11 @@ pub fn texture_local_scene(
     let mut samples: Vec<[Vec<f64>; 3]> = vec![Default::default(); groups];
     for (i, r) in outcome.iter().enumerate() {
         let Ok(r) = r else { continue };
-        for (t, &s) in r.seen.iter().enumerate() {
-            if (s as usize) >= o.min_frames.max(1) {
-                let (x, y) = (t % r.map.width, t / r.map.width);
-                for (c, v) in samples[proxy[i]].iter_mut().enumerate() {
-                    v.push(r.albedo.get(x, y, c) as f64);
-                }
-            }
+        for (all, one) in samples[proxy[i]]
+            .iter_mut()
+            .zip(estimated_albedos(r, o.min_frames))
+        {
+            all.extend(one);
         }
     }
     let median_of = |g: usize| -> Option<[f64; 3]> {
@@ -138,14 +136,7 @@ pub fn texture_local_scene(
                 if let Some(m) = fill {
                     refill_unseen(object, &r, m, o.min_frames.max(1));
                 }
-                let min = o.min_frames.max(1) as u16;
-                let mut v: [Vec<f64>; 3] = Default::default();
-                for (t, _) in r.seen.iter().enumerate().filter(|(_, &s)| s >= min) {
-                    let (x, y) = (t % r.map.width, t / r.map.width);
-                    for (c, v) in v.iter_mut().enumerate() {
-                        v.push(r.albedo.get(x, y, c) as f64);
-                    }
-                }
+                let v = estimated_albedos(&r, o.min_frames);
                 FaceTexture::Estimated {
                     texels_estimated: r.estimated,
                     clamped_fraction: r.clamped_fraction,
@@ -158,7 +149,7 @@ pub fn texture_local_scene(
                 FaceTexture::Unestimated { why, filled }
             }
         };
-        let (centre, normal) = placement(&object.shape);
+        let (centre, normal) = centre_and_normal(&object.shape);
         out.push(OtherCatcher {
             catcher: k,
             proxy: proxy[i],
@@ -170,9 +161,24 @@ pub fn texture_local_scene(
     Ok((scene, report, out))
 }
 
+/// Per channel, the albedo of the texels of `r` seen in at least `min_frames` frames (those
+/// estimated).
+fn estimated_albedos(r: &TextureReport, min_frames: usize) -> [Vec<f64>; 3] {
+    let mut v: [Vec<f64>; 3] = Default::default();
+    for (t, &s) in r.seen.iter().enumerate() {
+        if (s as usize) >= min_frames.max(1) {
+            let (x, y) = (t % r.map.width, t / r.map.width);
+            for (c, v) in v.iter_mut().enumerate() {
+                v.push(r.albedo.get(x, y, c) as f64);
+            }
+        }
+    }
+    v
+}
+
 /// The centre of a shape's triangle corners and its first triangle's unit normal (zeros for
 /// a shape without triangles).
-fn placement(shape: &Shape) -> ([f64; 3], [f64; 3]) {
+fn centre_and_normal(shape: &Shape) -> ([f64; 3], [f64; 3]) {
     let Shape::Triangles { triangles } = shape else {
         return ([0.0; 3], [0.0; 3]);
     };
@@ -280,6 +286,30 @@ mod tests {
     use crate::scene::Object;
     use crate::world::World;
 
+    /// A 6 m square ground catcher of `albedo` on z = 0.
+    fn ground(albedo: Rgb) -> Object {
+        Object {
+            catcher: true,
+            ..Object::new(
+                Shape::Triangles {
+                    triangles: vec![
+                        [
+                            Vec3::new(-3.0, -3.0, 0.0),
+                            Vec3::new(3.0, -3.0, 0.0),
+                            Vec3::new(3.0, 3.0, 0.0),
+                        ],
+                        [
+                            Vec3::new(-3.0, -3.0, 0.0),
+                            Vec3::new(3.0, 3.0, 0.0),
+                            Vec3::new(-3.0, 3.0, 0.0),
+                        ],
+                    ],
+                },
+                Brdf::Lambert(Lambert { albedo }),
+            )
+        }
+    }
+
     fn scene(objects: Vec<Object>) -> Scene {
         Scene {
             camera: None,
@@ -303,28 +333,7 @@ mod tests {
             Vec3::new(-0.3, -0.3, 0.5),
         ];
         let faces = box_faces(&corners).unwrap();
-        let ground = Object {
-            catcher: true,
-            ..Object::new(
-                Shape::Triangles {
-                    triangles: vec![
-                        [
-                            Vec3::new(-3.0, -3.0, 0.0),
-                            Vec3::new(3.0, -3.0, 0.0),
-                            Vec3::new(3.0, 3.0, 0.0),
-                        ],
-                        [
-                            Vec3::new(-3.0, -3.0, 0.0),
-                            Vec3::new(3.0, 3.0, 0.0),
-                            Vec3::new(-3.0, 3.0, 0.0),
-                        ],
-                    ],
-                },
-                Brdf::Lambert(Lambert {
-                    albedo: Rgb::new(0.4, 0.4, 0.4),
-                }),
-            )
-        };
+        let ground = ground(Rgb::new(0.4, 0.4, 0.4));
         let mut real = scene(vec![ground.clone()]);
         real.objects.extend(catchers(faces.clone(), truth));
         // The camera looks at the box from -y and above: it sees the top and the -y face (and
@@ -404,25 +413,8 @@ mod tests {
             Vec3::new(-0.3, -0.3, 0.5),
         ];
         let faces = box_faces(&corners).unwrap();
-        let ground = |albedo| {
-            catchers(
-                vec![vec![
-                    [
-                        Vec3::new(-3.0, -3.0, 0.0),
-                        Vec3::new(3.0, -3.0, 0.0),
-                        Vec3::new(3.0, 3.0, 0.0),
-                    ],
-                    [
-                        Vec3::new(-3.0, -3.0, 0.0),
-                        Vec3::new(3.0, 3.0, 0.0),
-                        Vec3::new(-3.0, 3.0, 0.0),
-                    ],
-                ]],
-                albedo,
-            )
-        };
         let grey = Rgb::new(0.4, 0.4, 0.4);
-        let mut real = scene(ground(grey));
+        let mut real = scene(vec![ground(grey)]);
         real.objects.extend(catchers(faces.clone(), truth));
         let env = ConstantEnvironment {
             radiance: Rgb::new(1.0, 1.0, 1.0),
@@ -464,7 +456,7 @@ mod tests {
                 plate: &plates[i],
             })
             .collect();
-        let mut model = scene(ground(grey));
+        let mut model = scene(vec![ground(grey)]);
         model
             .objects
             .extend(catchers(faces, Rgb::new(0.18, 0.18, 0.18)));
