@@ -2,7 +2,7 @@
 """Our differential render of the dev plate's insert against Blender Cycles' shadow catcher (issue 17).
 
     ~/.cache/vfxgraph/pyenv-export/bin/python scripts/bench/shot_vs_cycles.py \
-        --frames 24 [--samples 16,64,256] [--default] [--camera true|solved] [--ours-spp 64] \
+        --frames 24 [--samples 16,64,256] [--default] [--camera true|solved] [--ours-spp 256] \
         [--out DIR] [--json out.json] [--cycles-only] [--reuse [--rescore]]
 
 (VFXGRAPH=path/to/vfxgraph, default target/release/vfxgraph; the once-nodes of
@@ -23,7 +23,7 @@ manual says: `combined.rgb + (1 − combined.a) · plate · shadow_catcher`. No 
 textured catcher: Cycles' catcher is one plane of one colour, so its mirror sees a flat floor.
 
 Ours: `vfxgraph exec graphs/dev_plate_shot.yaml --node shot --node composite_exr --frames F`
-with a fresh seed (so it computes), the once-nodes already cached (run the README's `exec` of
+at the graph's settings (adaptive, at most `--ours-spp` samples a pixel, the ratio matte) with a fresh seed (so it computes), the once-nodes already cached (run the README's `exec` of
 them first); its composite is read from graphs/out/dev_plate_shot/composite.%04d.exr.
 
 Both are timed as the CPU seconds of the child process that renders (resource.getrusage of
@@ -402,7 +402,7 @@ def main():
     ladder = [int(s) for s in opt('--samples', '16,64,256').split(',')]
     out = os.path.abspath(opt('--out', os.path.join(REPO, 'graphs', 'out', 'shot_vs_cycles')))
     jpath = opt('--json', None)
-    ours_spp = opt('--ours-spp', '64')
+    ours_spp = opt('--ours-spp', '256')
     default = '--default' in args
     # --camera solved: Cycles gets our solved camera and measured placement (solved_camera).
     solved = opt('--camera', 'true') == 'solved'
