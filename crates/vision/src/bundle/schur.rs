@@ -14,6 +14,12 @@
 //! number of threads: S is bit-identical for any thread count. Per observation pair (a, b) of a
 //! point the contribution is `Jcₐᵀ (δₐᵦ I − Vₐ Jpᵦᵀ) Jcᵦ` with `Vₐ = Jpₐ C⁻¹` (2×3), which never
 //! forms the 9×3 blocks of E; only pairs whose block lands in the upper triangle are visited.
+//!
+//! An intrinsics block shared by every camera (one lens for the shot) is numbered after all the
+//! camera blocks, and its column of S is assembled point by point instead of pair by pair: with
+//! `G_p = Σ_b Jpᵦᵀ Jcᵦ[k]` (3×3, over the observations of point p), the block (r, k) gains, per
+//! observation a of row r, `Jcₐᵀ (Jcₐ[k] − Vₐ G_p)` — the same sum as the pairs', in O(n) per
+//! point instead of O(n²). The camera blocks then keep the upper-triangle shortcut.
 
 use rayon::prelude::*;
 
@@ -67,10 +73,14 @@ pub(crate) struct Structure {
     pub obs_point: Vec<u32>,
     point_ptr: Vec<usize>,
     point_obs: Vec<u32>,
-    /// True when no intrinsics block is shared: then f-block order follows camera order and,
-    /// observations of a point being sorted by camera, only the partners from an observation
-    /// onwards can land in the upper triangle of its row.
+    /// True when the camera f-blocks come first in camera order and at most one shared
+    /// intrinsics block follows them: observations of a point being sorted by camera, only the
+    /// partners from an observation onwards can land in a camera block of the upper triangle of
+    /// its row (the shared column is assembled point-wise, see [`Structure::shared`]).
     monotone: bool,
+    /// The f-block of the intrinsics block shared by every camera, numbered last, whose column
+    /// of S is assembled point-wise (module docs); `None` otherwise.
+    shared: Option<usize>,
     /// Per observation: the first observation of its point in the same camera (duplicated
     /// observations of a point in one camera must all pair with each other).
     upper_start: Vec<u32>,
@@ -134,7 +144,11 @@ impl Structure {
                 fblock_cols.push(cols);
                 fblock_mask.push(mask);
             }
-            if intr_free && !exclusive && shared_fb[k] == NONE {
+        }
+        // Shared intrinsics blocks after every camera block (in order of first use).
+        for c in &problem.cameras {
+            let k = c.intrinsics;
+            if !problem.intrinsics[k].fixed && users[k] > 1 && shared_fb[k] == NONE {
                 shared_fb[k] = fblocks.len() as u32;
                 fblocks.push(FBlock {
                     camera: None,
@@ -146,6 +160,20 @@ impl Structure {
                 fblock_mask.push([h[0], h[1], h[2], false, false, false, false, false, false]);
             }
         }
+        let n_shared = fblocks.iter().filter(|b| b.camera.is_none()).count();
+        // The point-wise column needs every observation to carry the one shared block.
+        let shared = match problem.cameras.first() {
+            Some(c0)
+                if n_shared == 1
+                    && problem
+                        .cameras
+                        .iter()
+                        .all(|c| c.intrinsics == c0.intrinsics) =>
+            {
+                Some(shared_fb[c0.intrinsics] as usize)
+            }
+            _ => None,
+        };
         let mut fblock_offset = Vec::with_capacity(fblocks.len());
         let mut n_reduced = 0;
         for d in &fblock_dim {
@@ -212,7 +240,8 @@ impl Structure {
             perm,
             point_ptr,
             point_obs,
-            monotone: shared_fb.iter().all(|&b| b == NONE),
+            monotone: n_shared == 0 || shared.is_some(),
+            shared,
             upper_start,
             groups: Vec::new(),
             #[cfg(test)]
@@ -391,6 +420,14 @@ fn csr<T: Copy + Default>(
     (ptr, out)
 }
 
+/// What the assembly of S reads besides the structure: the linearization, `Vₐ = Jpₐ C⁻¹` per
+/// observation and the shared column's `G_p` per point ([`Structure::shared_point_sums`]).
+struct Terms<'a> {
+    lin: &'a Linearization,
+    v: &'a [[f64; 6]],
+    g: &'a [[f64; 9]],
+}
+
 /// The damped reduced camera system `S δf = b` (upper block triangle of S).
 pub(crate) struct ReducedSystem {
     pub values: Vec<f64>,
@@ -468,11 +505,13 @@ impl Structure {
                 }
             });
 
+        let g = self.shared_point_sums(lin);
+        let ctx = Terms { lin, v: &v, g: &g };
         let mut values = vec![0.0; self.n_values];
         let mut rhs = vec![0.0; self.n_reduced];
         #[cfg(test)]
         if self.rowwise {
-            self.assemble_rowwise(&mut values, &mut rhs, lin, &v, lambda);
+            self.assemble_rowwise(&mut values, &mut rhs, &ctx, lambda);
             return ReducedSystem { values, rhs, c_inv };
         }
         // Split the flat arrays into per-group slices (groups are consecutive rows).
@@ -503,8 +542,35 @@ impl Structure {
         self.groups
             .par_iter()
             .zip(slices)
-            .for_each(|(g, (vals, b))| self.assemble_group(g, vals, b, lin, &v, lambda));
+            .for_each(|(g, (vals, b))| self.assemble_group(g, vals, b, &ctx, lambda));
         ReducedSystem { values, rhs, c_inv }
+    }
+
+    /// Per point, `G_p = Σ_b Jpᵦᵀ Jcᵦ[k]` (row-major 3×3: point coordinate × the shared
+    /// block's three columns) over its observations, when a shared block is assembled
+    /// point-wise (module docs); empty otherwise.
+    fn shared_point_sums(&self, lin: &Linearization) -> Vec<[f64; 9]> {
+        if self.shared.is_none() {
+            return Vec::new();
+        }
+        (0..self.point_ptr.len() - 1)
+            .into_par_iter()
+            .map(|p| {
+                let mut g = [0.0; 9];
+                if !self.point_free[p] {
+                    return g;
+                }
+                for &b in self.point_observations(p) {
+                    let (jp, jc) = (&lin.jp[b as usize], &lin.jc[b as usize]);
+                    for i in 0..3 {
+                        for w in 0..3 {
+                            g[3 * i + w] += jp[i] * jc[6 + w] + jp[3 + i] * jc[15 + w];
+                        }
+                    }
+                }
+                g
+            })
+            .collect()
     }
 
     /// The group-wise assembly (see [`RowGroup`]); writes `vals`/`b`, the slices of the group's
@@ -514,10 +580,10 @@ impl Structure {
         g: &RowGroup,
         vals: &mut [f64],
         b: &mut [f64],
-        lin: &Linearization,
-        v: &[[f64; 6]],
+        t: &Terms,
         lambda: f64,
     ) {
+        let lin = t.lin;
         let v0 = self.row_start[g.rows.start];
         let b0 = self.fblock_offset[g.rows.start];
         for r in g.rows.clone() {
@@ -541,8 +607,7 @@ impl Structure {
                         a,
                         row_vals,
                         &mut b[ro..ro + self.fblock_dim[r]],
-                        lin,
-                        v,
+                        t,
                         |c| {
                             let k =
                                 self.row_cols[r]
@@ -578,10 +643,10 @@ impl Structure {
         a: usize,
         vals: &mut [f64],
         b: &mut [f64],
-        lin: &Linearization,
-        v: &[[f64; 6]],
+        t: &Terms,
         block_offset: impl Fn(usize) -> usize,
     ) {
+        let (lin, v) = (t.lin, t.v);
         let dr = self.fblock_dim[r];
         let cols_r = self.cols(r);
         let p = self.obs_point[a] as usize;
@@ -602,6 +667,34 @@ impl Structure {
                 b[u] += ja[u][0] * w0 + ja[u][1] * w1;
             }
         }
+        if let Some(k) = self.shared {
+            // The shared column, point-wise: Jcₐᵀ (Jcₐ[k] − Vₐ G_p).
+            let mut m = [[0.0f64; 3]; 2];
+            for w in 0..3 {
+                m[0][w] = jca[6 + w];
+                m[1][w] = jca[15 + w];
+            }
+            if free {
+                let g = &t.g[p];
+                for (row, mr) in m.iter_mut().enumerate() {
+                    for (w, x) in mr.iter_mut().enumerate() {
+                        *x -= va[3 * row] * g[w]
+                            + va[3 * row + 1] * g[3 + w]
+                            + va[3 * row + 2] * g[6 + w];
+                    }
+                }
+            }
+            let blk = &mut vals[block_offset(k)..][..dr * 3];
+            for (u, row) in blk.chunks_exact_mut(3).enumerate() {
+                let (a0, a1) = (ja[u][0], ja[u][1]);
+                for (w, x) in row.iter_mut().enumerate() {
+                    *x += a0 * m[0][w] + a1 * m[1][w];
+                }
+            }
+            if r == k {
+                return;
+            }
+        }
         let single = [a as u32];
         let partners: &[u32] = if free {
             self.upper_partners(a, p)
@@ -610,7 +703,11 @@ impl Structure {
         };
         for &bi in partners {
             let bi = bi as usize;
-            let fbs = self.obs_fb[bi];
+            let mut fbs = self.obs_fb[bi];
+            if self.shared.is_some() {
+                // The shared column is done above.
+                fbs[1] = NONE;
+            }
             if (fbs[0] == NONE || (fbs[0] as usize) < r)
                 && (fbs[1] == NONE || (fbs[1] as usize) < r)
             {
@@ -697,14 +794,8 @@ impl Structure {
 
     /// Reference assembly, one block row at a time over the row's observations.
     #[cfg(test)]
-    fn assemble_rowwise(
-        &self,
-        values: &mut [f64],
-        rhs: &mut [f64],
-        lin: &Linearization,
-        v: &[[f64; 6]],
-        lambda: f64,
-    ) {
+    fn assemble_rowwise(&self, values: &mut [f64], rhs: &mut [f64], t: &Terms, lambda: f64) {
+        let lin = t.lin;
         for r in 0..self.fblocks.len() {
             let dr = self.fblock_dim[r];
             let ro = self.fblock_offset[r];
@@ -722,8 +813,7 @@ impl Structure {
                     a as usize,
                     &mut values[base..],
                     &mut rhs[ro..ro + dr],
-                    lin,
-                    v,
+                    t,
                     offs,
                 );
             }
@@ -740,6 +830,47 @@ mod tests {
     use crate::bundle::evaluate::linearize;
     use crate::bundle::loss::Loss;
     use crate::bundle::synthetic::{video_like, SyntheticModel, VideoConfig};
+
+    #[test]
+    fn pointwise_shared_column_equals_the_pairwise_sums() {
+        let s = video_like(&VideoConfig {
+            cameras: 12,
+            points: 300,
+            model: SyntheticModel::Pinhole,
+            ..VideoConfig::default()
+        });
+        let mut p = s.problem;
+        // One lens for the shot, free but for cy; a duplicated observation; a fixed point.
+        p.intrinsics[0].fixed = false;
+        p.intrinsics[0].held = [false, false, true];
+        for i in (0..p.observations.len()).step_by(11) {
+            let mut o = p.observations[i];
+            o.pixel.y -= 0.2;
+            p.observations.push(o);
+        }
+        p.points[3].fixed = true;
+        let fast = Structure::new(&p);
+        assert_eq!(fast.shared, Some(fast.num_fblocks() - 1));
+        assert!(fast.monotone);
+        let mut general = Structure::new(&p);
+        general.monotone = false;
+        general.shared = None;
+        general.build_pattern();
+        assert_eq!(fast.row_cols, general.row_cols);
+        let lin = linearize(&p, &Loss::Huber { scale: 1.0 }, &fast);
+        let a = fast.assemble(&lin, 1e-3);
+        let b = general.assemble(&lin, 1e-3);
+        let scale = b.values.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        for (x, y) in a.values.iter().zip(&b.values) {
+            assert!((x - y).abs() <= 1e-10 * scale, "{x} vs {y}");
+        }
+        assert_eq!(a.rhs, b.rhs);
+        let mut rowwise = Structure::new(&p);
+        rowwise.rowwise = true;
+        let c = rowwise.assemble(&lin, 1e-3);
+        assert_eq!(a.values, c.values);
+        assert_eq!(a.rhs, c.rhs);
+    }
 
     #[test]
     fn upper_triangle_shortcut_equals_the_general_path_even_with_duplicates() {
