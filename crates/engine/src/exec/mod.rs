@@ -19,7 +19,7 @@
 //! - `common`: what planning and running share (instances, store, file hasher, forced nodes).
 //! - `keys`: an instance's cache key and the validity of its cache entry.
 //! - `records`: the key components kept to explain the next rerun.
-//! - `plan`: [`plan`], deciding without running.
+//! - `plan`: [`plan()`], deciding without running.
 //! - `schedule`: [`run`], the parallel scheduler: each instance skipped, served from the cache
 //!   or computed.
 //! - `compute`: computing one instance (inputs, the node's run, outputs) and storing it.

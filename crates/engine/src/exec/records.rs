@@ -66,7 +66,7 @@ fn record_dir(graph: &Graph, node: usize) -> String {
 /// The action entry of the last run that resolved node `node`'s instance at `frame` (`None`
 /// for a node that runs once), if that entry is still in the store: the outputs a viewer shows
 /// (`vfxgraph serve`). It is the last *run*'s, which a later edit of the graph may have made
-/// stale; [`plan`](super::plan) says whether it still is the current one.
+/// stale; [`plan`](super::plan()) says whether it still is the current one.
 pub fn last_run_entry(
     graph: &Graph,
     store: &Store,
