@@ -1,0 +1,163 @@
+//! Computing one instance: its inputs materialized, its node run on a [`Context`] (a panic
+//! becomes an error), its outputs collected, and the result stored (objects, then the action
+//! entry).
+
+use std::collections::BTreeMap;
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::path::PathBuf;
+
+use super::instances::DepKind;
+use super::schedule::Runner;
+use super::seed_for;
+use crate::artifact::{Digest, Value};
+use crate::graph::GraphNode;
+use crate::node::{Context, InputValue, NodeSpec};
+use crate::store::{ActionEntry, ActionOutput, WrittenFile};
+
+/// What a node computed.
+pub(super) struct Computed {
+    pub(super) outputs: BTreeMap<&'static str, (Value, Vec<u8>)>,
+    /// Files declared by the node while running, with their digests.
+    pub(super) read_files: Vec<(PathBuf, Digest)>,
+}
+
+impl Runner<'_> {
+    /// Runs the node of instance `i` on its (materialized) inputs.
+    pub(super) fn compute(&self, i: usize) -> Result<Computed, String> {
+        let inst = &self.c.insts[i];
+        let graph = self.c.graph;
+        let gn = &graph.nodes[inst.node];
+        let inputs = self.gather_inputs(i)?;
+        let (node_idx, frame) = (inst.node, inst.frame);
+        let progress = move |f: f32| self.observer.progress(node_idx, frame, f);
+        let mut ctx = Context {
+            node_id: &gn.id,
+            frame: inst.frame,
+            params: &gn.params,
+            spec: gn.spec(),
+            graph_dir: &graph.dir,
+            inputs,
+            seed: seed_for(graph.seed, &gn.id, inst.frame),
+            progress: &progress,
+            cancel: &self.cancel,
+            outputs: BTreeMap::new(),
+            read_files: Vec::new(),
+        };
+        run_node(gn, &mut ctx)?;
+        collect_outputs(gn.spec(), &mut ctx)
+    }
+
+    /// The input values of instance `i`, by port.
+    fn gather_inputs(&self, i: usize) -> Result<BTreeMap<&'static str, InputValue>, String> {
+        let mut inputs = BTreeMap::new();
+        for d in &self.c.insts[i].deps {
+            let v = match &d.kind {
+                DepKind::One(j) => InputValue::One(self.value(*j, d.from_port)?),
+                DepKind::Seq(r) => InputValue::Sequence(
+                    r.clone()
+                        .map(|j| {
+                            self.value(j, d.from_port)
+                                .map(|v| (self.c.insts[j].frame.unwrap_or(0), v))
+                        })
+                        .collect::<Result<_, _>>()?,
+                ),
+            };
+            inputs.insert(d.port, v);
+        }
+        Ok(inputs)
+    }
+
+    /// Stores a computed instance: its objects, then its action entry. An error (e.g. a full
+    /// disk) names the file it could not write.
+    pub(super) fn store_outputs(
+        &self,
+        i: usize,
+        key: &Digest,
+        computed: &Computed,
+        seconds: f64,
+    ) -> std::io::Result<()> {
+        let Some(store) = &self.c.store else {
+            return Ok(());
+        };
+        let inst = &self.c.insts[i];
+        let gn = &self.c.graph.nodes[inst.node];
+        let mut outs = Vec::new();
+        for (port, (v, bytes)) in &computed.outputs {
+            store.put_object(&v.digest(), v.type_name(), bytes)?;
+            outs.push(ActionOutput {
+                port: port.to_string(),
+                ty: v.type_name().to_string(),
+                digest: v.digest().to_hex(),
+            });
+        }
+        let files = self.written_files(i)?;
+        store.put_action(
+            key,
+            &ActionEntry {
+                node_type: gn.spec().name.to_string(),
+                node_id: gn.id.clone(),
+                frame: inst.frame,
+                outputs: outs,
+                files,
+                read_files: computed
+                    .read_files
+                    .iter()
+                    .map(|(path, d)| WrittenFile {
+                        path: path.clone(),
+                        digest: d.to_hex(),
+                    })
+                    .collect(),
+                seconds,
+            },
+        )
+    }
+
+    /// The files instance `i` wrote, with their digests.
+    fn written_files(&self, i: usize) -> std::io::Result<Vec<WrittenFile>> {
+        let mut files = Vec::new();
+        for path in self.c.output_files(i) {
+            let d = self.c.hasher.hash(&path).map_err(|e| {
+                std::io::Error::new(e.kind(), format!("cannot hash {}: {e}", path.display()))
+            })?;
+            files.push(WrittenFile {
+                path,
+                digest: d.to_hex(),
+            });
+        }
+        Ok(files)
+    }
+}
+
+/// Runs `gn`'s node on `ctx`; a panic becomes an error.
+fn run_node(gn: &GraphNode, ctx: &mut Context) -> Result<(), String> {
+    match catch_unwind(AssertUnwindSafe(|| gn.node.run(ctx))) {
+        Ok(Ok(())) => Ok(()),
+        Ok(Err(e)) => Err(e.message),
+        Err(panic) => {
+            let msg = panic
+                .downcast_ref::<String>()
+                .cloned()
+                .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
+                .unwrap_or_else(|| "unknown panic".into());
+            Err(format!("internal error (panic) in node: {msg}"))
+        }
+    }
+}
+
+/// What the node on `ctx` computed: every output `spec` declares, and the files it read.
+fn collect_outputs(spec: &NodeSpec, ctx: &mut Context) -> Result<Computed, String> {
+    let mut out = Computed {
+        outputs: BTreeMap::new(),
+        read_files: std::mem::take(&mut ctx.read_files),
+    };
+    for p in &spec.outputs {
+        let Some(encoded) = ctx.outputs.remove(p.name) else {
+            return Err(format!(
+                "node did not produce output `{}` (a bug in the node)",
+                p.name
+            ));
+        };
+        out.outputs.insert(p.name, encoded);
+    }
+    Ok(out)
+}

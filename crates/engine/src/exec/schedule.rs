@@ -1,0 +1,320 @@
+//! Running: the scheduler that resolves every instance on a rayon pool as soon as its inputs
+//! are resolved — served from the cache, or computed and stored — and the run's report.
+
+use std::collections::{BTreeMap, HashMap};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex, OnceLock};
+use std::time::Instant;
+
+use super::common::Common;
+use super::compute::Computed;
+use super::instances::{frame_suffix, Role};
+use super::keys::KeyParts;
+use super::records::InstRecord;
+use super::report::{InstanceReport, Observer, RunReport, Status};
+use super::{ExecError, RunOptions};
+use crate::artifact::{Digest, Value};
+use crate::graph::Graph;
+use crate::registry::Registry;
+use crate::store::ActionEntry;
+
+/// How an instance was resolved.
+pub(super) struct Done {
+    pub(super) status: Status,
+    pub(super) reason: String,
+    pub(super) seconds: f64,
+    pub(super) digests: BTreeMap<&'static str, Digest>,
+}
+
+impl Done {
+    /// A resolution without outputs (skipped or failed).
+    fn empty(status: Status, reason: String, seconds: f64) -> Self {
+        Done {
+            status,
+            reason,
+            seconds,
+            digests: BTreeMap::new(),
+        }
+    }
+}
+
+/// The run state of one instance.
+pub(super) struct State {
+    /// Upstream instances not yet resolved.
+    pending: AtomicUsize,
+    /// Downstream instances that have not finished yet.
+    pub(super) consumers_left: AtomicUsize,
+    pub(super) done: OnceLock<Done>,
+    /// Output values kept in memory for consumers still to come.
+    pub(super) values: Mutex<BTreeMap<&'static str, Value>>,
+}
+
+/// A run in progress.
+pub(super) struct Runner<'a> {
+    pub(super) c: Common<'a>,
+    pub(super) cancel: Arc<AtomicBool>,
+    pub(super) registry: &'a Registry,
+    pub(super) state: Vec<State>,
+    pub(super) observer: &'a dyn Observer,
+    /// This run's key components, per node and frame key, saved at the end.
+    pub(super) new_records: Mutex<HashMap<usize, BTreeMap<String, InstRecord>>>,
+}
+
+/// Runs a graph: every instance is served from the cache or computed, in parallel. Node
+/// failures do not abort the run: they are reported, their dependants skipped, and independent
+/// branches finish (and are cached).
+pub fn run(
+    graph: &Graph,
+    registry: &Registry,
+    opts: &RunOptions,
+    observer: &dyn Observer,
+) -> Result<RunReport, ExecError> {
+    let t0 = Instant::now();
+    let c = Common::new(graph, opts)?;
+    let state = initial_state(&c);
+    let runner = Runner {
+        c,
+        cancel: opts.cancel.clone().unwrap_or_default(),
+        registry,
+        state,
+        observer,
+        new_records: Mutex::new(HashMap::new()),
+    };
+    let pool = thread_pool(opts.jobs)?;
+    pool.install(|| {
+        rayon::scope(|s| {
+            for i in 0..runner.c.insts.len() {
+                if runner.c.insts[i].upstream.is_empty() && runner.c.role[i] != Role::Unneeded {
+                    runner.schedule(s, i);
+                }
+            }
+        })
+    });
+    runner.save_records();
+    runner.c.hasher.save();
+    Ok(RunReport {
+        nodes: runner.report(),
+        wall_seconds: t0.elapsed().as_secs_f64(),
+    })
+}
+
+/// Each instance's state before the run: all upstream pending, all needed consumers to come.
+fn initial_state(c: &Common) -> Vec<State> {
+    c.insts
+        .iter()
+        .map(|inst| State {
+            pending: AtomicUsize::new(inst.upstream.len()),
+            consumers_left: AtomicUsize::new(
+                inst.downstream
+                    .iter()
+                    .filter(|&&d| c.role[d] != Role::Unneeded)
+                    .count(),
+            ),
+            done: OnceLock::new(),
+            values: Mutex::new(BTreeMap::new()),
+        })
+        .collect()
+}
+
+/// A pool of `jobs` worker threads (`None`: one per core).
+fn thread_pool(jobs: Option<usize>) -> Result<rayon::ThreadPool, ExecError> {
+    let mut builder = rayon::ThreadPoolBuilder::new();
+    if let Some(j) = jobs {
+        builder = builder.num_threads(j.max(1));
+    }
+    builder.build().map_err(|e| ExecError::Pool {
+        jobs: jobs.unwrap_or(0),
+        reason: e.to_string(),
+    })
+}
+
+impl<'a> Runner<'a> {
+    /// Resolves instance `i` on the pool, then releases its inputs' values and schedules the
+    /// consumers it was the last input of.
+    fn schedule<'s>(&'s self, s: &rayon::Scope<'s>, i: usize) {
+        s.spawn(move |s| {
+            self.resolve(i);
+            for &u in &self.c.insts[i].upstream {
+                if self.state[u].consumers_left.fetch_sub(1, Ordering::AcqRel) == 1 {
+                    self.state[u].values.lock().expect("values lock").clear();
+                }
+            }
+            for &d in &self.c.insts[i].downstream {
+                if self.c.role[d] != Role::Unneeded
+                    && self.state[d].pending.fetch_sub(1, Ordering::AcqRel) == 1
+                {
+                    self.schedule(s, d);
+                }
+            }
+        });
+    }
+
+    pub(super) fn finish(&self, i: usize, done: Done) {
+        let inst = &self.c.insts[i];
+        self.observer
+            .finished(inst.node, inst.frame, done.status, done.seconds);
+        let _ = self.state[i].done.set(done);
+    }
+
+    /// The digest of output `port` of instance `j`, if it is resolved with outputs.
+    fn resolved_digest(&self, j: usize, port: &str) -> Option<Digest> {
+        self.state[j]
+            .done
+            .get()
+            .and_then(|d| d.digests.get(port).copied())
+    }
+
+    /// Resolves instance `i`: skipped, served from the cache, or computed.
+    fn resolve(&self, i: usize) {
+        if self.cancel.load(Ordering::Relaxed) {
+            let done = Done::empty(Status::Skipped, "run cancelled".into(), 0.0);
+            return self.finish(i, done);
+        }
+        if let Some(reason) = self.failed_upstream(i) {
+            return self.finish(i, Done::empty(Status::Skipped, reason, 0.0));
+        }
+        let parts = match self.c.key(i, |j, port| self.resolved_digest(j, port)) {
+            Ok(p) => p,
+            Err(e) => return self.finish(i, Done::empty(Status::Failed, e, 0.0)),
+        };
+        let miss = match self.c.lookup(i, &parts.key) {
+            Ok(entry) => return self.serve_cached(i, parts, &entry),
+            Err(m) => m,
+        };
+        if self.c.role[i] == Role::CacheOnly {
+            let why = if miss.is_empty() { "no entry" } else { &miss };
+            let reason = format!(
+                "an input of the selected instances is not in the cache ({why}); \
+                 it must run first (a missing farm dependency, or a cleaned cache)"
+            );
+            return self.finish(i, Done::empty(Status::Failed, reason, 0.0));
+        }
+        self.run_instance(i, parts, &miss);
+    }
+
+    /// Why instance `i` cannot run, if an input failed or was skipped.
+    fn failed_upstream(&self, i: usize) -> Option<String> {
+        let &j = self.c.insts[i].upstream.iter().find(|&&j| {
+            self.state[j]
+                .done
+                .get()
+                .is_none_or(|d| matches!(d.status, Status::Failed | Status::Skipped))
+        })?;
+        let up = &self.c.insts[j];
+        Some(format!(
+            "upstream `{}`{} did not complete",
+            self.c.graph.nodes[up.node].id,
+            frame_suffix(up.frame)
+        ))
+    }
+
+    /// Resolves instance `i` from its valid cache entry, without loading its values.
+    fn serve_cached(&self, i: usize, parts: KeyParts, entry: &ActionEntry) {
+        if let Some(store) = &self.c.store {
+            store.touch_action(&parts.key);
+        }
+        let spec = self.c.graph.nodes[self.c.insts[i].node].spec();
+        let digests = spec
+            .outputs
+            .iter()
+            .filter_map(|p| {
+                entry
+                    .outputs
+                    .iter()
+                    .find(|o| o.port == p.name)
+                    .and_then(|o| Digest::from_hex(&o.digest))
+                    .map(|d| (p.name, d))
+            })
+            .collect();
+        self.remember(i, parts.record);
+        self.finish(
+            i,
+            Done {
+                status: Status::Cached,
+                reason: "cache hit".into(),
+                seconds: 0.0,
+                digests,
+            },
+        );
+    }
+
+    /// Computes instance `i` (a cache miss for reason `miss`) and stores its result.
+    fn run_instance(&self, i: usize, parts: KeyParts, miss: &str) {
+        let reason = self.c.explain(i, &parts, miss);
+        let inst = &self.c.insts[i];
+        self.observer.started(inst.node, inst.frame);
+        let t = Instant::now();
+        match self.compute(i) {
+            Ok(computed) => {
+                let seconds = t.elapsed().as_secs_f64();
+                self.finish_computed(i, parts, computed, reason, seconds);
+            }
+            Err(e) => {
+                let seconds = t.elapsed().as_secs_f64();
+                self.finish(i, Done::empty(Status::Failed, e, seconds));
+            }
+        }
+    }
+
+    /// Stores what instance `i` computed, keeps its values for its consumers, and resolves it.
+    fn finish_computed(
+        &self,
+        i: usize,
+        parts: KeyParts,
+        computed: Computed,
+        reason: String,
+        seconds: f64,
+    ) {
+        let digests = computed
+            .outputs
+            .iter()
+            .map(|(k, (v, _))| (*k, v.digest()))
+            .collect();
+        if let Err(e) = self.store_outputs(i, &parts.key, &computed, seconds) {
+            // The cache stays as it was (writes are atomic; an entry is written after
+            // its objects), and the run says so: exit code 1, not a silent miss.
+            let reason = format!("ran, but its result could not be cached: {e}");
+            return self.finish(i, Done::empty(Status::Failed, reason, seconds));
+        }
+        {
+            let mut vals = self.state[i].values.lock().expect("values lock");
+            if self.state[i].consumers_left.load(Ordering::Acquire) > 0 {
+                for (k, (v, _)) in computed.outputs {
+                    vals.insert(k, v);
+                }
+            }
+        }
+        self.remember(i, parts.record);
+        self.finish(
+            i,
+            Done {
+                status: Status::Ran,
+                reason,
+                seconds,
+                digests,
+            },
+        );
+    }
+
+    /// One report line per visited instance, in graph order.
+    fn report(&self) -> Vec<InstanceReport<Status>> {
+        self.c
+            .insts
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| self.c.role[*i] != Role::Unneeded)
+            .map(|(i, inst)| {
+                let gn = &self.c.graph.nodes[inst.node];
+                let d = self.state[i].done.get();
+                InstanceReport {
+                    id: gn.id.clone(),
+                    node_type: gn.spec().name.to_string(),
+                    frame: inst.frame,
+                    status: d.map_or(Status::Skipped, |d| d.status),
+                    reason: d.map_or_else(|| "not reached".to_string(), |d| d.reason.clone()),
+                    seconds: d.map_or(0.0, |d| d.seconds),
+                }
+            })
+            .collect()
+    }
+}

@@ -1,0 +1,184 @@
+//! Params: read from a node's `params:` and checked against its type's declaration, then the
+//! `--set node.param=value` overrides, then defaults (a required param left unset is
+//! reported).
+
+use std::collections::{BTreeMap, HashMap};
+
+use super::nodes::Raw;
+use crate::diagnostic::{suggest, Diagnostics, ErrorKind, Span};
+use crate::node::NodeSpec;
+use crate::param::{ParamCheck, ParamType, ParamValue};
+use crate::yaml::Yaml;
+
+/// Reads and checks the params of `raw` (of type `spec`) from its `params:` value.
+pub(super) fn read(raw: &mut Raw, spec: &NodeSpec, params_y: Option<&Yaml>, d: &mut Diagnostics) {
+    let id = raw.id.as_str();
+    let mut given: BTreeMap<String, (ParamValue, Option<Span>)> = BTreeMap::new();
+    if let Some(py) = params_y {
+        match py.as_map() {
+            Some(m) => given_params(id, spec, m, &mut given, d),
+            None if py.is_null() => {}
+            None => d.push(
+                ErrorKind::Structure,
+                Some(py.span),
+                format!("`params` of node `{id}` must be a mapping"),
+            ),
+        }
+    }
+    for (pname, (v, span)) in given {
+        let ps = spec.param_spec(&pname).expect("checked above");
+        check_param(d, id, &pname, &ps.ty, v, span, &mut raw.params);
+    }
+}
+
+/// The params of node `id` that `m` gives and its type declares, as written.
+fn given_params(
+    id: &str,
+    spec: &NodeSpec,
+    m: &[(Yaml, Yaml)],
+    given: &mut BTreeMap<String, (ParamValue, Option<Span>)>,
+    d: &mut Diagnostics,
+) {
+    for (pk, pv) in m {
+        let pname = pk.as_str().unwrap_or("");
+        let Some(ps) = spec.param_spec(pname) else {
+            d.push_help(
+                ErrorKind::UnknownParam,
+                Some(pk.span),
+                format!("node `{id}` ({}) has no parameter `{pname}`", spec.name),
+                suggest(pname, spec.params.iter().map(|p| p.name)),
+            );
+            continue;
+        };
+        match ParamValue::from_yaml(pv) {
+            Ok(v) => {
+                given.insert(ps.name.to_string(), (v, Some(pv.span)));
+            }
+            Err(e) => d.push(
+                ErrorKind::ParamType,
+                Some(pv.span),
+                format!("parameter `{pname}` of node `{id}`: {e}"),
+            ),
+        }
+    }
+}
+
+fn check_param(
+    d: &mut Diagnostics,
+    id: &str,
+    pname: &str,
+    ty: &ParamType,
+    v: ParamValue,
+    span: Option<Span>,
+    out: &mut BTreeMap<String, ParamValue>,
+) {
+    match ty.check(v) {
+        Ok(v) => {
+            out.insert(pname.to_string(), v);
+        }
+        Err(ParamCheck::Type(e)) => d.push(
+            ErrorKind::ParamType,
+            span,
+            format!("parameter `{pname}` of node `{id}`: {e}"),
+        ),
+        Err(ParamCheck::Range(e)) => d.push(
+            ErrorKind::ParamRange,
+            span,
+            format!("parameter `{pname}` of node `{id}`: {e}"),
+        ),
+    }
+}
+
+/// Applies the `--set node.param=value` overrides `set`, in order; `ids` are every declared
+/// node id (for suggestions).
+pub(super) fn apply_overrides(
+    raws: &mut [Raw],
+    set: &[String],
+    ids: &HashMap<String, Span>,
+    d: &mut Diagnostics,
+) {
+    for s in set {
+        apply_set(raws, s, ids, d);
+    }
+}
+
+/// Applies one `--set` override `s`.
+fn apply_set(raws: &mut [Raw], s: &str, ids: &HashMap<String, Span>, d: &mut Diagnostics) {
+    let Some((nid, pname, value)) = split_set(s) else {
+        d.push(
+            ErrorKind::Override,
+            None,
+            format!("--set `{s}`: expected node.param=value"),
+        );
+        return;
+    };
+    let Some(raw) = raws.iter_mut().find(|r| r.id == nid) else {
+        d.push_help(
+            ErrorKind::Override,
+            None,
+            format!("--set `{s}`: no node `{nid}` in the graph"),
+            suggest(nid, ids.keys().map(String::as_str)),
+        );
+        return;
+    };
+    let Some(node) = &raw.node else { return };
+    let spec = node.spec();
+    let Some(ps) = spec.param_spec(pname) else {
+        d.push_help(
+            ErrorKind::Override,
+            None,
+            format!(
+                "--set `{s}`: node `{nid}` ({}) has no parameter `{pname}`",
+                spec.name
+            ),
+            suggest(pname, spec.params.iter().map(|p| p.name)),
+        );
+        return;
+    };
+    match ParamValue::parse_cli(value) {
+        Ok(v) => match ps.ty.check(v) {
+            Ok(v) => {
+                raw.params.insert(pname.to_string(), v);
+            }
+            Err(ParamCheck::Type(e) | ParamCheck::Range(e)) => {
+                d.push(ErrorKind::Override, None, format!("--set `{s}`: {e}"))
+            }
+        },
+        Err(e) => d.push(ErrorKind::Override, None, format!("--set `{s}`: {e}")),
+    }
+}
+
+/// `node.param=value` split into its three parts.
+fn split_set(s: &str) -> Option<(&str, &str, &str)> {
+    let (lhs, value) = s.split_once('=')?;
+    let (nid, pname) = lhs.split_once('.')?;
+    Some((nid, pname, value))
+}
+
+/// Fills in the defaults of params left unset; a required one left unset is reported.
+pub(super) fn fill_defaults(raws: &mut [Raw], d: &mut Diagnostics) {
+    for raw in raws {
+        let Some(node) = &raw.node else { continue };
+        for ps in &node.spec().params {
+            if raw.params.contains_key(ps.name) {
+                continue;
+            }
+            match &ps.default {
+                Some(v) => {
+                    raw.params.insert(ps.name.to_string(), v.clone());
+                }
+                None => d.push(
+                    ErrorKind::MissingParam,
+                    Some(raw.id_span),
+                    format!(
+                        "node `{}` ({}) needs parameter `{}` ({})",
+                        raw.id,
+                        node.spec().name,
+                        ps.name,
+                        ps.ty
+                    ),
+                ),
+            }
+        }
+    }
+}
