@@ -295,8 +295,8 @@ pub const MIN_LENS_TRACKS: usize = 30;
 
 /// Frames of the focal-length search ([`estimate_focal`]).
 const SEARCH_FRAMES: usize = 16;
-/// Focal lengths tried by the search, log-spaced over 0.3–3 image diagonals (×1.39 apart).
-const GRID: usize = 8;
+/// Focal lengths tried by the search, log-spaced over 0.3–3 image diagonals (×1.58 apart).
+const GRID: usize = 6;
 
 /// The matchmove of real cameras (module docs): the book's matchmove when nothing of the lens
 /// is solved (on the tracks undistorted by the intrinsics' own lens), else the rounds of
