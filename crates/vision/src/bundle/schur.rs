@@ -670,10 +670,8 @@ impl Structure {
         if let Some(k) = self.shared {
             // The shared column, point-wise: Jcₐᵀ (Jcₐ[k] − Vₐ G_p).
             let mut m = [[0.0f64; 3]; 2];
-            for w in 0..3 {
-                m[0][w] = jca[6 + w];
-                m[1][w] = jca[15 + w];
-            }
+            m[0].copy_from_slice(&jca[6..9]);
+            m[1].copy_from_slice(&jca[15..18]);
             if free {
                 let g = &t.g[p];
                 for (row, mr) in m.iter_mut().enumerate() {
