@@ -107,18 +107,6 @@ impl Template {
                 x >= 0.0 && y >= 0.0 && x <= wd && y <= ht
             })
         };
-        let residuals = |w: &Matrix3<f64>, mut each: Box<dyn FnMut(usize, f32) + '_>| {
-            for j in 0..n {
-                let v = j as f64 - h;
-                for i in 0..n {
-                    let u = i as f64 - h;
-                    let x = w[(0, 0)] * u + w[(0, 1)] * v + w[(0, 2)];
-                    let y = w[(1, 0)] * u + w[(1, 1)] * v + w[(1, 2)];
-                    let k = j * n + i;
-                    each(k, img.sample(x as f32, y as f32) - self.values[k]);
-                }
-            }
-        };
         // Translation first (the frame-to-frame step left the shape right and the position
         // nearly so), then the whole affine warp.
         let ht = self.h_inv_translation;
@@ -127,13 +115,10 @@ impl Template {
                 return None;
             }
             let (mut gx, mut gy) = (0.0f64, 0.0f64);
-            residuals(
-                &w,
-                Box::new(|k, e| {
-                    gx += (self.sd[k][4] * e) as f64;
-                    gy += (self.sd[k][5] * e) as f64;
-                }),
-            );
+            self.residuals(img, &w, |k, e| {
+                gx += (self.sd[k][4] * e) as f64;
+                gy += (self.sd[k][5] * e) as f64;
+            });
             let d = [ht[0] * gx + ht[1] * gy, ht[1] * gx + ht[2] * gy];
             // W ∘ W(Δ)⁻¹ moves the centre by the linear part applied to −Δ.
             w[(0, 2)] -= w[(0, 0)] * d[0] + w[(0, 1)] * d[1];
@@ -150,14 +135,11 @@ impl Template {
                 return None;
             }
             let mut g = Vector6::<f64>::zeros();
-            residuals(
-                &w,
-                Box::new(|k, e| {
-                    for (gi, s) in g.iter_mut().zip(&self.sd[k]) {
-                        *gi += (s * e) as f64;
-                    }
-                }),
-            );
+            self.residuals(img, &w, |k, e| {
+                for (gi, s) in g.iter_mut().zip(&self.sd[k]) {
+                    *gi += (s * e) as f64;
+                }
+            });
             let d = self.h_inv * g;
             let dw = Matrix3::new(
                 1.0 + d[0],
@@ -182,12 +164,31 @@ impl Template {
             return None;
         }
         let mut ss = 0.0f32;
-        residuals(&w, Box::new(|_, e| ss += e * e));
+        self.residuals(img, &w, |_, e| ss += e * e);
         Some((
             [w[(0, 2)] as f32, w[(1, 2)] as f32],
             (ss / (n * n) as f32).sqrt(),
             w,
         ))
+    }
+
+    /// Calls `each(k, I(W(u_k)) − T(u_k))` for every window pixel k under the warp `w`.
+    /// Every sample of a warp that passed `align`'s `inside` lies in the image (the window's
+    /// corners do, and the warped window is their convex hull), so no clamping.
+    #[inline]
+    fn residuals(&self, img: &GrayImage, w: &Matrix3<f64>, mut each: impl FnMut(usize, f32)) {
+        let n = 2 * self.half + 1;
+        let h = self.half as f64;
+        for j in 0..n {
+            let v = j as f64 - h;
+            for i in 0..n {
+                let u = i as f64 - h;
+                let x = w[(0, 0)] * u + w[(0, 1)] * v + w[(0, 2)];
+                let y = w[(1, 0)] * u + w[(1, 1)] * v + w[(1, 2)];
+                let k = j * n + i;
+                each(k, img.sample_inside(x as f32, y as f32) - self.values[k]);
+            }
+        }
     }
 
     /// Keeps `warp` (from [`Template::align`]) as the starting shape for the next frame.

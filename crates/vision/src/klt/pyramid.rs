@@ -84,6 +84,23 @@ impl GrayImage {
         self.data[y * self.width + x]
     }
 
+    /// [`GrayImage::sample`] of a point known to lie in the image (0 ≤ x ≤ w − 1,
+    /// 0 ≤ y ≤ h − 1): the same value, without the clamps and the `floor` call (the hot loop
+    /// of drift correction). A point outside reads a wrong but in-bounds pixel (`as` saturates
+    /// at 0 and the indices are capped), never out of the slice.
+    #[inline]
+    pub fn sample_inside(&self, x: f32, y: f32) -> f32 {
+        // Truncation is floor for x ≥ 0.
+        let x0 = (x as usize).min(self.width.saturating_sub(2));
+        let y0 = (y as usize).min(self.height.saturating_sub(2));
+        let x1 = (x0 + 1).min(self.width - 1);
+        let y1 = (y0 + 1).min(self.height - 1);
+        let (ax, ay) = (x - x0 as f32, y - y0 as f32);
+        let top = self.at(x0, y0) * (1.0 - ax) + self.at(x1, y0) * ax;
+        let bot = self.at(x0, y1) * (1.0 - ax) + self.at(x1, y1) * ax;
+        top * (1.0 - ay) + bot * ay
+    }
+
     /// Bilinear sample at a sub-pixel point, coordinates clamped to the image (border
     /// replicated).
     pub fn sample(&self, x: f32, y: f32) -> f32 {
@@ -389,6 +406,25 @@ impl Pyramid {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn sample_inside_is_sample_inside_the_image() {
+        let img = GrayImage::from_fn(7, 5, |x, y| (x * 31 + y * 17 % 11) as f32 * 0.37);
+        for j in 0..=40 {
+            for i in 0..=60 {
+                let (x, y) = (i as f32 * 0.1, j as f32 * 0.1);
+                assert_eq!(
+                    img.sample_inside(x, y).to_bits(),
+                    img.sample(x, y).to_bits(),
+                    "({x}, {y})"
+                );
+            }
+        }
+        // Outside it reads in bounds (no index panic), whatever value it returns.
+        assert!(img.sample_inside(-3.0, 99.0).is_finite());
+        assert!(img.sample_inside(1e9, -1e9).is_finite());
+        let _ = img.sample_inside(f32::NAN, 2.0);
+    }
 
     #[test]
     fn reflect101_matches_opencv() {
