@@ -29,6 +29,30 @@ It prints one table (frames registered, rotation max/mean, centre max/mean, time
 total) with the speed ratio COLMAP_total / vfxgraph_total and the error ratios, and writes
 everything as JSON (``--work``/results.json unless ``--results`` is given).
 
+Unknown lens (``--lens unknown``)
+---------------------------------
+The same comparison on the *distorted* plate (``blender_plate_dev/distorted``: the same 48 frames
+through a Brown-Conrady lens, f = 920 px, k1 = -0.16, k2 = 0.045, p1 = 0.0008, p2 = -0.0005, about
+30 px at the corners), with neither tool given K or the distortion:
+
+- COLMAP: one shared camera of model ``RADIAL`` (f, cx, cy, k1, k2; ``--colmap-model OPENCV`` for
+  fx, fy, cx, cy, k1, k2, p1, p2), its parameters left to COLMAP's own no-EXIF default (the JPEGs
+  have no EXIF): f = ``default_focal_length_factor`` (1.2) x max(w, h) = 1152 px, principal point
+  at the image centre, distortion 0, no focal prior. Bundle adjustment and absolute-pose
+  registration refine the focal length and the extra (distortion) parameters; the principal point
+  stays fixed at the centre, which is the true one (COLMAP's (480, 270) = our (479.5, 269.5)).
+  Matching, pairing and the rest of the mapping as above.
+- vfxgraph: ``graphs/dev_plate_lens.yaml`` (``focal: unknown, distortion: k1k2``): it estimates
+  the focal length from the tracks and refines f, k1, k2 in its bundle adjustment. In this mode the
+  graph's outputs (cameras, report) are redirected into ``--work`` with ``--set`` so the run leaves
+  ``graphs/out`` alone; the solved K and lens are read from its cameras.json, the initial focal
+  length from the report's notes.
+
+Both tools' k1, k2 act on normalized coordinates (x/z, y/z), as OpenCV's and the truth's, so they
+compare directly. Errors are measured as above (the metric does not use K); a second table gives
+each tool's solved lens: f (px and % error vs 920; for OPENCV the mean of fx and fy), k1, k2 (and
+p1, p2 when the model has them), the principal point in our convention, and the initial focal.
+
 Pixel convention
 ----------------
 vfxgraph and the truth put pixel (0, 0) at the *centre* of the top-left pixel (cx = 479.5,
@@ -41,11 +65,15 @@ How to run
 From the repository root, with the python that has pycolmap (and numpy)::
 
     ~/.cache/vfxgraph/pyenv-export/bin/python scripts/bench/matchmove_vs_colmap.py
+    ~/.cache/vfxgraph/pyenv-export/bin/python scripts/bench/matchmove_vs_colmap.py --lens unknown
 
-Options: ``--plate-dir``, ``--truth``, ``--vfxgraph`` (binary; default ``vfxgraph`` on PATH, else
-``target/release/vfxgraph``), ``--graph``, ``--threads`` (default 2, given to COLMAP's stages and
-as ``-j`` to vfxgraph), ``--work`` (default a fresh temporary folder), ``--skip-colmap`` /
-``--skip-vfxgraph``, ``--features`` (the vfxgraph variants, default ``default,300``).
+Options: ``--lens known|unknown`` (default known: the pinhole plate with K fixed, as described
+first), ``--colmap-model RADIAL|OPENCV`` (unknown lens only; default RADIAL), ``--plate-dir``
+(default per ``--lens``), ``--truth``, ``--vfxgraph`` (binary; default ``vfxgraph`` on PATH, else
+``target/release/vfxgraph``), ``--graph`` (default per ``--lens``), ``--threads`` (default 2, given
+to COLMAP's stages and as ``-j`` to vfxgraph), ``--work`` (default a fresh temporary folder),
+``--skip-colmap`` / ``--skip-vfxgraph``, ``--features`` (the vfxgraph variants, default
+``default,300``).
 """
 
 import argparse
@@ -63,7 +91,13 @@ from pathlib import Path
 import numpy as np
 
 REPO = Path(__file__).resolve().parent.parent.parent
-DEFAULT_PLATE = Path("/work/shared/data/blender_plate_dev/pinhole/plate")
+DATA = Path("/work/shared/data/blender_plate_dev")
+DEFAULT_PLATE = DATA / "pinhole" / "plate"
+DEFAULT_GRAPH = REPO / "graphs" / "dev_plate_solve.yaml"
+# --lens unknown: the distorted plate, solved without K or distortion.
+DISTORTED_PLATE = DATA / "distorted" / "plate"
+LENS_GRAPH = REPO / "graphs" / "dev_plate_lens.yaml"
+COLMAP_LENS_MODELS = ("RADIAL", "OPENCV")
 
 # The plate's K in vfxgraph's convention (pixel (0,0) = centre of the top-left pixel).
 FX = FY = 920.0
@@ -170,7 +204,29 @@ def set_if(obj, name, value, log):
         log.append(f"option {type(obj).__name__}.{name} not present in this pycolmap")
 
 
-def run_colmap(plate_dir, work, threads, log):
+def lens_of_colmap_camera(cam):
+    """A COLMAP camera -> the lens in our convention (principal point -0.5 px)."""
+    model = str(cam.model_name)
+    p = [float(v) for v in cam.params]
+    if model == "RADIAL":  # f, cx, cy, k1, k2
+        lens = {"fx": p[0], "fy": p[0], "cx": p[1], "cy": p[2], "k1": p[3], "k2": p[4]}
+    elif model == "OPENCV":  # fx, fy, cx, cy, k1, k2, p1, p2
+        lens = {"fx": p[0], "fy": p[1], "cx": p[2], "cy": p[3], "k1": p[4], "k2": p[5],
+                "p1": p[6], "p2": p[7]}
+    elif model == "PINHOLE":
+        lens = {"fx": p[0], "fy": p[1], "cx": p[2], "cy": p[3], "k1": 0.0, "k2": 0.0}
+    else:
+        return {"model": model, "params": p}
+    lens["cx"] -= COLMAP_PIXEL_SHIFT
+    lens["cy"] -= COLMAP_PIXEL_SHIFT
+    lens["f"] = 0.5 * (lens["fx"] + lens["fy"])
+    lens["model"] = model
+    return lens
+
+
+def run_colmap(plate_dir, work, threads, log, lens="known", model="RADIAL"):
+    """lens "known": PINHOLE with the plate's K, fixed. lens "unknown": one shared camera of
+    `model` with COLMAP's no-EXIF default parameters; focal length and distortion refined."""
     import pycolmap
 
     work = Path(work) / "colmap"
@@ -182,9 +238,15 @@ def run_colmap(plate_dir, work, threads, log):
                    if p.suffix.lower() in (".jpg", ".jpeg", ".png"))
 
     reader = pycolmap.ImageReaderOptions()
-    reader.camera_model = "PINHOLE"
-    reader.camera_params = ",".join(str(v) for v in (
-        FX, FY, CX + COLMAP_PIXEL_SHIFT, CY + COLMAP_PIXEL_SHIFT))
+    if lens == "known":
+        reader.camera_model = "PINHOLE"
+        reader.camera_params = ",".join(str(v) for v in (
+            FX, FY, CX + COLMAP_PIXEL_SHIFT, CY + COLMAP_PIXEL_SHIFT))
+    else:
+        # Empty camera_params: COLMAP's own guess (f = default_focal_length_factor * max(w, h)
+        # unless EXIF gives one, principal point at the centre, distortion 0).
+        reader.camera_model = model
+        reader.camera_params = ""
     extraction = pycolmap.FeatureExtractionOptions()
     set_if(extraction, "num_threads", threads, log)
     set_if(extraction, "use_gpu", False, log)
@@ -197,6 +259,16 @@ def run_colmap(plate_dir, work, threads, log):
                               device=pycolmap.Device.cpu)
     times["features"] = time.perf_counter() - t0
     cpu["features"] = time.process_time() - c0
+    initial = None
+    if lens != "known":
+        db_ = pycolmap.Database.open(db)
+        cams0 = db_.read_all_cameras()
+        db_.close()
+        if len(cams0) != 1:
+            log.append(f"COLMAP database has {len(cams0)} cameras (expected 1 shared)")
+        if cams0:
+            initial = {**lens_of_colmap_camera(cams0[0]),
+                       "has_prior_focal_length": bool(cams0[0].has_prior_focal_length)}
 
     matching = pycolmap.FeatureMatchingOptions()
     set_if(matching, "num_threads", threads, log)
@@ -211,15 +283,16 @@ def run_colmap(plate_dir, work, threads, log):
     times["matching"] = time.perf_counter() - t0
     cpu["matching"] = time.process_time() - c0
 
+    refine = lens != "known"  # focal length and distortion; the principal point never
     opts = pycolmap.IncrementalPipelineOptions()
     opts.num_threads = threads
-    opts.ba_refine_focal_length = False
+    opts.ba_refine_focal_length = refine
     opts.ba_refine_principal_point = False
-    opts.ba_refine_extra_params = False
+    opts.ba_refine_extra_params = refine
     opts.random_seed = 1
     mapper = opts.mapper
-    set_if(mapper, "abs_pose_refine_focal_length", False, log)
-    set_if(mapper, "abs_pose_refine_extra_params", False, log)
+    set_if(mapper, "abs_pose_refine_focal_length", refine, log)
+    set_if(mapper, "abs_pose_refine_extra_params", refine, log)
     set_if(mapper, "num_threads", threads, log)
     set_if(mapper, "random_seed", 1, log)
     opts.mapper = mapper
@@ -232,7 +305,8 @@ def run_colmap(plate_dir, work, threads, log):
 
     models = {int(k): r.num_reg_images() for k, r in recs.items()}
     if not recs:
-        return {"times": times, "cpu": cpu, "models": models, "cameras": {}, "names": names}
+        return {"times": times, "cpu": cpu, "models": models, "cameras": {}, "names": names,
+                **({"lens_initial": initial} if initial else {})}
     best = max(recs, key=lambda k: recs[k].num_reg_images())
     rec = recs[best]
     cams = {}
@@ -244,7 +318,7 @@ def run_colmap(plate_dir, work, threads, log):
         cams[frame_of(img.name)] = (np.array(p.rotation.matrix(), float),
                                     np.array(p.translation, float).reshape(3))
     cam = next(iter(rec.cameras.values()))
-    return {
+    out = {
         "times": times,
         "cpu": cpu,
         "models": models,
@@ -255,6 +329,10 @@ def run_colmap(plate_dir, work, threads, log):
         "cameras": cams,
         "names": names,
     }
+    if lens != "known":
+        out["lens"] = lens_of_colmap_camera(cam)
+        out["lens_initial"] = initial
+    return out
 
 
 # --------------------------------------------------------------------------------------------
@@ -282,16 +360,78 @@ def cameras_output_of(graph):
     return Path(graph).resolve().parent / "out" / Path(graph).stem / "cameras.json"
 
 
-def run_vfxgraph(binary, graph, work, threads, features, log):
+def output_nodes_of(graph):
+    """{node: (type, path)} of the graph's write_*/plot_* nodes that have a path param (a plain
+    reading of the YAML layout the repository's graphs use: nodes at 2 spaces, fields at 4)."""
+    nodes, name = {}, None
+    for line in Path(graph).read_text().splitlines():
+        m = re.match(r"  (\w+):\s*$", line)
+        if m:
+            name, kind = m.group(1), None
+            continue
+        if name is None or not line.startswith("    "):
+            if not line.startswith(" "):
+                name = None
+            continue
+        m = re.match(r"\s*type:\s*(\w+)\s*$", line)
+        if m:
+            kind = m.group(1)
+        m = re.search(r"\bpath:\s*\"?([^\",}]+)\"?", line)
+        if m and kind and (kind.startswith("write_") or kind.startswith("plot_")):
+            nodes[name] = (kind, m.group(1).strip())
+    return nodes
+
+
+def lens_of_vfxgraph(cameras_json, report_json):
+    """The solved K and lens from the graph's cameras.json (our convention), and the initial
+    focal length from its report's notes when present."""
+    d = json.loads(Path(cameras_json).read_text())
+    intr = d.get("intrinsics") or {}
+    if "K" not in intr:
+        return None
+    k = intr["K"]
+    dist = intr.get("distortion") or {}
+    lens = {"model": dist.get("model", "pinhole"), "fx": float(k[0][0]), "fy": float(k[1][1]),
+            "cx": float(k[0][2]), "cy": float(k[1][2])}
+    lens["f"] = 0.5 * (lens["fx"] + lens["fy"])
+    for key in ("k1", "k2", "k3", "p1", "p2"):
+        if key in dist:
+            lens[key] = float(dist[key])
+    if report_json and Path(report_json).exists():
+        notes = json.loads(Path(report_json).read_text()).get("notes") or []
+        for note in notes:
+            m = re.search(r"initial focal length ([0-9.]+) px", str(note))
+            if m:
+                lens["f_initial"] = float(m.group(1))
+        lens["notes"] = notes
+    return lens
+
+
+def run_vfxgraph(binary, graph, work, threads, features, log, redirect_outputs=False):
+    """redirect_outputs: --set each write_*/plot_* node's path into WORK/vfxgraph_out_<tag>/
+    (else the graph writes next to itself, under graphs/out)."""
     tag = "default" if features in (None, "default") else f"features{features}"
     cache = Path(work) / f"vfxgraph_cache_{tag}"
     if cache.exists():
         shutil.rmtree(cache)
     cache.mkdir(parents=True)
     out = cameras_output_of(graph)
+    sets, report = [], None
+    if redirect_outputs:
+        outdir = Path(work) / f"vfxgraph_out_{tag}"
+        if outdir.exists():
+            shutil.rmtree(outdir)
+        outdir.mkdir(parents=True)
+        for node, (kind, path) in output_nodes_of(graph).items():
+            target = outdir / Path(path).name
+            sets += ["--set", f"{node}.path={target}"]
+            if kind == "write_cameras":
+                out = target
+            elif kind == "write_report":
+                report = target
     if out.exists():
         out.unlink()  # so a failed run can't be scored on a stale file
-    cmd = [binary, "run", str(graph), "--cache", str(cache), "-j", str(threads), "-q"]
+    cmd = [binary, "run", str(graph), "--cache", str(cache), "-j", str(threads), "-q"] + sets
     if tag != "default":
         cmd += ["--set", f"track.features={features}"]
     r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -312,6 +452,8 @@ def run_vfxgraph(binary, graph, work, threads, features, log):
     shutil.copyfile(out, kept)
     res["cameras_json"] = str(kept)
     res["cameras"] = load_cameras_json(kept)
+    if redirect_outputs:
+        res["lens"] = lens_of_vfxgraph(kept, report)
     return res
 
 
@@ -327,11 +469,19 @@ def fmt(v, spec):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--plate-dir", default=str(DEFAULT_PLATE))
+    ap.add_argument("--lens", choices=("known", "unknown"), default="known",
+                    help="known: pinhole plate, K given and fixed (default); unknown: distorted "
+                         "plate, neither tool given K or distortion")
+    ap.add_argument("--colmap-model", choices=COLMAP_LENS_MODELS, default="RADIAL",
+                    help="COLMAP camera model with --lens unknown (default RADIAL)")
+    ap.add_argument("--plate-dir", default=None,
+                    help=f"default {DEFAULT_PLATE} (--lens known), {DISTORTED_PLATE} (unknown)")
     ap.add_argument("--truth", default=None,
                     help="cameras_gt.json (default: beside the plate folder)")
     ap.add_argument("--vfxgraph", default=None)
-    ap.add_argument("--graph", default=str(REPO / "graphs" / "dev_plate_solve.yaml"))
+    ap.add_argument("--graph", default=None,
+                    help=f"default {DEFAULT_GRAPH.relative_to(REPO)} (--lens known), "
+                         f"{LENS_GRAPH.relative_to(REPO)} (unknown)")
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--work", default=None)
     ap.add_argument("--results", default=None, help="results JSON (default WORK/results.json)")
@@ -340,6 +490,11 @@ def main():
     ap.add_argument("--skip-colmap", action="store_true")
     ap.add_argument("--skip-vfxgraph", action="store_true")
     args = ap.parse_args()
+    unknown = args.lens == "unknown"
+    if args.plate_dir is None:
+        args.plate_dir = str(DISTORTED_PLATE if unknown else DEFAULT_PLATE)
+    if args.graph is None:
+        args.graph = str(LENS_GRAPH if unknown else DEFAULT_GRAPH)
 
     plate = Path(args.plate_dir).resolve()
     truth_path = Path(args.truth) if args.truth else plate.parent / "cameras_gt.json"
@@ -357,6 +512,13 @@ def main():
     k = np.array(gt["K"], float)
     if not np.allclose(k, [[FX, 0, CX], [0, FY, CY], [0, 0, 1]]):
         sys.exit(f"truth K {k.tolist()} differs from the K this script gives COLMAP")
+    truth_lens = {"model": "truth", "fx": float(k[0, 0]), "fy": float(k[1, 1]),
+                  "cx": float(k[0, 2]), "cy": float(k[1, 2]), "f": 0.5 * float(k[0, 0] + k[1, 1]),
+                  **{key: float(v) for key, v in (gt.get("distortion") or {}).items()
+                     if key in ("k1", "k2", "k3", "p1", "p2")}}
+    if not unknown and gt.get("distortion"):
+        print(f"note: {truth_path} has a lens distortion; --lens known gives COLMAP a PINHOLE K",
+              flush=True)
     nframes = len(truth)
     log = []
 
@@ -367,19 +529,27 @@ def main():
             return None
 
     rows = []
-    meta = {"plate_dir": str(plate), "truth": str(truth_path), "graph": str(args.graph),
-            "threads": args.threads, "work": str(work), "cpu_count": os.cpu_count(),
-            "loadavg_start": load(), "argv": sys.argv}
+    meta = {"lens": args.lens, "plate_dir": str(plate), "truth": str(truth_path),
+            "graph": str(args.graph), "threads": args.threads, "work": str(work),
+            "cpu_count": os.cpu_count(), "loadavg_start": load(), "argv": sys.argv}
+    if unknown:
+        meta["colmap_model"] = args.colmap_model
+        meta["truth_lens"] = truth_lens
 
     if not args.skip_colmap:
         import pycolmap
         meta["pycolmap_version"] = pycolmap.__version__
         print(f"COLMAP (pycolmap {pycolmap.__version__}) on {plate} ...", flush=True)
-        c = run_colmap(str(plate), work, args.threads, log)
-        row = {"tool": "COLMAP", "label": f"COLMAP (pycolmap {pycolmap.__version__})",
+        c = run_colmap(str(plate), work, args.threads, log, lens=args.lens,
+                       model=args.colmap_model)
+        label = f"COLMAP (pycolmap {pycolmap.__version__})"
+        if unknown:
+            label = f"COLMAP {pycolmap.__version__} {args.colmap_model}"
+        row = {"tool": "COLMAP", "label": label,
                "times": c["times"], "cpu": c["cpu"], "models": c["models"],
                **{k_: c[k_] for k_ in ("model_used", "camera_params_after", "num_points3D",
-                                       "mean_reprojection_error_px") if k_ in c}}
+                                       "mean_reprojection_error_px", "lens", "lens_initial")
+                  if k_ in c}}
         row.update(evaluate(c["cameras"], truth, nframes))
         rows.append(row)
         meta["loadavg_after_colmap"] = load()
@@ -388,7 +558,8 @@ def main():
         binary = find_vfxgraph(args.vfxgraph)
         for feat in [f.strip() for f in args.features.split(",") if f.strip()]:
             print(f"vfxgraph ({feat}) ...", flush=True)
-            v = run_vfxgraph(binary, args.graph, work, args.threads, feat, log)
+            v = run_vfxgraph(binary, args.graph, work, args.threads, feat, log,
+                             redirect_outputs=unknown)
             row = {"tool": "vfxgraph", **{k_: v[k_] for k_ in v if k_ != "cameras"}}
             row.update(evaluate(v["cameras"], truth, nframes))
             rows.append(row)
@@ -436,6 +607,38 @@ def main():
               f"{col.get('num_points3D')} points, "
               f"mean reprojection error {fmt(col.get('mean_reprojection_error_px'), '.3f')} px"
               + (f"; frames missing {col['frames_missing']}" if col.get("frames_missing") else ""))
+    if unknown:
+        print()
+        print("solved lens (unknown-lens mode): f in px (OPENCV: mean of fx, fy) and its error vs "
+              f"the truth's {truth_lens['f']:g}; principal point in our convention (pixel-centre "
+              "origin); p1, p2: - = not in the model (vfxgraph's k1k2 keeps them at 0); "
+              "f init = the focal length each started from")
+        lhead = (f"{'tool':34} {'f px':>8} {'f err %':>8} {'k1':>8} {'k2':>8} {'p1':>8} "
+                 f"{'p2':>8} {'cx':>7} {'cy':>7} {'f init':>7}")
+        print(lhead)
+        print("-" * len(lhead))
+        lens_rows = [{"label": "truth", "lens": truth_lens}] + rows
+        for r in lens_rows:
+            ln = r.get("lens") or {}
+            f = ln.get("f")
+            ferr = 100.0 * (f - truth_lens["f"]) / truth_lens["f"] if f is not None else None
+            if r["label"] == "truth":
+                finit = None
+            elif r.get("tool") == "COLMAP":
+                finit = (r.get("lens_initial") or {}).get("f")
+            else:
+                finit = ln.get("f_initial")
+            print(f"{r['label']:34} {fmt(f, '8.2f')} {fmt(ferr, '+8.2f')} "
+                  f"{fmt(ln.get('k1'), '8.4f')} {fmt(ln.get('k2'), '8.4f')} "
+                  f"{fmt(ln.get('p1'), '8.5f')} {fmt(ln.get('p2'), '8.5f')} "
+                  f"{fmt(ln.get('cx'), '7.2f')} {fmt(ln.get('cy'), '7.2f')} {fmt(finit, '7.1f')}")
+            if r["label"] != "truth":
+                r["focal_error_pct"] = ferr
+        if col is not None and col.get("lens_initial"):
+            li = col["lens_initial"]
+            print(f"COLMAP's initial camera ({li.get('model')}, our convention): f {li.get('f')}, "
+                  f"cx {li.get('cx')}, cy {li.get('cy')}, "
+                  f"prior focal length {li.get('has_prior_focal_length')}")
     la = meta["loadavg_start"], meta["loadavg_end"]
     print(f"threads {args.threads} on {meta['cpu_count']} cores; load average (1, 5, 15 min) "
           f"at start {la[0]}, at end {la[1]}")
