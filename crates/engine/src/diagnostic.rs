@@ -257,13 +257,15 @@ impl miette::Diagnostic for Report {
     }
 }
 
-/// Closest candidate by edit distance, for "did you mean" hints.
+/// Closest candidate by edit distance, for "did you mean" hints. Ties go to the
+/// alphabetically first candidate, so the hint does not depend on the candidates' order (some
+/// come from hash maps).
 pub fn suggest<'a>(word: &str, candidates: impl IntoIterator<Item = &'a str>) -> Option<String> {
     let mut best: Option<(usize, &str)> = None;
     for c in candidates {
         let prefix = !c.is_empty() && (word.starts_with(c) || c.starts_with(word));
         let d = if prefix { 1 } else { levenshtein(word, c) };
-        if d <= (word.len().max(3) / 3).max(2) && best.is_none_or(|(bd, _)| d < bd) {
+        if d <= (word.len().max(3) / 3).max(2) && best.is_none_or(|(bd, bc)| (d, c) < (bd, bc)) {
             best = Some((d, c));
         }
     }
@@ -296,5 +298,14 @@ mod tests {
             Some("did you mean `tonemap`?")
         );
         assert_eq!(suggest("zzzzzz", ["tonemap", "exposure"]), None);
+    }
+
+    #[test]
+    fn a_tie_is_broken_by_name_not_by_order() {
+        // "blub" is one edit from both.
+        let a = suggest("blub", ["blur", "club"]);
+        let b = suggest("blub", ["club", "blur"]);
+        assert_eq!(a.as_deref(), Some("did you mean `blur`?"));
+        assert_eq!(a, b);
     }
 }
