@@ -96,6 +96,11 @@ fn missing_required_input() {
     let d = errors("version: 1\nnodes:\n  b:\n    type: add\n");
     assert_eq!(at(&d, ErrorKind::MissingInput), (3, 3));
     assert!(d.to_string().contains("needs input `a`"));
+    // With an `inputs:` that leaves it out, the error points at that key.
+    let d = errors(
+        "version: 1\nnodes:\n  n: {type: num, params: {value: 1}}\n  b:\n    type: add\n    inputs: {b: n.out}\n",
+    );
+    assert_eq!(at(&d, ErrorKind::MissingInput), (6, 5));
 }
 
 #[test]

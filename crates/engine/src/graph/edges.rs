@@ -131,14 +131,15 @@ fn reference<'y>(
     Some((j, src_id, src_port))
 }
 
-/// Reports each required input of node `raw` (of type `spec`) that `inputs:` leaves out.
+/// Reports each required input of node `raw` (of type `spec`) that `inputs:` leaves out, at
+/// its `inputs:` key (at the node's id when it has none).
 fn check_required_inputs(raw: &Raw, spec: &NodeSpec, d: &mut Diagnostics) {
     for p in &spec.inputs {
         let connected = raw.inputs.iter().any(|(k, _)| k.as_str() == Some(p.name));
         if !p.optional && !connected {
             d.push(
                 ErrorKind::MissingInput,
-                Some(raw.id_span),
+                Some(raw.inputs_span),
                 format!(
                     "node `{}` ({}) needs input `{}` ({})",
                     raw.id,

@@ -23,6 +23,7 @@ pub(super) struct Raw<'y> {
     pub(super) per_frame: Option<(bool, Span)>,
     /// `inputs:` entries, port to `node.port`.
     pub(super) inputs: Vec<(&'y Yaml, &'y Yaml)>,
+    /// Where `inputs:` is written (the id's span when it is not).
     pub(super) inputs_span: Span,
 }
 
