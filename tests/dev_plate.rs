@@ -56,7 +56,7 @@ fn the_default_graph_solves_the_grainy_blender_plate() {
 ///
 /// Measured (this commit, 150 features): focal 908.9 px (−1.2 %), k1 −0.203, rotation max
 /// 0.29°, centre max 0.49 % of the path — the same tracks solved as a pinhole with the true K
-/// reach 0.56°. With 600 features: focal 920.7 px, k1 −0.185, 0.13°, 0.14 %. The goals
+/// reach 0.56°. With 600 features: focal 919.6 px, k1 −0.183, 0.150°, 0.149 %. The goals
 /// (focal 0.5 %, k1 0.01, 0.1°, 0.5 %) are not met yet: the tangential terms and the principal
 /// point are not solved. Bounds within 2× of the measured figures.
 #[test]
