@@ -132,11 +132,12 @@ pub(crate) fn klt_spec(name: &'static str, drift_default: f64, doc: &'static str
         .param(ParamSpec::optional(
             "features",
             ParamType::Int {
-                min: 1,
+                min: 0,
                 max: 100_000,
             },
-            ParamValue::Int(150),
-            "feature slots per frame (the book's N)",
+            ParamValue::Int(0),
+            "feature slots per frame (the book's N: 150); 0 = from the frame size, one per \
+             36 × 36 px block and at least 150 (400 at 960 × 540)",
         ))
         .param(ParamSpec::optional(
             "min_distance",

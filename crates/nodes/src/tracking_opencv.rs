@@ -60,7 +60,7 @@ pub fn register(r: &mut Registry) {
 }
 
 fn run_klt_track_opencv(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let params = tracker_params(ctx);
+    let mut params = tracker_params(ctx);
     if params.drift_correction.is_some() {
         return Err(NodeError::msg(
             "klt_track_opencv: drift_correction is only implemented by klt_track (OpenCV's \
@@ -73,6 +73,9 @@ fn run_klt_track_opencv(ctx: &mut Context<'_>) -> Result<(), NodeError> {
         .map(|(f, img)| (*f, GrayImage::from_image(&img.0)))
         .collect();
     let refs: Vec<(i64, &GrayImage)> = grays.iter().map(|(f, g)| (*f, g)).collect();
+    if let Some((_, g)) = refs.first() {
+        params.corners.max_corners = params.feature_slots(g.width, g.height);
+    }
     let tracks = track_sequence_opencv(&refs, &params, |x| ctx.progress(x))
         .map_err(|e| NodeError::msg(format!("klt_track_opencv: {e}")))?;
     ctx.output("tracks", TracksArt(tracks));
