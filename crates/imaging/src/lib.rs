@@ -43,6 +43,6 @@ pub mod io;
 pub mod tonemap;
 
 pub use crate::error::ImageError;
-pub use crate::image::Image;
+pub use crate::image::{constant, ConstantOptions, Image};
 pub use crate::io::{decode, encode, read_image, write_image, Format};
-pub use crate::tonemap::{exposure, tonemap, Operator};
+pub use crate::tonemap::{exposure, tonemap, ExposureOptions, Operator, TonemapOptions};

@@ -159,6 +159,18 @@ mod tests {
             "write_layers",
             check_defaults::<vfxgraph_imaging::io::LayersOptions>,
         ),
+        (
+            "exposure",
+            check_defaults::<vfxgraph_imaging::ExposureOptions>,
+        ),
+        (
+            "tonemap",
+            check_defaults::<vfxgraph_imaging::TonemapOptions>,
+        ),
+        (
+            "constant",
+            check_defaults::<vfxgraph_imaging::ConstantOptions>,
+        ),
     ];
 
     /// Walks every node type: those with an options struct declare exactly its defaults.
