@@ -197,4 +197,29 @@ mod tests {
         assert_eq!((o.count, o.loss, o.seed, o.inner), (5, Loss::None, 7, None));
         assert_eq!(Loss::from_choice("none"), Some(Loss::None));
     }
+
+    /// Paths and optional indices.
+    #[derive(Debug, Default, PartialEq, Options)]
+    struct Files {
+        /// the plate
+        #[param(path = "input")]
+        plate: String,
+        /// the reference; -1 = none
+        #[param(range = -1..=100)]
+        reference: Option<usize>,
+    }
+
+    #[test]
+    fn a_path_field_is_a_path_param_and_minus_one_is_none() {
+        let spec = NodeSpec::new("t", "test").options::<Files>();
+        assert_eq!(spec.params[0].ty, ParamType::Path(PathRole::Input));
+        assert_eq!(spec.params[0].default, Some(ParamValue::Str(String::new())));
+        assert_eq!(spec.params[1].ty, ParamType::Int { min: -1, max: 100 });
+        assert_eq!(spec.params[1].default, Some(ParamValue::Int(-1)));
+        let mut values = BTreeMap::new();
+        values.insert("plate".to_string(), ParamValue::Str("a.exr".into()));
+        values.insert("reference".to_string(), ParamValue::Int(3));
+        let read = Files::read(&Params::new(values)).unwrap();
+        assert_eq!((read.plate.as_str(), read.reference), ("a.exr", Some(3)));
+    }
 }

@@ -372,6 +372,42 @@ pub(crate) fn sample_count(
         })
 }
 
+/// An image of one colour plus a horizontal ramp (`constant`): test patterns, backgrounds.
+#[derive(Clone, Debug, PartialEq, vfxgraph_params::Options)]
+pub struct ConstantOptions {
+    /// pixels
+    #[param(range = 1..=65536)]
+    pub width: usize,
+    /// pixels
+    #[param(range = 1..=65536)]
+    pub height: usize,
+    /// linear RGB
+    pub color: [f64; 3],
+    /// added × x/width
+    #[param(range = -1e6..=1e6)]
+    pub ramp: f64,
+}
+
+impl Default for ConstantOptions {
+    fn default() -> Self {
+        ConstantOptions {
+            width: 64,
+            height: 64,
+            color: [0.18; 3],
+            ramp: 0.0,
+        }
+    }
+}
+
+/// The RGB image of `o`: `color + ramp × x / width` on every channel.
+pub fn constant(o: &ConstantOptions) -> Result<Image, ImageError> {
+    let (w, h) = (o.width, o.height);
+    Image::try_new(w, h, 3)?;
+    Ok(Image::from_fn(w, h, 3, |x, _, c| {
+        (o.color[c] + o.ramp * x as f64 / w as f64) as f32
+    }))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -10,6 +10,7 @@
 //!   crate), PFM and Radiance RGBE `.hdr` (hand-written). sRGB is decoded to linear on read and
 //!   encoded on write; float formats are stored as they are.
 //! - [`color`]: the IEC 61966-2-1 sRGB transfer functions and Rec. 709 luminance.
+//! - [`draw`]: plots drawn into images (the response curve figure).
 //! - [`tonemap`]: photographic exposure and display tone mapping (clip, or Reinhard et al. 2002).
 //!
 //! No function of this crate panics on the content of a file: malformed, truncated or huge inputs
@@ -34,6 +35,7 @@
 #![warn(missing_docs)]
 
 pub mod color;
+pub mod draw;
 mod error;
 pub mod hdr;
 pub mod image;
@@ -41,6 +43,6 @@ pub mod io;
 pub mod tonemap;
 
 pub use crate::error::ImageError;
-pub use crate::image::Image;
+pub use crate::image::{constant, ConstantOptions, Image};
 pub use crate::io::{decode, encode, read_image, write_image, Format};
-pub use crate::tonemap::{exposure, tonemap, Operator};
+pub use crate::tonemap::{exposure, tonemap, ExposureOptions, Operator, TonemapOptions};

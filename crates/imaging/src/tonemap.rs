@@ -18,7 +18,16 @@ pub fn exposure(img: &Image, stops: f32) -> Image {
 
 /// A display tone-mapping operator (serialised in lowercase: `"srgb"`, `"reinhard"`).
 #[derive(
-    Clone, Copy, Debug, PartialEq, Eq, Hash, Default, serde::Serialize, serde::Deserialize,
+    Clone,
+    Copy,
+    Debug,
+    PartialEq,
+    Eq,
+    Hash,
+    Default,
+    serde::Serialize,
+    serde::Deserialize,
+    vfxgraph_params::Choice,
 )]
 #[serde(rename_all = "lowercase")]
 pub enum Operator {
@@ -114,6 +123,24 @@ fn sanitize(v: f32) -> f32 {
     } else {
         v.clamp(0.0, LARGE)
     }
+}
+
+/// The `exposure` node's options.
+#[derive(Clone, Debug, Default, PartialEq, vfxgraph_params::Options)]
+pub struct ExposureOptions {
+    /// exposure change in stops
+    #[param(range = -64.0..=64.0)]
+    pub stops: f64,
+}
+
+/// The `tonemap` node's options.
+#[derive(Clone, Debug, Default, PartialEq, vfxgraph_params::Options)]
+pub struct TonemapOptions {
+    /// tone curve
+    pub operator: Operator,
+    /// exposure in stops applied before the curve
+    #[param(range = -64.0..=64.0)]
+    pub exposure: f64,
 }
 
 #[cfg(test)]

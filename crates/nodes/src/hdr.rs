@@ -1,8 +1,10 @@
 //! HDR radiance maps and light domes (book chapter 10): `read_exposure_stack`,
-//! `align_exposures`, `hdr_calibrate`, `hdr_merge`, `hdr_to_ldr`, `plot_response`, `write_response`, `dome`. The algorithms live in
-//! `vfxgraph_imaging::hdr` (Debevec & Malik 1997) and `vfxgraph_render::dome`.
+//! `align_exposures`, `hdr_calibrate`, `hdr_merge`, `hdr_to_ldr`, `plot_response`,
+//! `write_response`, `probe_to_equirect`, `dome`. The algorithms and their options live in
+//! `vfxgraph_imaging::hdr` (Debevec & Malik 1997), `vfxgraph_imaging::draw` and
+//! `vfxgraph_render::dome`.
 
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::Vector3;
 use std::path::PathBuf;
 use vfxgraph_engine::artifact::codec::{put_bytes, put_f64, put_u64, Reader};
 use vfxgraph_engine::{
@@ -10,17 +12,17 @@ use vfxgraph_engine::{
     PortSpec, Registry,
 };
 
+use vfxgraph_imaging::draw::{plot_response, PlotOptions};
 use vfxgraph_imaging::hdr::{
-    align_exposures, calibrate_debevec, exposure_list_files, ldr_from_hdr, merge_debevec,
-    probe_to_equirect, read_exposure_files, read_exposure_files_exif, AlignChain, AlignOptions,
-    CalibrateOptions, Exposure, ExposureStack, HdrError, ProbeCircle, ResponseCurve, Sampling,
-    LEVELS,
+    align_exposures, calibrate_debevec, exposure_list_files, merge_debevec, photograph,
+    probe_to_equirect, read_exposure_files, read_exposure_files_exif, AlignOptions,
+    CalibrateOptions, Exposure, ExposureStack, HdrError, LdrOptions, ProbeOptions, ResponseCurve,
+    StackOptions, LEVELS,
 };
-use vfxgraph_imaging::Image;
-use vfxgraph_render::dome::Dome;
+use vfxgraph_render::dome::{Dome, DomeOptions};
 
 use crate::artifacts::{CameraArt, ImageArt, ReportArt};
-use crate::FnNode;
+use crate::{output_path, FnNode};
 
 /// An exposure stack (`exposure_stack`): 8-bit codes, exposure times, optional mask.
 #[derive(Clone, Debug, PartialEq)]
@@ -137,11 +139,6 @@ impl ArtifactType for DomeArt {
     }
 }
 
-const POSITIVE: ParamType = ParamType::Float {
-    min: 1e-12,
-    max: 1e12,
-};
-
 /// Registers the artifact and node types of this module.
 pub fn register(r: &mut Registry) {
     r.register_artifact::<StackArt>();
@@ -172,19 +169,7 @@ pub fn register(r: &mut Registry) {
             ParamValue::List(vec![]),
             "the photographs, when no `list` is given",
         ))
-        .param(ParamSpec::optional(
-            "times",
-            ParamType::FloatList { len: None },
-            ParamValue::List(vec![]),
-            "exposure time in seconds of each of `paths`; [] = read EXIF",
-        ))
-        .param(ParamSpec::optional(
-            "mask_color",
-            ParamType::FloatList { len: None },
-            ParamValue::List(vec![]),
-            "codes (one per channel, 0-255) marking pixels to ignore in calibration, e.g. \
-             [0, 0, 255] for the Memorial stack's blue borders; [] for none",
-        ))
+        .options::<StackOptions>()
         .output(PortSpec::one("stack", StackArt::NAME, "the exposure stack")),
         run_read_stack,
     ));
@@ -197,31 +182,7 @@ pub fn register(r: &mut Registry) {
              + popcount search of ±1 px per pyramid level. Translations only. Pixels shifted in \
              from outside the frame get code 0 (ignored by the merge) and join the mask.",
         )
-        .param(ParamSpec::optional(
-            "levels",
-            ParamType::Int { min: 0, max: 16 },
-            ParamValue::Int(6),
-            "pyramid levels (shifts up to 2^(levels+1) - 1 px; fewer on small images)",
-        ))
-        .param(ParamSpec::optional(
-            "exclusion",
-            ParamType::Int { min: 0, max: 64 },
-            ParamValue::Int(4),
-            "codes around the threshold left out of the comparison (noise)",
-        ))
-        .param(ParamSpec::optional(
-            "reference",
-            ParamType::Int { min: -1, max: 1 << 20 },
-            ParamValue::Int(-1),
-            "index of the exposure that stays in place; -1 = the middle one",
-        ))
-        .param(ParamSpec::optional(
-            "chain",
-            ParamType::Enum(&["neighbours", "reference"]),
-            ParamValue::Str("neighbours".into()),
-            "compare each exposure with its neighbour towards the reference (shifts summed), \
-             or directly with the reference (OpenCV's AlignMTB)",
-        ))
+        .options::<AlignOptions>()
         .input(PortSpec::one("stack", StackArt::NAME, "the exposure stack"))
         .output(PortSpec::one("stack", StackArt::NAME, "the aligned stack"))
         .output(PortSpec::one(
@@ -241,34 +202,7 @@ pub fn register(r: &mut Registry) {
         .version(2)
         .mode(Mode::Once)
         .seeded()
-        .param(ParamSpec::optional(
-            "samples",
-            ParamType::Int {
-                min: 1,
-                max: 1_000_000,
-            },
-            ParamValue::Int(1000),
-            "pixel locations sampled (same for every channel)",
-        ))
-        .param(ParamSpec::optional(
-            "lambda",
-            ParamType::Float { min: 0.0, max: 1e6 },
-            ParamValue::Float(10.0),
-            "smoothness weight λ (as in the paper's gsolve and OpenCV)",
-        ))
-        .param(ParamSpec::optional(
-            "sampling",
-            ParamType::Enum(&["stratified", "random", "grid"]),
-            ParamValue::Str("stratified".into()),
-            "pixel selection: jittered grid, uniform random, or regular grid",
-        ))
-        .param(ParamSpec::optional(
-            "monotonic",
-            ParamType::Bool,
-            ParamValue::Bool(true),
-            "constrain g to be non-decreasing (least squares over monotonic curves, \
-             active-set); false = the paper's unconstrained solution",
-        ))
+        .options::<CalibrateOptions>()
         .input(PortSpec::one("stack", StackArt::NAME, "the exposure stack"))
         .output(PortSpec::one(
             "response",
@@ -304,21 +238,7 @@ pub fn register(r: &mut Registry) {
              the connected response curve, or through a gamma curve when none is connected. \
              The output, written to PNG/JPEG, stores those codes exactly.",
         )
-        .param(ParamSpec::optional(
-            "time",
-            POSITIVE,
-            ParamValue::Float(1.0),
-            "exposure time in seconds",
-        ))
-        .param(ParamSpec::optional(
-            "gamma",
-            ParamType::Float {
-                min: 0.01,
-                max: 100.0,
-            },
-            ParamValue::Float(2.2),
-            "gamma of the curve used when no response is connected (f⁻¹(z) ∝ (z/255)^γ)",
-        ))
+        .options::<LdrOptions>()
         .input(PortSpec::one("image", ImageArt::NAME, "linear HDR image"))
         .input(PortSpec::one("response", ResponseArt::NAME, "response curve").optional())
         .output(PortSpec::one(
@@ -335,18 +255,7 @@ pub fn register(r: &mut Registry) {
              exposure g(z) (across), one line per channel (red, green, blue), on white with a \
              grid at every unit of ln exposure and every 32 codes.",
         )
-        .param(ParamSpec::optional(
-            "width",
-            ParamType::Int { min: 64, max: 8192 },
-            ParamValue::Int(640),
-            "pixels",
-        ))
-        .param(ParamSpec::optional(
-            "height",
-            ParamType::Int { min: 64, max: 8192 },
-            ParamValue::Int(480),
-            "pixels",
-        ))
+        .options::<PlotOptions>()
         .input(PortSpec::one("response", ResponseArt::NAME, "the curve"))
         .output(PortSpec::one(
             "image",
@@ -377,18 +286,7 @@ pub fn register(r: &mut Registry) {
              into a width × width/2 equirectangular image in the dome's y-up layout (top row \
              +y, centre column −z), bilinear (book 10.7). The rim (−z) is singular.",
         )
-        .param(ParamSpec::optional(
-            "circle",
-            ParamType::FloatList { len: None },
-            ParamValue::List(vec![]),
-            "[cx, cy, radius] of the ball in pixels; [] = the disc inscribed in the image",
-        ))
-        .param(ParamSpec::optional(
-            "width",
-            ParamType::Int { min: 2, max: 65536 },
-            ParamValue::Int(1024),
-            "output width (height = width / 2)",
-        ))
+        .options::<ProbeOptions>()
         .input(PortSpec::one(
             "image",
             ImageArt::NAME,
@@ -411,32 +309,7 @@ pub fn register(r: &mut Registry) {
              +y, orig = −z.",
         )
         .version(2)
-        .param(ParamSpec::optional(
-            "orig",
-            ParamType::FloatList { len: Some(3) },
-            ParamValue::List(vec![
-                ParamValue::Float(0.0),
-                ParamValue::Float(0.0),
-                ParamValue::Float(-1.0),
-            ]),
-            "direction shown at the centre column (φ = 0)",
-        ))
-        .param(ParamSpec::optional(
-            "south",
-            ParamType::FloatList { len: Some(3) },
-            ParamValue::List(vec![
-                ParamValue::Float(0.0),
-                ParamValue::Float(1.0),
-                ParamValue::Float(0.0),
-            ]),
-            "direction shown on the top row (θ = 0)",
-        ))
-        .param(ParamSpec::optional(
-            "rotation",
-            ParamType::FloatList { len: None },
-            ParamValue::List(vec![]),
-            "a camera rotation R (9 numbers, rows); overrides orig/south when given",
-        ))
+        .options::<DomeOptions>()
         .input(PortSpec::one(
             "image",
             ImageArt::NAME,
@@ -493,15 +366,14 @@ fn stack_error(e: HdrError, paths: &[PathBuf], files_param: &str, times_param: &
 }
 
 fn run_read_stack(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let p = ctx.params();
-    let (list, n_paths, times) = (
-        !p.str("list").is_empty(),
-        p.strs("paths").len(),
-        p.f64s("times"),
+    let o: StackOptions = ctx.options()?;
+    let (list, n_paths) = (
+        !ctx.params().str("list").is_empty(),
+        ctx.params().strs("paths").len(),
     );
     let mut stack = match (list, n_paths) {
         (true, 0) => {
-            if !times.is_empty() {
+            if !o.times.is_empty() {
                 return Err(NodeError::msg(
                     "param `times` goes with `paths`; a `list` file holds its own times",
                 ));
@@ -523,70 +395,32 @@ fn run_read_stack(ctx: &mut Context<'_>) -> Result<(), NodeError> {
         (true, _) => return Err(NodeError::msg("give either `list` or `paths`, not both")),
         (false, n) => {
             let paths = ctx.paths("paths");
-            if times.is_empty() {
+            if o.times.is_empty() {
                 read_exposure_files_exif(&paths)
                     .map_err(|e| stack_error(e, &paths, "paths", "paths (EXIF times)"))?
                     .0
-            } else if times.len() != n {
+            } else if o.times.len() != n {
                 return Err(NodeError::msg(format!(
                     "param `paths` names {n} files but `times` has {} values",
-                    times.len()
+                    o.times.len()
                 )));
             } else {
-                if let Some(i) = times.iter().position(|t| !(t.is_finite() && *t > 0.0)) {
-                    return Err(NodeError::msg(format!(
-                        "param `times`: value {} ({}) is not a positive number of seconds",
-                        i + 1,
-                        times[i]
-                    )));
-                }
-                read_exposure_files(&paths, &times)
+                read_exposure_files(&paths, &o.times)
                     .map_err(|e| stack_error(e, &paths, "paths", "times"))?
             }
         }
     };
-    let mask = ctx.params().f64s("mask_color");
-    if !mask.is_empty() {
-        if mask
-            .iter()
-            .any(|v| !(0.0..=255.0).contains(v) || v.fract() != 0.0)
-        {
-            return Err(NodeError::msg(
-                "param `mask_color`: values must be integers in 0-255",
-            ));
-        }
-        let code: Vec<u8> = mask.iter().map(|&v| v as u8).collect();
-        stack.mask_code(&code)?;
-    }
+    o.apply_mask(&mut stack)?;
     ctx.output("stack", StackArt(stack));
     Ok(())
 }
 
 fn run_align(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let p = ctx.params();
+    let o: AlignOptions = ctx.options()?;
     let stack = &ctx.input::<StackArt>("stack")?.0;
-    let reference = match p.i64("reference") {
-        -1 => None,
-        r if (r as usize) < stack.len() => Some(r as usize),
-        r => {
-            return Err(NodeError::msg(format!(
-                "param `reference`: exposure {r} does not exist (the stack has {})",
-                stack.len()
-            )))
-        }
-    };
-    let opts = AlignOptions {
-        levels: p.i64("levels") as usize,
-        exclusion: p.i64("exclusion") as u8,
-        reference,
-        chain: match p.str("chain") {
-            "reference" => AlignChain::Reference,
-            _ => AlignChain::Neighbours,
-        },
-    };
-    let (aligned, shifts) = align_exposures(stack, &opts)?;
+    let (aligned, shifts) = align_exposures(stack, &o)?;
     let report = serde_json::json!({
-        "reference": reference.unwrap_or(stack.len() / 2),
+        "reference": o.reference.unwrap_or(stack.len() / 2),
         "shifts": shifts.iter().map(|&(x, y)| [x, y]).collect::<Vec<_>>(),
     });
     ctx.output("stack", StackArt(aligned));
@@ -595,18 +429,11 @@ fn run_align(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 }
 
 fn run_calibrate(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let p = ctx.params();
-    let opts = CalibrateOptions {
-        samples: p.i64("samples") as usize,
-        lambda: p.f64("lambda"),
-        sampling: p
-            .str("sampling")
-            .parse::<Sampling>()
-            .map_err(NodeError::msg)?,
+    let o = CalibrateOptions {
         seed: ctx.seed(),
-        monotonic: p.bool("monotonic"),
+        ..ctx.options()?
     };
-    let curve = calibrate_debevec(&ctx.input::<StackArt>("stack")?.0, &opts)?;
+    let curve = calibrate_debevec(&ctx.input::<StackArt>("stack")?.0, &o)?;
     ctx.output("response", ResponseArt(curve));
     Ok(())
 }
@@ -621,166 +448,40 @@ fn run_merge(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 }
 
 fn run_to_ldr(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+    let o: LdrOptions = ctx.options()?;
     let img = &ctx.input::<ImageArt>("image")?.0;
-    let time = ctx.params().f64("time");
-    let out = match ctx.input_opt::<ResponseArt>("response")? {
-        Some(r) => ldr_from_hdr(img, &r.0, time)?,
-        None => {
-            let curve = ResponseCurve::gamma(ctx.params().f64("gamma"), 1)?;
-            ldr_from_hdr(img, &curve, time)?
-        }
-    };
-    ctx.output("image", ImageArt(out));
+    let response = ctx.input_opt::<ResponseArt>("response")?.map(|r| &r.0);
+    ctx.output("image", ImageArt(photograph(img, response, &o)?));
     Ok(())
 }
 
 fn run_write_response(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let curve = &ctx.input::<ResponseArt>("response")?.0;
-    let path = ctx.path("path");
-    if let Some(parent) = path.parent() {
-        std::fs::create_dir_all(parent)
-            .map_err(|e| NodeError::msg(format!("cannot create {}: {e}", parent.display())))?;
-    }
-    vfxgraph_imaging::io::write_atomic(&path, response_csv(curve).as_bytes())?;
+    let path = output_path(ctx, "path")?;
+    vfxgraph_imaging::io::write_atomic(&path, curve.to_csv().as_bytes())?;
     Ok(())
 }
 
-/// The CSV text of `write_response`.
-pub fn response_csv(curve: &ResponseCurve) -> String {
-    let mut s = String::new();
-    for z in 0..=255u8 {
-        let row: Vec<String> = (0..curve.channels())
-            .map(|c| format!("{:.9e}", curve.exposure(c, z)))
-            .collect();
-        s.push_str(&row.join(","));
-        s.push('\n');
-    }
-    s
-}
-
 fn run_plot(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let (w, h) = (
-        ctx.params().i64("width") as usize,
-        ctx.params().i64("height") as usize,
-    );
-    let img = plot_response(&ctx.input::<ResponseArt>("response")?.0, w, h);
+    let o: PlotOptions = ctx.options()?;
+    let img = plot_response(&ctx.input::<ResponseArt>("response")?.0, &o);
     ctx.output("image", ImageArt(img));
     Ok(())
 }
 
-/// Draws the response curve figure of Debevec & Malik 1997 (Fig. 2): z up, g(z) across.
-pub fn plot_response(curve: &ResponseCurve, w: usize, h: usize) -> Image {
-    let mut img = Image::from_fn(w, h, 3, |_, _, _| 1.0);
-    let (lo, hi) = curve
-        .curves()
-        .iter()
-        .flatten()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
-            (a.min(v), b.max(v))
-        });
-    let (lo, hi) = (lo.floor(), hi.ceil().max(lo.floor() + 1.0));
-    let m = 24.0;
-    let (pw, ph) = (w as f64 - 2.0 * m, h as f64 - 2.0 * m);
-    let to_px = |g: f64, z: f64| (m + (g - lo) / (hi - lo) * pw, m + (1.0 - z / 255.0) * ph);
-    let dot = |img: &mut Image, x: f64, y: f64, col: [f32; 3], r: i64| {
-        for dy in -r..=r {
-            for dx in -r..=r {
-                let (xi, yi) = (x.round() as i64 + dx, y.round() as i64 + dy);
-                if xi >= 0 && yi >= 0 && (xi as usize) < w && (yi as usize) < h {
-                    img.pixel_mut(xi as usize, yi as usize)
-                        .copy_from_slice(&col);
-                }
-            }
-        }
-    };
-    // Grid: every unit of ln exposure, every 32 codes; the frame darker.
-    let grey = [0.75f32; 3];
-    let mut g = lo;
-    while g <= hi + 1e-9 {
-        let (x, _) = to_px(g, 0.0);
-        for yi in 0..(ph as usize) {
-            dot(&mut img, x, m + yi as f64, grey, 0);
-        }
-        g += 1.0;
-    }
-    for z in (0..=256).step_by(32) {
-        let (_, y) = to_px(lo, z.min(255) as f64);
-        for xi in 0..(pw as usize) {
-            dot(&mut img, m + xi as f64, y, grey, 0);
-        }
-    }
-    let colours: [[f32; 3]; 4] = [
-        [0.8, 0.0, 0.0],
-        [0.0, 0.5, 0.0],
-        [0.0, 0.0, 0.8],
-        [0.2, 0.2, 0.2],
-    ];
-    let single = curve.channels() == 1;
-    for (c, gc) in curve.curves().iter().enumerate() {
-        let col = if single { [0.0; 3] } else { colours[c] };
-        for z in 0..LEVELS - 1 {
-            let (x0, y0) = to_px(gc[z], z as f64);
-            let (x1, y1) = to_px(gc[z + 1], (z + 1) as f64);
-            let steps = ((x1 - x0).abs().max((y1 - y0).abs()).ceil() as usize).max(1);
-            for s in 0..=steps {
-                let t = s as f64 / steps as f64;
-                dot(&mut img, x0 + t * (x1 - x0), y0 + t * (y1 - y0), col, 1);
-            }
-        }
-    }
-    img
-}
-
 fn run_probe(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+    let o: ProbeOptions = ctx.options()?;
     let img = &ctx.input::<ImageArt>("image")?.0;
-    let c = ctx.params().f64s("circle");
-    let circle = match c.as_slice() {
-        [] => ProbeCircle::inscribed(img.width, img.height),
-        [cx, cy, radius] => ProbeCircle {
-            cx: *cx,
-            cy: *cy,
-            radius: *radius,
-        },
-        other => {
-            return Err(NodeError::msg(format!(
-                "circle needs [cx, cy, radius], got {} numbers",
-                other.len()
-            )))
-        }
-    };
-    let out = probe_to_equirect(img, &circle, ctx.params().i64("width") as usize)?;
+    let out = probe_to_equirect(img, &o.circle_in(img.width, img.height), o.width)?;
     ctx.output("image", ImageArt(out));
     Ok(())
 }
 
 fn run_dome(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let p = ctx.params();
+    let o: DomeOptions = ctx.options()?;
     let img = &ctx.input::<ImageArt>("image")?.0;
-    let rot = p.f64s("rotation");
     let camera = ctx.input_opt::<CameraArt>("camera")?;
-    let dome = if let Some(cam) = camera {
-        if !rot.is_empty() {
-            return Err(NodeError::msg(
-                "give the rotation by the `camera` input or the `rotation` param, not both",
-            ));
-        }
-        Dome::from_camera_rotation(img, &cam.0.pose.r)?
-    } else if rot.is_empty() {
-        let (o, s) = (p.f64s("orig"), p.f64s("south"));
-        Dome::new(
-            img,
-            Vector3::new(o[0], o[1], o[2]),
-            Vector3::new(s[0], s[1], s[2]),
-        )?
-    } else {
-        if rot.len() != 9 {
-            return Err(NodeError::msg(format!(
-                "rotation needs 9 numbers (3x3, row by row), got {}",
-                rot.len()
-            )));
-        }
-        Dome::from_camera_rotation(img, &Matrix3::from_row_slice(&rot))?
-    };
+    let dome = Dome::oriented(img, &o, camera.map(|c| &c.0.pose.r))?;
     ctx.output("dome", DomeArt(dome));
     Ok(())
 }
@@ -789,8 +490,10 @@ fn run_dome(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 mod tests {
     use super::*;
     use crate::testing::{params, spec};
+    use nalgebra::Matrix3;
     use std::path::Path;
     use vfxgraph_engine::{InputValue, Value};
+    use vfxgraph_imaging::Image;
 
     /// A synthetic 3-exposure stack of a horizontal radiance ramp through a gamma-2 camera.
     fn synthetic_stack(dir: &Path) {

@@ -1,18 +1,12 @@
 //! Image operations: `exposure`, `tonemap`, and the `constant` image generator.
 
-use vfxgraph_engine::{
-    ArtifactType, Context, NodeError, NodeSpec, ParamSpec, ParamType, ParamValue, PortSpec,
-    Registry, Threads,
+use vfxgraph_engine::{ArtifactType, Context, NodeError, NodeSpec, PortSpec, Registry, Threads};
+use vfxgraph_imaging::{
+    constant, exposure, tonemap, ConstantOptions, ExposureOptions, TonemapOptions,
 };
-use vfxgraph_imaging::{exposure, tonemap, Image, Operator};
 
 use crate::artifacts::ImageArt;
 use crate::FnNode;
-
-const STOPS: ParamType = ParamType::Float {
-    min: -64.0,
-    max: 64.0,
-};
 
 /// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
@@ -22,12 +16,7 @@ pub fn register(r: &mut Registry) {
             "Scales linear light by 2^stops (photographic exposure, book §10.2); alpha is kept.",
         )
         .threads(Threads::One)
-        .param(ParamSpec::optional(
-            "stops",
-            STOPS,
-            ParamValue::Float(0.0),
-            "exposure change in stops",
-        ))
+        .options::<ExposureOptions>()
         .input(PortSpec::one("image", ImageArt::NAME, "linear image"))
         .output(PortSpec::one("image", ImageArt::NAME, "exposed image")),
         run_exposure,
@@ -40,18 +29,7 @@ pub fn register(r: &mut Registry) {
              to PNG/JPEG for the sRGB curve.",
         )
         .threads(Threads::One)
-        .param(ParamSpec::optional(
-            "operator",
-            ParamType::Enum(&["srgb", "reinhard"]),
-            ParamValue::Str("srgb".into()),
-            "tone curve",
-        ))
-        .param(ParamSpec::optional(
-            "exposure",
-            STOPS,
-            ParamValue::Float(0.0),
-            "exposure in stops applied before the curve",
-        ))
+        .options::<TonemapOptions>()
         .input(PortSpec::one("image", ImageArt::NAME, "linear HDR image"))
         .output(PortSpec::one(
             "image",
@@ -66,67 +44,33 @@ pub fn register(r: &mut Registry) {
             "An image of one colour (RGB), plus `ramp` × x/width on every channel: test \
              patterns, backgrounds, benchmarks.",
         )
-        .param(ParamSpec::optional(
-            "width",
-            ParamType::Int { min: 1, max: 65536 },
-            ParamValue::Int(64),
-            "pixels",
-        ))
-        .param(ParamSpec::optional(
-            "height",
-            ParamType::Int { min: 1, max: 65536 },
-            ParamValue::Int(64),
-            "pixels",
-        ))
-        .param(ParamSpec::optional(
-            "color",
-            ParamType::FloatList { len: Some(3) },
-            ParamValue::List(vec![ParamValue::Float(0.18); 3]),
-            "linear RGB",
-        ))
-        .param(ParamSpec::optional(
-            "ramp",
-            ParamType::Float {
-                min: -1e6,
-                max: 1e6,
-            },
-            ParamValue::Float(0.0),
-            "added × x/width",
-        ))
+        .options::<ConstantOptions>()
         .output(PortSpec::one("image", ImageArt::NAME, "the image")),
         run_constant,
     ));
 }
 
 fn run_exposure(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let stops = ctx.params().f64("stops") as f32;
-    let out = exposure(&ctx.input::<ImageArt>("image")?.0, stops);
+    let o: ExposureOptions = ctx.options()?;
+    let out = exposure(&ctx.input::<ImageArt>("image")?.0, o.stops as f32);
     ctx.output("image", ImageArt(out));
     Ok(())
 }
 
 fn run_tonemap(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let op: Operator = ctx
-        .params()
-        .str("operator")
-        .parse()
-        .map_err(NodeError::msg)?;
-    let stops = ctx.params().f64("exposure") as f32;
-    let out = tonemap(&ctx.input::<ImageArt>("image")?.0, op, stops);
+    let o: TonemapOptions = ctx.options()?;
+    let out = tonemap(
+        &ctx.input::<ImageArt>("image")?.0,
+        o.operator,
+        o.exposure as f32,
+    );
     ctx.output("image", ImageArt(out));
     Ok(())
 }
 
 fn run_constant(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let p = ctx.params();
-    let (w, h) = (p.i64("width") as usize, p.i64("height") as usize);
-    let color = p.f64s("color");
-    let ramp = p.f64("ramp");
-    let img = Image::try_new(w, h, 3)?;
-    let img = Image::from_fn(img.width, img.height, 3, |x, _, c| {
-        (color[c] + ramp * x as f64 / w as f64) as f32
-    });
-    ctx.output("image", ImageArt(img));
+    let o: ConstantOptions = ctx.options()?;
+    ctx.output("image", ImageArt(constant(&o)?));
     Ok(())
 }
 
@@ -134,7 +78,8 @@ fn run_constant(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 mod tests {
     use super::*;
     use std::path::Path;
-    use vfxgraph_engine::{InputValue, Params, Value};
+    use vfxgraph_engine::{InputValue, ParamValue, Params, Value};
+    use vfxgraph_imaging::Image;
 
     fn run_node(
         name: &str,

@@ -100,6 +100,8 @@ pub(crate) fn output_path(ctx: &Context<'_>, param: &str) -> Result<std::path::P
 #[cfg(test)]
 mod tests {
     use crate::testing::check_defaults;
+    use vfxgraph_imaging::hdr;
+    use vfxgraph_render as render;
 
     /// Every node type whose params come from an options struct, and that struct: the nodes
     /// of a family are listed here when the family is converted.
@@ -129,6 +131,45 @@ mod tests {
         (
             "write_st_map",
             check_defaults::<vfxgraph_vision::st_map::StMapOptions>,
+        ),
+        ("read_exposure_stack", check_defaults::<hdr::StackOptions>),
+        ("align_exposures", check_defaults::<hdr::AlignOptions>),
+        ("hdr_calibrate", check_defaults::<hdr::CalibrateOptions>),
+        ("hdr_to_ldr", check_defaults::<hdr::LdrOptions>),
+        (
+            "plot_response",
+            check_defaults::<vfxgraph_imaging::draw::PlotOptions>,
+        ),
+        ("probe_to_equirect", check_defaults::<hdr::ProbeOptions>),
+        ("dome", check_defaults::<vfxgraph_render::dome::DomeOptions>),
+        ("render", check_defaults::<vfxgraph_render::RenderOptions>),
+        (
+            "fit_catcher",
+            check_defaults::<render::catcher_fit::FitCatcherOptions>,
+        ),
+        (
+            "differential_render",
+            check_defaults::<render::differential::DifferentialOptions>,
+        ),
+        (
+            "composite",
+            check_defaults::<render::differential::CompositeOptions>,
+        ),
+        (
+            "write_layers",
+            check_defaults::<vfxgraph_imaging::io::LayersOptions>,
+        ),
+        (
+            "exposure",
+            check_defaults::<vfxgraph_imaging::ExposureOptions>,
+        ),
+        (
+            "tonemap",
+            check_defaults::<vfxgraph_imaging::TonemapOptions>,
+        ),
+        (
+            "constant",
+            check_defaults::<vfxgraph_imaging::ConstantOptions>,
         ),
     ];
 

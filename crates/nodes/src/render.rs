@@ -11,14 +11,12 @@ use nalgebra::Vector3;
 use vfxgraph_engine::artifact::codec::{put_bytes, put_u64, Reader};
 use vfxgraph_engine::artifact::{decode_json, encode_json};
 use vfxgraph_engine::{
-    ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, ParamValue, PathRole,
-    PortSpec, Registry, Threads,
+    ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, PathRole, PortSpec,
+    Registry, Threads,
 };
-use vfxgraph_render::dome::Dome;
-use vfxgraph_render::light::LightSampling;
+use vfxgraph_render::dome::{Dome, Light};
 use vfxgraph_render::{
-    parse_scn, parse_yaml_scene, render, Camera, ConstantEnvironment, Environment, RenderSettings,
-    Scene, Strategy, World,
+    parse_scn, parse_yaml_scene, render, Camera, ImageSize, RenderOptions, Scene,
 };
 
 use crate::artifacts::{CameraPathArt, ImageArt, IntrinsicsArt};
@@ -121,57 +119,7 @@ pub fn register(r: &mut Registry) {
             base_mib: 64,
             bytes_per_pixel: 96,
         })
-        .param(ParamSpec::optional(
-            "spp",
-            ParamType::Int {
-                min: 1,
-                max: 1 << 20,
-            },
-            ParamValue::Int(64),
-            "samples (paths) per pixel",
-        ))
-        .param(ParamSpec::optional(
-            "max_depth",
-            ParamType::Int { min: 0, max: 1024 },
-            ParamValue::Int(8),
-            "maximum scattering vertices per path (the book's bounces; its Cornell render used 3)",
-        ))
-        .param(ParamSpec::optional(
-            "seed",
-            ParamType::Int {
-                min: 0,
-                max: i64::MAX,
-            },
-            ParamValue::Int(0),
-            "extra seed mixed into the graph seed",
-        ))
-        .param(ParamSpec::optional(
-            "width",
-            ParamType::Int { min: 0, max: 65536 },
-            ParamValue::Int(0),
-            "image width override (0 = the camera's; K is rescaled)",
-        ))
-        .param(ParamSpec::optional(
-            "height",
-            ParamType::Int { min: 0, max: 65536 },
-            ParamValue::Int(0),
-            "image height override (0 = the camera's)",
-        ))
-        .param(ParamSpec::optional(
-            "objects",
-            ParamType::Enum(&["all", "catchers_only"]),
-            ParamValue::Str("all".into()),
-            "`catchers_only` drops the synthetic objects, keeping shadow catchers, lights and \
-             dome (the empty-set render of differential rendering, book §10.10)",
-        ))
-        .param(ParamSpec::optional(
-            "light_sampling",
-            ParamType::Enum(&["area", "solid_angle"]),
-            ParamValue::Str("area".into()),
-            "how next-event estimation picks a point on a light triangle: uniformly by area \
-             (book §9.11) or by the solid angle it subtends (Arvo 1995; less noise from large, \
-             near lights)",
-        ))
+        .options::<RenderOptions>()
         .input(PortSpec::one("scene", SceneArt::NAME, "the scene"))
         .input(
             PortSpec::one(
@@ -362,47 +310,16 @@ pub(crate) fn camera_for_frame(
     camera
         .validate()
         .map_err(|e| NodeError::msg(format!("camera of this frame: {e}")))?;
-    let p = ctx.params();
-    let (w, h) = (p.i64("width") as usize, p.i64("height") as usize);
-    if w > 0 || h > 0 {
-        let w = if w > 0 { w } else { camera.width };
-        let h = if h > 0 { h } else { camera.height };
-        camera = camera.resized(w, h);
-    }
-    Ok(camera)
+    Ok(ctx.options::<ImageSize>()?.apply(camera))
 }
 
-/// The light of a render: a dome (the `dome` input's or the scene's) or a constant background.
-pub(crate) enum Light<'a> {
-    Dome(&'a Dome),
-    Constant(ConstantEnvironment),
-}
-
-impl Light<'_> {
-    pub(crate) fn env(&self) -> &dyn Environment {
-        match self {
-            Light::Dome(d) => *d,
-            Light::Constant(c) => c,
-        }
-    }
-}
-
-/// The `dome` input if connected, else the scene's loaded dome, else its background colour.
+/// The light of a render: the `dome` input if connected, else the scene's loaded dome, else its
+/// background colour.
 pub(crate) fn pick_light<'a>(
     input_dome: Option<&'a Dome>,
     art: &'a SceneArt,
 ) -> Result<Light<'a>, NodeError> {
-    match (input_dome, &art.dome, &art.scene.dome) {
-        (Some(d), _, _) | (None, Some(d), _) => Ok(Light::Dome(d)),
-        (None, None, Some(spec)) => Err(NodeError::msg(format!(
-            "the scene's dome image `{}` was not found when the scene was read: connect a \
-             `dome` input (e.g. read_image → dome)",
-            spec.image
-        ))),
-        (None, None, None) => Ok(Light::Constant(ConstantEnvironment {
-            radiance: art.scene.background,
-        })),
-    }
+    Light::pick(input_dome, art.dome.as_ref(), &art.scene).map_err(NodeError::msg)
 }
 
 /// Runs `f` with a `Sync` progress callback forwarding to `ctx.progress` (the engine's
@@ -419,18 +336,6 @@ pub(crate) fn with_sync_progress<R>(
     })
 }
 
-/// Settings from the `spp`, `max_depth` and `seed` params (the seed mixed into the graph's).
-pub(crate) fn render_settings(ctx: &Context<'_>, strategy: Strategy) -> RenderSettings {
-    let p = ctx.params();
-    RenderSettings {
-        spp: p.i64("spp") as u32,
-        max_depth: p.i64("max_depth") as u32,
-        seed: ctx.seed() ^ (p.i64("seed") as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15),
-        strategy,
-        ..Default::default()
-    }
-}
-
 /// An error when a render dropped non-finite samples (a bug in the tracer, not in the scene).
 pub(crate) fn check_finite(nonfinite: u64) -> Result<(), NodeError> {
     if nonfinite > 0 {
@@ -442,32 +347,15 @@ pub(crate) fn check_finite(nonfinite: u64) -> Result<(), NodeError> {
 }
 
 fn run_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+    let o: RenderOptions = ctx.options()?;
     let art = ctx.input::<SceneArt>("scene")?;
     let input_dome = ctx.input_opt::<DomeArt>("dome")?.map(|d| &d.0);
     let light = pick_light(input_dome, art)?;
-    let env = light.env();
     let camera = instance_camera(ctx, &art.scene)?;
-    let p = ctx.params();
-    let settings = render_settings(ctx, Strategy::Mis);
-    let sampling = if p.str("light_sampling") == "solid_angle" {
-        LightSampling::SolidAngle
-    } else {
-        LightSampling::Area
-    };
-    let world = if p.str("objects") == "catchers_only" {
-        World::with_light_sampling(&art.scene.without_synthetic_objects(), sampling)
-    } else {
-        World::with_light_sampling(&art.scene, sampling)
-    };
+    let (world, settings) = (o.world(&art.scene), o.settings(ctx.seed()));
     let out = with_sync_progress(ctx, |progress| {
-        render(
-            &world,
-            env,
-            &camera,
-            &settings,
-            progress,
-            Some(ctx.cancel_flag()),
-        )
+        let cancel = Some(ctx.cancel_flag());
+        render(&world, light.env(), &camera, &settings, progress, cancel)
     })
     .map_err(|e| NodeError::msg(e.to_string()))?;
     check_finite(out.stats.nonfinite)?;
@@ -480,7 +368,7 @@ fn run_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 mod tests {
     use super::*;
     use crate::testing::{params, spec};
-    use vfxgraph_engine::{InputValue, Value};
+    use vfxgraph_engine::{InputValue, ParamValue, Value};
     use vfxgraph_imaging::Image;
     use vfxgraph_vision::formats::{CameraPath, FramePose};
     use vfxgraph_vision::Pose;

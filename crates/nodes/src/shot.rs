@@ -4,24 +4,24 @@
 
 use vfxgraph_engine::artifact::codec::{put_bytes, put_u64, Reader};
 use vfxgraph_engine::{
-    ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, ParamValue, PathRole,
-    PortSpec, Registry,
+    ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, PathRole, PortSpec,
+    Registry,
 };
-use vfxgraph_imaging::io::{encode_exr_layers, ExrOptions, ExrPrecision};
+use vfxgraph_imaging::io::{encode_exr_layers, LayersOptions};
 use vfxgraph_imaging::{read_image, Image};
-use vfxgraph_render::catcher_fit::{fit_catcher, FitOptions};
+use vfxgraph_params::Choice;
+use vfxgraph_render::catcher_fit::{fit_catcher, FitCatcherOptions};
 use vfxgraph_render::differential::{
-    composite, differential_render, Adaptive, CompositeMode, DifferentialLayers,
+    composite, differential_render, CompositeOptions, DifferentialLayers, DifferentialOptions,
 };
-use vfxgraph_render::Strategy;
+use vfxgraph_render::ImageSize;
 
 use crate::artifacts::{CameraPathArt, ImageArt, IntrinsicsArt, ReportArt};
 use crate::hdr::DomeArt;
 use crate::render::{
-    camera_for_frame, check_finite, instance_camera, pick_light, render_settings,
-    with_sync_progress, SceneArt,
+    camera_for_frame, check_finite, instance_camera, pick_light, with_sync_progress, SceneArt,
 };
-use crate::FnNode;
+use crate::{output_path, FnNode};
 
 /// Named images of one size (`layers`): what a compositor reads from a multi-layer EXR.
 #[derive(Clone, Debug, PartialEq)]
@@ -54,52 +54,9 @@ impl ArtifactType for LayersArt {
     }
 }
 
-fn spp_param(default: i64) -> ParamSpec {
-    ParamSpec::optional(
-        "spp",
-        ParamType::Int {
-            min: 1,
-            max: 1 << 20,
-        },
-        ParamValue::Int(default),
-        "samples (paths) per pixel",
-    )
-}
-
-fn depth_param() -> ParamSpec {
-    ParamSpec::optional(
-        "max_depth",
-        ParamType::Int { min: 0, max: 1024 },
-        ParamValue::Int(2),
-        "maximum scattering vertices per path (the book's shot used 2 bounces)",
-    )
-}
-
-fn seed_param() -> ParamSpec {
-    ParamSpec::optional(
-        "seed",
-        ParamType::Int {
-            min: 0,
-            max: i64::MAX,
-        },
-        ParamValue::Int(0),
-        "extra seed mixed into the graph seed",
-    )
-}
-
+/// The image size override params (`width`, `height`) of a node that renders.
 pub(crate) fn size_params(spec: NodeSpec) -> NodeSpec {
-    spec.param(ParamSpec::optional(
-        "width",
-        ParamType::Int { min: 0, max: 65536 },
-        ParamValue::Int(0),
-        "image width override (0 = the camera's; K is rescaled)",
-    ))
-    .param(ParamSpec::optional(
-        "height",
-        ParamType::Int { min: 0, max: 65536 },
-        ParamValue::Int(0),
-        "image height override (0 = the camera's)",
-    ))
+    spec.options::<ImageSize>()
 }
 
 pub(crate) fn light_and_camera_inputs(spec: NodeSpec) -> NodeSpec {
@@ -138,7 +95,7 @@ pub(crate) fn light_and_camera_inputs(spec: NodeSpec) -> NodeSpec {
 pub fn register(r: &mut Registry) {
     r.register_artifact::<LayersArt>();
     r.register_node(FnNode::new(
-        light_and_camera_inputs(size_params(
+        light_and_camera_inputs(
             NodeSpec::new(
                 "fit_catcher",
                 "Fits the shadow catchers' diffuse colour to the plate (book §10.10, the \
@@ -158,22 +115,8 @@ pub fn register(r: &mut Registry) {
                 },
                 "the plate frame (and camera) to fit on",
             ))
-            .param(spp_param(64))
-            .param(depth_param())
-            .param(seed_param())
-            .param(ParamSpec::optional(
-                "iterations",
-                ParamType::Int { min: 1, max: 20 },
-                ParamValue::Int(4),
-                "at most this many renders",
-            ))
-            .param(ParamSpec::optional(
-                "tolerance",
-                ParamType::Float { min: 0.0, max: 1.0 },
-                ParamValue::Float(1e-3),
-                "stop when every channel's correction is within this (relative)",
-            )),
-        ))
+            .options::<FitCatcherOptions>(),
+        )
         .input(PortSpec::sequence(
             "plate",
             ImageArt::NAME,
@@ -188,7 +131,7 @@ pub fn register(r: &mut Registry) {
         run_fit_catcher,
     ));
     r.register_node(FnNode::new(
-        light_and_camera_inputs(size_params(
+        light_and_camera_inputs(
             NodeSpec::new(
                 "differential_render",
                 "Differential rendering (book §10.10; Debevec 1998), one frame per instance: \
@@ -209,54 +152,8 @@ pub fn register(r: &mut Registry) {
                 base_mib: 64,
                 bytes_per_pixel: 400,
             })
-            .param(spp_param(64))
-            .param(ParamSpec::optional(
-                "min_spp",
-                ParamType::Int {
-                    min: 0,
-                    max: 1 << 20,
-                },
-                ParamValue::Int(0),
-                "adaptive sampling: every traced pixel gets `min_spp` samples, then batches of \
-                 `min_spp` more (up to `spp`) while its noise is above the `noise` target scaled by \
-                 its samples / `min_spp` (samples in proportion to each pixel's deviation: the \
-                 least total squared error for the samples spent); 0 = `spp` everywhere",
-            ))
-            .param(ParamSpec::optional(
-                "noise",
-                ParamType::Float {
-                    min: 0.0,
-                    max: 10.0,
-                },
-                ParamValue::Float(0.01),
-                "adaptive target: the standard error of a pixel's added light after `min_spp` \
-                 samples, relative to the frame's mean rendered radiance",
-            ))
-            .param(depth_param())
-            .param(seed_param())
-            .param(ParamSpec::optional(
-                "mode",
-                ParamType::Enum(&["additive", "ratio"]),
-                ParamValue::Str("additive".into()),
-                "`additive`: plate + (with − without), Debevec 1998, the book; `ratio`: plate × \
-                 with / without, a multiplicative shadow matte (keeps the plate's texture in \
-                 shadows, never below black)",
-            ))
-            .param(ParamSpec::optional(
-                "strategy",
-                ParamType::Enum(&["mis", "brdf_only"]),
-                ParamValue::Str("mis".into()),
-                "`mis`: light/dome and BRDF sampling combined; `brdf_only`: hemisphere \
-                 sampling only, as the book's program (for noise comparisons)",
-            ))
-            .param(ParamSpec::optional(
-                "plate",
-                ParamType::Path(PathRole::Input),
-                ParamValue::Str(String::new()),
-                "a plate file pattern (e.g. plate/frame.%04d.exr), read when the `plate` input \
-                 is not connected; empty = no plate",
-            )),
-        ))
+            .options::<DifferentialOptions>(),
+        )
         .input(
             PortSpec::one(
                 "plate",
@@ -304,24 +201,7 @@ pub fn register(r: &mut Registry) {
         )
         .mode(Mode::Either)
         .threads(vfxgraph_engine::Threads::One)
-        .param(ParamSpec::optional(
-            "mode",
-            ParamType::Enum(&["additive", "ratio"]),
-            ParamValue::Str("additive".into()),
-            "`additive` (Debevec 1998, the book) or `ratio` (a multiplicative shadow matte)",
-        ))
-        .param(ParamSpec::optional(
-            "plate",
-            ParamType::Path(PathRole::Input),
-            ParamValue::Str(String::new()),
-            "a plate file pattern, read when the `plate` input is not connected",
-        ))
-        .param(ParamSpec::optional(
-            "grey",
-            ParamType::Float { min: 0.0, max: 1e6 },
-            ParamValue::Float(0.18),
-            "the stand-in plate's radiance when there is no plate",
-        ))
+        .options::<CompositeOptions>()
         .input(PortSpec::one(
             "layers",
             LayersArt::NAME,
@@ -349,18 +229,14 @@ pub fn register(r: &mut Registry) {
             ParamType::Path(PathRole::Output),
             "output file, e.g. out/shot.%04d.exr",
         ))
-        .param(ParamSpec::optional(
-            "precision",
-            ParamType::Enum(&["half", "float"]),
-            ParamValue::Str("half".into()),
-            "sample type",
-        ))
+        .options::<LayersOptions>()
         .input(PortSpec::one("layers", LayersArt::NAME, "the layers")),
         run_write_layers,
     ));
 }
 
 fn run_fit_catcher(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+    let o: FitCatcherOptions = ctx.options()?;
     let art = ctx.input::<SceneArt>("scene")?;
     let input_dome = ctx.input_opt::<DomeArt>("dome")?.map(|d| &d.0);
     let light = pick_light(input_dome, art)?;
@@ -381,26 +257,18 @@ fn run_fit_catcher(ctx: &mut Context<'_>) -> Result<(), NodeError> {
             ))
         })?;
     let camera = camera_for_frame(ctx, &art.scene, Some(frame))?;
-    let plate = if (plate.width, plate.height) != (camera.width, camera.height) {
+    if (plate.width, plate.height) != (camera.width, camera.height) {
         return Err(NodeError::msg(format!(
             "plate frame {frame} is {}×{} but the camera renders {}×{} (set width/height)",
             plate.width, plate.height, camera.width, camera.height
         )));
-    } else {
-        plate
-    };
-    let p = ctx.params();
-    let options = FitOptions {
-        settings: render_settings(ctx, Strategy::Mis),
-        max_iterations: p.i64("iterations") as usize,
-        tolerance: p.f64("tolerance"),
-    };
+    }
     let (scene, fit) = fit_catcher(
         &art.scene,
         light.env(),
         &camera,
         plate,
-        &options,
+        &o.fit(ctx.seed()),
         Some(ctx.cancel_flag()),
     )
     .map_err(|e| NodeError::msg(format!("frame {frame}: {e}")))?;
@@ -421,33 +289,21 @@ fn run_fit_catcher(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 }
 
 fn run_differential_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+    let o: DifferentialOptions = ctx.options()?;
     let art = ctx.input::<SceneArt>("scene")?;
     let input_dome = ctx.input_opt::<DomeArt>("dome")?.map(|d| &d.0);
     let light = pick_light(input_dome, art)?;
     let camera = instance_camera(ctx, &art.scene)?;
-    let p = ctx.params();
-    let mode = CompositeMode::parse(p.str("mode")).unwrap_or_default();
-    let strategy = match p.str("strategy") {
-        "brdf_only" => Strategy::BrdfOnly,
-        _ => Strategy::Mis,
-    };
     let plate = plate_of(ctx)?;
     let plate = plate.as_ref();
-    let settings = render_settings(ctx, strategy);
-    let adaptive = match p.i64("min_spp") {
-        0 => None,
-        m => Some(Adaptive {
-            min_spp: m as u32,
-            noise: p.f64("noise"),
-        }),
-    };
+    let settings = o.settings(ctx.seed());
     let out = with_sync_progress(ctx, |progress| {
         differential_render(
             &art.scene,
             light.env(),
             &camera,
             &settings,
-            adaptive,
+            o.adaptive(),
             progress,
             Some(ctx.cancel_flag()),
         )
@@ -456,7 +312,7 @@ fn run_differential_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     check_finite(out.stats.nonfinite)?;
     let l = &out.layers;
     let image = match plate {
-        Some(plate) => composite(l, plate, mode).map_err(NodeError::msg)?,
+        Some(plate) => composite(l, plate, o.mode).map_err(NodeError::msg)?,
         None => Image::from_fn(l.beauty.width, l.beauty.height, 3, |x, y, c| {
             l.beauty.get(x, y, c) + l.catcher_with.get(x, y, c)
         }),
@@ -479,7 +335,7 @@ fn run_differential_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
         "height": camera.height,
         "spp": settings.spp,
         "max_depth": settings.max_depth,
-        "mode": p.str("mode"),
+        "mode": o.mode.choice(),
         "plate": plate.is_some(),
         "traced_pixels": s.traced_pixels,
         "mean_spp_traced": s.samples as f64 / s.traced_pixels.max(1) as f64,
@@ -511,6 +367,7 @@ fn plate_of(ctx: &Context<'_>) -> Result<Option<Image>, NodeError> {
 }
 
 fn run_composite(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+    let o: CompositeOptions = ctx.options()?;
     let layers = &ctx.input::<LayersArt>("layers")?.0;
     let get = |name: &str| {
         layers
@@ -540,17 +397,17 @@ fn run_composite(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let plate = match plate_of(ctx)? {
         Some(p) => p,
         None => {
-            let g = ctx.params().f64("grey") as f32;
+            let g = o.grey as f32;
             Image::from_fn(l.beauty.width, l.beauty.height, 3, |_, _, _| g)
         }
     };
-    let mode = CompositeMode::parse(ctx.params().str("mode")).unwrap_or_default();
-    let image = composite(&l, &plate, mode).map_err(NodeError::msg)?;
+    let image = composite(&l, &plate, o.mode).map_err(NodeError::msg)?;
     ctx.output("image", ImageArt(image));
     Ok(())
 }
 
 fn run_write_layers(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+    let o: LayersOptions = ctx.options()?;
     let path_text = ctx.params().str("path").to_string();
     if ctx.frame().is_some() && !vfxgraph_engine::node::has_frame_pattern(&path_text) {
         return Err(NodeError::msg(format!(
@@ -564,21 +421,8 @@ fn run_write_layers(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     // The first layer is also written under the bare channel names (what viewers show).
     let mut named: Vec<(&str, &Image)> = vec![("", &layers[0].1)];
     named.extend(layers.iter().map(|(n, i)| (n.as_str(), i)));
-    let options = ExrOptions {
-        precision: if ctx.params().str("precision") == "float" {
-            ExrPrecision::Float
-        } else {
-            ExrPrecision::Half
-        },
-        ..Default::default()
-    };
-    let bytes = encode_exr_layers(&named, &options)?;
-    let path = ctx.path("path");
-    if let Some(parent) = path.parent() {
-        std::fs::create_dir_all(parent)
-            .map_err(|e| NodeError::msg(format!("cannot create {}: {e}", parent.display())))?;
-    }
-    vfxgraph_imaging::io::write_atomic(&path, &bytes)?;
+    let bytes = encode_exr_layers(&named, &o.exr())?;
+    vfxgraph_imaging::io::write_atomic(&output_path(ctx, "path")?, &bytes)?;
     Ok(())
 }
 

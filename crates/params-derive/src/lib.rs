@@ -36,6 +36,7 @@ struct FieldAttrs {
     skip: bool,
     flatten: bool,
     toggle: Option<LitStr>,
+    path: Option<LitStr>,
     cosmetic: bool,
     check: bool,
 }
@@ -64,6 +65,12 @@ fn field_attrs(attrs: &[Attribute]) -> syn::Result<FieldAttrs> {
                 a.doc = Some(meta.value()?.parse()?);
             } else if p.is_ident("toggle") {
                 a.toggle = Some(meta.value()?.parse()?);
+            } else if p.is_ident("path") {
+                let role: LitStr = meta.value()?.parse()?;
+                if !matches!(role.value().as_str(), "input" | "output") {
+                    return Err(meta.error("path = \"input\" or \"output\""));
+                }
+                a.path = Some(role);
             } else if p.is_ident("range") {
                 let v = meta.value()?;
                 a.min = tokens_until(v, true)?;
@@ -183,9 +190,18 @@ fn options(input: &DeriveInput) -> syn::Result<Tokens> {
             );
         } else {
             let (min, max) = (bound(&a.min), bound(&a.max));
+            let kind = match a.path.as_ref().map(LitStr::value).as_deref() {
+                Some("input") => quote!(::vfxgraph_params::Kind::Path(
+                    ::vfxgraph_params::PathRole::Input
+                )),
+                Some(_) => quote!(::vfxgraph_params::Kind::Path(
+                    ::vfxgraph_params::PathRole::Output
+                )),
+                None => quote!(<#ty as ::vfxgraph_params::Field>::kind(#min, #max)),
+            };
             descs.push(quote!(out.push(::vfxgraph_params::ParamDesc {
                 name: #name,
-                kind: <#ty as ::vfxgraph_params::Field>::kind(#min, #max),
+                kind: #kind,
                 default: ::core::option::Option::Some(::vfxgraph_params::Field::to_value(&d.#field)),
                 doc: #doc,
                 cosmetic: #cosmetic,

@@ -13,6 +13,9 @@
 //! COLMAP's option manager binds command-line names to the fields of its option structs the same
 //! way; Meshroom's node descriptions list each parameter once.
 //!
+//! Field types: integers (`Option<usize>` is an int whose −1 is `None`), `f64`, `f32`, `bool`,
+//! `String`, `Vec<f64>` and `[f64; N]` (float lists), and `#[derive(Choice)]` enums.
+//!
 //! Field attributes (`#[param(...)]`, comma-separated):
 //! - `range = MIN..=MAX`: the numeric range (either side may be omitted: `0.0..=`).
 //! - `name = "..."`: the parameter's name when it is not the field's.
@@ -23,6 +26,9 @@
 //!   (documented by the field's doc comment) whose default is `Default`'s `is_some()`; when true
 //!   the field is `Some(T::read(..))`, else `None`. `T`'s parameters follow, after the struct's
 //!   other fields.
+//! - `path = "input"` / `path = "output"` (on a `String` field): a file path the caller resolves
+//!   (the engine: against the graph file, an input's content entering the cache key); its
+//!   default is `Default`'s (usually empty: no file).
 //! - `cosmetic`: does not enter the cache key (labels, verbosity).
 //!
 //! Struct attribute `#[param(check)]`: [`Options::read`] ends with the struct's inherent
@@ -176,7 +182,7 @@ macro_rules! int_field {
     )*};
 }
 int_field!(i64::MIN; i64, i32);
-int_field!(0; u64, u32, usize);
+int_field!(0; u64, u32, usize, u8);
 
 impl Field for f64 {
     fn kind(min: Option<f64>, max: Option<f64>) -> Kind {
@@ -267,6 +273,26 @@ impl<const N: usize> Field for [f64; N] {
     }
     fn from_value(v: Value) -> Option<Self> {
         floats(v)?.try_into().ok()
+    }
+}
+
+/// An optional index or count: `-1` is `None` (an int parameter whose range starts at −1).
+impl Field for Option<usize> {
+    fn kind(min: Option<f64>, max: Option<f64>) -> Kind {
+        Kind::Int {
+            min: min.map_or(-1, |m| m as i64),
+            max: max.map_or(i64::MAX, |m| m as i64),
+        }
+    }
+    fn to_value(&self) -> Value {
+        Value::Int(self.map_or(-1, |i| i as i64))
+    }
+    fn from_value(v: Value) -> Option<Self> {
+        match v {
+            Value::Int(-1) => Some(None),
+            Value::Int(i) => usize::try_from(i).ok().map(Some),
+            _ => None,
+        }
     }
 }
 

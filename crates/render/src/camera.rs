@@ -311,6 +311,37 @@ impl RayGenerator {
     }
 }
 
+/// An image size override of a render: 0 keeps the camera's side.
+#[derive(Clone, Copy, Debug, Default, PartialEq, vfxgraph_params::Options)]
+pub struct ImageSize {
+    /// image width override (0 = the camera's; K is rescaled)
+    #[param(range = 0..=65536)]
+    pub width: usize,
+    /// image height override (0 = the camera's)
+    #[param(range = 0..=65536)]
+    pub height: usize,
+}
+
+impl ImageSize {
+    /// `camera` [resized](Camera::resized) when a side is set (the other keeps the camera's).
+    pub fn apply(&self, camera: Camera) -> Camera {
+        if self.width == 0 && self.height == 0 {
+            return camera;
+        }
+        let w = if self.width > 0 {
+            self.width
+        } else {
+            camera.width
+        };
+        let h = if self.height > 0 {
+            self.height
+        } else {
+            camera.height
+        };
+        camera.resized(w, h)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -14,11 +14,11 @@ use std::sync::atomic::AtomicBool;
 use vfxgraph_imaging::Image;
 
 use crate::brdf::Brdf;
-use crate::camera::Camera;
-use crate::differential::differential_render;
+use crate::camera::{Camera, ImageSize};
+use crate::differential::{differential_render, SHOT_MAX_DEPTH};
 use crate::environment::Environment;
 use crate::math::Rgb;
-use crate::render::{RenderError, RenderSettings};
+use crate::render::{mix_seed, RenderError, RenderSettings};
 use crate::scene::Scene;
 
 /// Why a fit failed.
@@ -108,6 +108,57 @@ pub struct FitOptions {
     pub max_iterations: usize,
     /// Stop when every channel's correction is within this (relative).
     pub tolerance: f64,
+}
+
+/// The `fit_catcher` node's options (besides its frame): the renders' sampling, the fit's
+/// stopping rule and the image size.
+#[derive(Clone, Debug, PartialEq, vfxgraph_params::Options)]
+pub struct FitCatcherOptions {
+    /// samples (paths) per pixel
+    #[param(range = 1..=(1 << 20))]
+    pub spp: u32,
+    /// maximum scattering vertices per path (the book's shot used 2 bounces)
+    #[param(range = 0..=1024)]
+    pub max_depth: u32,
+    /// extra seed mixed into the graph seed
+    pub seed: u64,
+    /// at most this many renders
+    #[param(range = 1..=20)]
+    pub iterations: usize,
+    /// stop when every channel's correction is within this (relative)
+    #[param(range = 0.0..=1.0)]
+    pub tolerance: f64,
+    #[param(flatten)]
+    pub size: ImageSize,
+}
+
+impl Default for FitCatcherOptions {
+    fn default() -> Self {
+        FitCatcherOptions {
+            spp: RenderSettings::default().spp,
+            max_depth: SHOT_MAX_DEPTH,
+            seed: 0,
+            iterations: 4,
+            tolerance: 1e-3,
+            size: ImageSize::default(),
+        }
+    }
+}
+
+impl FitCatcherOptions {
+    /// The fit's options, the renders seeded by `graph_seed` mixed with `seed`.
+    pub fn fit(&self, graph_seed: u64) -> FitOptions {
+        FitOptions {
+            settings: RenderSettings {
+                spp: self.spp,
+                max_depth: self.max_depth,
+                seed: mix_seed(graph_seed, self.seed),
+                ..Default::default()
+            },
+            max_iterations: self.iterations,
+            tolerance: self.tolerance,
+        }
+    }
 }
 
 /// Fits the catchers' diffuse colour of `scene` to `plate` (linear radiance, RGB) seen by

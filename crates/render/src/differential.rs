@@ -32,16 +32,16 @@ use std::time::Instant;
 use rayon::prelude::*;
 use vfxgraph_imaging::Image;
 
-use crate::camera::Camera;
+use crate::camera::{Camera, ImageSize};
 use crate::environment::Environment;
-use crate::integrator::{PathTracer, Sampler};
+use crate::integrator::{PathTracer, Sampler, Strategy};
 use crate::math::Rgb;
-use crate::render::{PixelSampler, RenderError, RenderSettings};
+use crate::render::{mix_seed, PixelSampler, RenderError, RenderSettings};
 use crate::scene::Scene;
 use crate::world::{Surface, World};
 
 /// How the catcher's change is applied to the plate (book §10.10).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, vfxgraph_params::Choice)]
 pub enum CompositeMode {
     /// plate + (with − without): Debevec 1998, the book's program.
     #[default]
@@ -51,13 +51,113 @@ pub enum CompositeMode {
     Ratio,
 }
 
-impl CompositeMode {
-    /// Parses `additive` or `ratio`.
-    pub fn parse(s: &str) -> Option<CompositeMode> {
+/// The maximum scattering vertices per path of the shot's renders (the book's shot used 2
+/// bounces): `fit_catcher`'s and `differential_render`'s default.
+pub const SHOT_MAX_DEPTH: u32 = 2;
+
+/// How a differential render samples: the estimators the shot offers.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, vfxgraph_params::Choice)]
+pub enum ShotStrategy {
+    /// Light/dome and BRDF sampling combined ([`Strategy::Mis`]).
+    #[default]
+    Mis,
+    /// Hemisphere (BRDF) sampling only, as the book's program ([`Strategy::BrdfOnly`]).
+    BrdfOnly,
+}
+
+impl From<ShotStrategy> for Strategy {
+    fn from(s: ShotStrategy) -> Strategy {
         match s {
-            "additive" => Some(CompositeMode::Additive),
-            "ratio" => Some(CompositeMode::Ratio),
-            _ => None,
+            ShotStrategy::Mis => Strategy::Mis,
+            ShotStrategy::BrdfOnly => Strategy::BrdfOnly,
+        }
+    }
+}
+
+/// The `differential_render` node's options.
+#[derive(Clone, Debug, PartialEq, vfxgraph_params::Options)]
+pub struct DifferentialOptions {
+    /// samples (paths) per pixel
+    #[param(range = 1..=(1 << 20))]
+    pub spp: u32,
+    /// adaptive sampling: every traced pixel gets `min_spp` samples, then batches of `min_spp` more (up to `spp`) while its noise is above the `noise` target scaled by its samples / `min_spp` (samples in proportion to each pixel's deviation: the least total squared error for the samples spent); 0 = `spp` everywhere
+    #[param(range = 0..=(1 << 20))]
+    pub min_spp: u32,
+    /// adaptive target: the standard error of a pixel's added light after `min_spp` samples, relative to the frame's mean rendered radiance
+    #[param(range = 0.0..=10.0)]
+    pub noise: f64,
+    /// maximum scattering vertices per path (the book's shot used 2 bounces)
+    #[param(range = 0..=1024)]
+    pub max_depth: u32,
+    /// extra seed mixed into the graph seed
+    pub seed: u64,
+    /// `additive`: plate + (with − without), Debevec 1998, the book; `ratio`: plate × with / without, a multiplicative shadow matte (keeps the plate's texture in shadows, never below black)
+    pub mode: CompositeMode,
+    /// `mis`: light/dome and BRDF sampling combined; `brdf_only`: hemisphere sampling only, as the book's program (for noise comparisons)
+    pub strategy: ShotStrategy,
+    /// a plate file pattern (e.g. plate/frame.%04d.exr), read when the `plate` input is not connected; empty = no plate
+    #[param(path = "input")]
+    pub plate: String,
+    #[param(flatten)]
+    pub size: ImageSize,
+}
+
+impl Default for DifferentialOptions {
+    fn default() -> Self {
+        DifferentialOptions {
+            spp: RenderSettings::default().spp,
+            min_spp: 0,
+            noise: 0.01,
+            max_depth: SHOT_MAX_DEPTH,
+            seed: 0,
+            mode: CompositeMode::Additive,
+            strategy: ShotStrategy::Mis,
+            plate: String::new(),
+            size: ImageSize::default(),
+        }
+    }
+}
+
+impl DifferentialOptions {
+    /// The renders' settings, seeded by `graph_seed` mixed with `seed`.
+    pub fn settings(&self, graph_seed: u64) -> RenderSettings {
+        RenderSettings {
+            spp: self.spp,
+            max_depth: self.max_depth,
+            seed: mix_seed(graph_seed, self.seed),
+            strategy: self.strategy.into(),
+            ..Default::default()
+        }
+    }
+
+    /// Adaptive sampling, when `min_spp` is set.
+    pub fn adaptive(&self) -> Option<Adaptive> {
+        (self.min_spp > 0).then_some(Adaptive {
+            min_spp: self.min_spp,
+            noise: self.noise,
+        })
+    }
+}
+
+/// The `composite` node's options: the mode and the plate (a file, else a constant grey).
+#[derive(Clone, Debug, PartialEq, vfxgraph_params::Options)]
+pub struct CompositeOptions {
+    /// `additive` (Debevec 1998, the book) or `ratio` (a multiplicative shadow matte)
+    pub mode: CompositeMode,
+    /// a plate file pattern, read when the `plate` input is not connected
+    #[param(path = "input")]
+    pub plate: String,
+    /// the stand-in plate's radiance when there is no plate
+    #[param(range = 0.0..=1e6)]
+    pub grey: f64,
+}
+
+impl Default for CompositeOptions {
+    fn default() -> Self {
+        CompositeOptions {
+            mode: CompositeMode::Additive,
+            plate: String::new(),
+            grey: 0.18,
         }
     }
 }

@@ -31,8 +31,9 @@ use nalgebra::{Matrix3, Vector3};
 use vfxgraph_imaging::color::luminance;
 use vfxgraph_imaging::Image;
 
-use crate::environment::{Environment, EnvironmentSample};
+use crate::environment::{ConstantEnvironment, Environment, EnvironmentSample};
 use crate::math::{Rgb, Vec3};
+use crate::scene::Scene;
 
 /// What can be wrong with a dome's image or orientation.
 #[derive(thiserror::Error, Debug, Clone, PartialEq)]
@@ -214,6 +215,41 @@ pub struct Dome {
     black: bool,
 }
 
+/// How a dome is oriented: `orig`/`south`, or a calibrated camera's rotation.
+#[derive(Clone, Debug, PartialEq, vfxgraph_params::Options)]
+#[param(check)]
+pub struct DomeOptions {
+    /// direction shown at the centre column (φ = 0)
+    pub orig: [f64; 3],
+    /// direction shown on the top row (θ = 0)
+    pub south: [f64; 3],
+    /// a camera rotation R (9 numbers, rows); overrides orig/south when given
+    pub rotation: Vec<f64>,
+}
+
+/// vfxgraph's y-up world ([`Dome::y_up`]).
+impl Default for DomeOptions {
+    fn default() -> Self {
+        DomeOptions {
+            orig: [0.0, 0.0, -1.0],
+            south: [0.0, 1.0, 0.0],
+            rotation: Vec::new(),
+        }
+    }
+}
+
+impl DomeOptions {
+    /// `rotation` is empty or 9 numbers.
+    pub fn check(&self) -> Result<(), String> {
+        match self.rotation.len() {
+            0 | 9 => Ok(()),
+            n => Err(format!(
+                "rotation needs 9 numbers (3x3, row by row), got {n}"
+            )),
+        }
+    }
+}
+
 impl Dome {
     /// A dome from an equirectangular image (gray → RGB, alpha dropped) and the book's `orig` and
     /// `south` vectors (book 10.7–10.8). Builds the sampling distribution: texel weight =
@@ -287,6 +323,27 @@ impl Dome {
         let south = r.row(1).transpose();
         let orig = -r.row(2).transpose();
         Dome::new(image, orig, south)
+    }
+
+    /// The dome of `image` oriented by `camera_rotation` (the rotation of the camera that
+    /// photographed the probe, [`Dome::from_camera_rotation`]), else by `o.rotation`, else by
+    /// `o.orig`/`o.south`. Giving both a camera and `o.rotation` is an error.
+    pub fn oriented(
+        image: &Image,
+        o: &DomeOptions,
+        camera_rotation: Option<&Matrix3<f64>>,
+    ) -> Result<Dome, DomeError> {
+        o.check().map_err(DomeError::Orientation)?;
+        match (camera_rotation, o.rotation.is_empty()) {
+            (Some(_), false) => Err(DomeError::Orientation(
+                "give the rotation by the `camera` input or the `rotation` param, not both".into(),
+            )),
+            (Some(r), true) => Dome::from_camera_rotation(image, r),
+            (None, false) => {
+                Dome::from_camera_rotation(image, &Matrix3::from_row_slice(&o.rotation))
+            }
+            (None, true) => Dome::new(image, o.orig.into(), o.south.into()),
+        }
     }
 
     /// The equirectangular image (RGB, linear).
@@ -481,6 +538,44 @@ fn basis(orig: &Vector3<f64>, south: &Vector3<f64>) -> Result<Matrix3<f64>, Dome
         v.transpose(),
         n.transpose(),
     ]))
+}
+
+/// The light of a render: a dome, or a constant background.
+pub enum Light<'a> {
+    /// An image-based dome.
+    Dome(&'a Dome),
+    /// A constant radiance from every direction.
+    Constant(ConstantEnvironment),
+}
+
+impl<'a> Light<'a> {
+    /// The environment to render with.
+    pub fn env(&self) -> &dyn Environment {
+        match self {
+            Light::Dome(d) => *d,
+            Light::Constant(c) => c,
+        }
+    }
+
+    /// The light of `scene`: dome `replacing` if given, else the scene's `loaded` dome, else its
+    /// background colour. An error when the scene names a dome image that was not loaded.
+    pub fn pick(
+        replacing: Option<&'a Dome>,
+        loaded: Option<&'a Dome>,
+        scene: &Scene,
+    ) -> Result<Light<'a>, String> {
+        match (replacing, loaded, &scene.dome) {
+            (Some(d), _, _) | (None, Some(d), _) => Ok(Light::Dome(d)),
+            (None, None, Some(spec)) => Err(format!(
+                "the scene's dome image `{}` was not found when the scene was read: connect a \
+                 `dome` input (e.g. read_image → dome)",
+                spec.image
+            )),
+            (None, None, None) => Ok(Light::Constant(ConstantEnvironment {
+                radiance: scene.background,
+            })),
+        }
+    }
 }
 
 #[cfg(test)]

@@ -40,11 +40,14 @@ pub mod world;
 pub mod yaml_scene;
 
 pub use brdf::{BlinnPhong, Brdf, Lambert, Mirror};
-pub use camera::{Camera, CameraError};
+pub use camera::{Camera, CameraError, ImageSize};
 pub use environment::{ConstantEnvironment, Environment, EnvironmentSample};
 pub use integrator::{PathTracer, Strategy};
 pub use math::{Rgb, Vec3};
-pub use render::{render, RenderError, RenderOutput, RenderSettings, RenderStats};
+pub use render::{
+    mix_seed, render, Objects, RenderError, RenderOptions, RenderOutput, RenderSettings,
+    RenderStats,
+};
 pub use scene::{AreaLight, DomeSpec, Object, Scene, Shape};
 pub use scn::{parse_scn, ScnError};
 pub use texture::Texture;

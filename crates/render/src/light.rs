@@ -8,7 +8,7 @@ use crate::shape::Triangle;
 use crate::spherical_triangle;
 
 /// How a point on a light triangle is chosen.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, vfxgraph_params::Choice)]
 pub enum LightSampling {
     /// Uniformly by area (book §9.11); pdf converted to solid angle.
     #[default]

@@ -10,10 +10,12 @@ use rand_pcg::Pcg32;
 use rayon::prelude::*;
 use vfxgraph_imaging::Image;
 
-use crate::camera::Camera;
+use crate::camera::{Camera, ImageSize};
 use crate::environment::Environment;
 use crate::integrator::{PathTracer, Sampler, Strategy};
+use crate::light::LightSampling;
 use crate::math::Rgb;
+use crate::scene::Scene;
 use crate::world::World;
 
 /// Why a render stopped.
@@ -56,6 +58,79 @@ impl Default for RenderSettings {
             seed: 0,
             tile: 16,
             strategy: Strategy::Mis,
+        }
+    }
+}
+
+/// A node's extra `seed` mixed into the graph's seed (golden-ratio multiply, then xor): seed 0
+/// keeps the graph's.
+pub fn mix_seed(graph_seed: u64, seed: u64) -> u64 {
+    graph_seed ^ seed.wrapping_mul(0x9E37_79B9_7F4A_7C15)
+}
+
+/// Which objects of the scene a render sees.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, vfxgraph_params::Choice)]
+pub enum Objects {
+    /// Every object.
+    #[default]
+    All,
+    /// Shadow catchers, lights and dome only (the empty-set render of differential rendering).
+    CatchersOnly,
+}
+
+/// The `render` node's options: sampling, image size, objects and light sampling.
+#[derive(Clone, Debug, PartialEq, vfxgraph_params::Options)]
+pub struct RenderOptions {
+    /// samples (paths) per pixel
+    #[param(range = 1..=(1 << 20))]
+    pub spp: u32,
+    /// maximum scattering vertices per path (the book's bounces; its Cornell render used 3)
+    #[param(range = 0..=1024)]
+    pub max_depth: u32,
+    /// extra seed mixed into the graph seed
+    pub seed: u64,
+    #[param(flatten)]
+    pub size: ImageSize,
+    /// `catchers_only` drops the synthetic objects, keeping shadow catchers, lights and dome (the empty-set render of differential rendering, book §10.10)
+    pub objects: Objects,
+    /// how next-event estimation picks a point on a light triangle: uniformly by area (book §9.11) or by the solid angle it subtends (Arvo 1995; less noise from large, near lights)
+    pub light_sampling: LightSampling,
+}
+
+impl Default for RenderOptions {
+    fn default() -> Self {
+        let d = RenderSettings::default();
+        RenderOptions {
+            spp: d.spp,
+            max_depth: d.max_depth,
+            seed: 0,
+            size: ImageSize::default(),
+            objects: Objects::All,
+            light_sampling: LightSampling::Area,
+        }
+    }
+}
+
+impl RenderOptions {
+    /// The settings of a render seeded by `graph_seed` (mixed with `seed`), next-event
+    /// estimation combined with BRDF sampling.
+    pub fn settings(&self, graph_seed: u64) -> RenderSettings {
+        RenderSettings {
+            spp: self.spp,
+            max_depth: self.max_depth,
+            seed: mix_seed(graph_seed, self.seed),
+            strategy: Strategy::Mis,
+            ..Default::default()
+        }
+    }
+
+    /// The world of `scene` as `objects` and `light_sampling` say.
+    pub fn world(&self, scene: &Scene) -> World {
+        match self.objects {
+            Objects::All => World::with_light_sampling(scene, self.light_sampling),
+            Objects::CatchersOnly => {
+                World::with_light_sampling(&scene.without_synthetic_objects(), self.light_sampling)
+            }
         }
     }
 }

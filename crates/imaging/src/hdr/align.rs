@@ -33,7 +33,7 @@ use super::stack::{Exposure, ExposureStack};
 use super::HdrError;
 
 /// Which exposure each one is compared with.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, vfxgraph_params::Choice)]
 pub enum AlignChain {
     /// Each exposure against its neighbour towards the reference, shifts accumulated: adjacent
     /// exposures look alike, so this survives wide brackets (Ward 2003, §4).
@@ -43,16 +43,27 @@ pub enum AlignChain {
 }
 
 /// Options of [`align_exposures`].
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, vfxgraph_params::Options)]
 pub struct AlignOptions {
+    /// pyramid levels (shifts up to 2^(levels+1) - 1 px; fewer on small images)
+    ///
     /// Pyramid levels above full resolution (Ward's `shift_bits`, OpenCV's `max_bits`; default 6:
     /// shifts up to ±127 px). Reduced so that the coarsest level keeps at least 8 pixels on its
     /// short side.
+    #[param(range = 0..=16)]
     pub levels: usize,
+    /// codes around the threshold left out of the comparison (noise)
+    ///
     /// Half-width of the band around the median excluded from comparison, in codes (default 4).
+    #[param(range = 0..=64)]
     pub exclusion: u8,
-    /// Index of the exposure that stays in place; `None` = the middle one (`len / 2`).
+    /// index of the exposure that stays in place; -1 = the middle one
+    ///
+    /// `None` (−1 as a parameter) = the middle one (`len / 2`).
+    #[param(range = -1..=(1 << 20))]
     pub reference: Option<usize>,
+    /// compare each exposure with its neighbour towards the reference (shifts summed), or directly with the reference (OpenCV's AlignMTB)
+    ///
     /// Neighbour chaining (default) or direct comparison with the reference.
     pub chain: AlignChain,
 }
@@ -322,7 +333,7 @@ pub fn mtb_shifts(stack: &ExposureStack, opts: &AlignOptions) -> Result<Vec<(i64
     let r = opts.reference.unwrap_or(n / 2);
     if r >= n {
         return Err(HdrError::InvalidArgument(format!(
-            "reference exposure {r} does not exist (the stack has {n})"
+            "`reference`: exposure {r} does not exist (the stack has {n})"
         )));
     }
     let (w, h, c) = (stack.width(), stack.height(), stack.channels());

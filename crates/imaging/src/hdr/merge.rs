@@ -102,6 +102,40 @@ pub fn merge_debevec(stack: &ExposureStack, curve: &ResponseCurve) -> Result<Ima
     Ok(out)
 }
 
+/// The photograph `hdr_to_ldr` simulates: its exposure time, and the gamma of the curve used
+/// when the camera's response is not known.
+#[derive(Clone, Debug, PartialEq, vfxgraph_params::Options)]
+pub struct LdrOptions {
+    /// exposure time in seconds
+    #[param(range = 1e-12..=1e12)]
+    pub time: f64,
+    /// gamma of the curve used when no response is connected (f⁻¹(z) ∝ (z/255)^γ)
+    #[param(range = 0.01..=100.0)]
+    pub gamma: f64,
+}
+
+impl Default for LdrOptions {
+    fn default() -> Self {
+        LdrOptions {
+            time: 1.0,
+            gamma: 2.2,
+        }
+    }
+}
+
+/// [`ldr_from_hdr`] through `response`, or through the gamma curve of `o.gamma` when there is
+/// none (book 10.6).
+pub fn photograph(
+    img: &Image,
+    response: Option<&ResponseCurve>,
+    o: &LdrOptions,
+) -> Result<Image, HdrError> {
+    match response {
+        Some(r) => ldr_from_hdr(img, r, o.time),
+        None => ldr_from_hdr(img, &ResponseCurve::gamma(o.gamma, 1)?, o.time),
+    }
+}
+
 /// Simulates a photograph of the radiance map `img` with exposure time `time` through `curve`
 /// (book 10.6, HDR → LDR): code `z = g⁻¹(ln(E · time))`, clipped to 0–255 (see
 /// [`ResponseCurve::code_for`]); use [`ResponseCurve::gamma`] for a plain gamma. The result holds

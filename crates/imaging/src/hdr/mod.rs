@@ -39,8 +39,8 @@ pub use exif::{
     exposure_settings, read_exposure_settings, relative_exposures, with_exposure_exif,
     ExposureSettings,
 };
-pub use merge::{consistency_error, ldr_from_hdr, merge_debevec};
-pub use probe::{probe_to_equirect, ProbeCircle};
+pub use merge::{consistency_error, ldr_from_hdr, merge_debevec, photograph, LdrOptions};
+pub use probe::{probe_to_equirect, ProbeCircle, ProbeOptions};
 pub use response::{
     calibrate_debevec, debevec_objective, hat_weight, sample_pixels, solve_debevec,
     solve_debevec_monotonic, CalibrateOptions, ResponseCurve, Sampling,
@@ -48,7 +48,7 @@ pub use response::{
 pub use stack::{
     decode_codes, exposure_list_files, parse_exposure_list, parse_seconds, read_codes,
     read_exposure_files, read_exposure_files_exif, read_exposure_list, CodeImage, Exposure,
-    ExposureStack, ListEntry,
+    ExposureStack, ListEntry, StackOptions,
 };
 
 /// Number of 8-bit code values: the length of a response curve (Debevec & Malik 1997, §2.1).

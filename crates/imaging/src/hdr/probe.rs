@@ -43,6 +43,44 @@ impl ProbeCircle {
     }
 }
 
+/// The unwrapping of a probe photograph: where the ball is and the output width.
+#[derive(Clone, Debug, PartialEq, vfxgraph_params::Options)]
+#[param(check)]
+pub struct ProbeOptions {
+    /// [cx, cy, radius] of the ball in pixels; [] = the disc inscribed in the image
+    pub circle: Vec<f64>,
+    /// output width (height = width / 2)
+    #[param(range = 2..=65536)]
+    pub width: usize,
+}
+
+impl Default for ProbeOptions {
+    fn default() -> Self {
+        ProbeOptions {
+            circle: Vec::new(),
+            width: 1024,
+        }
+    }
+}
+
+impl ProbeOptions {
+    /// `circle` is empty or three numbers.
+    pub fn check(&self) -> Result<(), String> {
+        match self.circle.len() {
+            0 | 3 => Ok(()),
+            n => Err(format!("circle needs [cx, cy, radius], got {n} numbers")),
+        }
+    }
+
+    /// The ball in a `width × height` probe photograph: `circle`, or the inscribed disc.
+    pub fn circle_in(&self, width: usize, height: usize) -> ProbeCircle {
+        match self.circle[..] {
+            [cx, cy, radius] => ProbeCircle { cx, cy, radius },
+            _ => ProbeCircle::inscribed(width, height),
+        }
+    }
+}
+
 /// The unit direction of texel `(i, j)` of a `w × h` equirectangular image (see the module
 /// conventions).
 pub fn equirect_direction(i: f64, j: f64, w: usize, h: usize) -> [f64; 3] {

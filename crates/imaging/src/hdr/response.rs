@@ -83,6 +83,20 @@ impl ResponseCurve {
         self.g[c][z as usize].exp()
     }
 
+    /// The curve as CSV: 256 rows (z = 0…255), one column per channel, holding the linear
+    /// exposure f⁻¹(z) = exp(g(z)) — OpenCV's debevec.csv layout, no header.
+    pub fn to_csv(&self) -> String {
+        let mut s = String::new();
+        for z in 0..=255u8 {
+            let row: Vec<String> = (0..self.channels())
+                .map(|c| format!("{:.9e}", self.exposure(c, z)))
+                .collect();
+            s.push_str(&row.join(","));
+            s.push('\n');
+        }
+        s
+    }
+
     /// Whether channel `c`'s curve is non-decreasing over `lo..=hi`.
     pub fn is_monotonic(&self, c: usize, lo: u8, hi: u8) -> bool {
         self.g[c][lo as usize..=hi as usize]
@@ -140,47 +154,43 @@ pub fn hat_weight(z: u8) -> f64 {
 
 /// How [`calibrate_debevec`] picks the pixels whose codes enter the least-squares system.
 /// Masked pixels are never picked.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, vfxgraph_params::Choice)]
 pub enum Sampling {
+    /// One random pixel in each cell of the grid of [`Sampling::Grid`] (jittered; seeded PCG).
+    /// The default: even coverage without the grid's aliasing.
+    Stratified,
     /// Uniformly random pixels (seeded PCG).
     Random,
     /// The centres of a regular grid of about `samples` cells (deterministic; OpenCV's
     /// non-random mode does the same).
     Grid,
-    /// One random pixel in each cell of that grid (jittered; seeded PCG). The default: even
-    /// coverage without the grid's aliasing.
-    Stratified,
-}
-
-impl std::str::FromStr for Sampling {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "random" => Ok(Sampling::Random),
-            "grid" => Ok(Sampling::Grid),
-            "stratified" => Ok(Sampling::Stratified),
-            other => Err(format!(
-                "unknown sampling `{other}` (random, grid, stratified)"
-            )),
-        }
-    }
 }
 
 /// Options of [`calibrate_debevec`].
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, vfxgraph_params::Options)]
 pub struct CalibrateOptions {
-    /// Number of pixel locations sampled (the same locations for every channel). Debevec &
-    /// Malik note `N(P − 1) > 255` is needed; more samples average out noise and misregistration.
+    /// pixel locations sampled (same for every channel)
+    ///
+    /// Debevec & Malik note `N(P − 1) > 255` is needed; more samples average out noise and
+    /// misregistration.
+    #[param(range = 1..=1_000_000)]
     pub samples: usize,
-    /// Smoothness weight λ (as in the paper's `gsolve` and OpenCV; OpenCV's default is 10).
+    /// smoothness weight λ (as in the paper's gsolve and OpenCV)
+    ///
+    /// OpenCV's default is 10.
+    #[param(range = 0.0..=1e6)]
     pub lambda: f64,
-    /// Pixel selection strategy.
+    /// pixel selection: jittered grid, uniform random, or regular grid
     pub sampling: Sampling,
-    /// Seed of the PCG stream for random strategies: equal seeds give equal curves.
+    /// Seed of the PCG stream for random strategies: equal seeds give equal curves (the
+    /// graph's seed, not a parameter).
+    #[param(skip)]
     pub seed: u64,
-    /// Constrain `g` to be non-decreasing (`g(z+1) ≥ g(z)` for every z; see
-    /// [`solve_debevec_monotonic`]). The default: a camera's response is monotonic, and without
-    /// the constraint the rarely observed codes (Memorial's below ≈ 16) wiggle.
+    /// constrain g to be non-decreasing (least squares over monotonic curves, active-set); false = the paper's unconstrained solution
+    ///
+    /// `g(z+1) ≥ g(z)` for every z; see [`solve_debevec_monotonic`]. The default: a camera's
+    /// response is monotonic, and without the constraint the rarely observed codes (Memorial's
+    /// below ≈ 16) wiggle.
     pub monotonic: bool,
 }
 

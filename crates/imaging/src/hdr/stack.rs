@@ -200,6 +200,47 @@ impl ExposureStack {
     }
 }
 
+/// How a stack read from `paths` is timed, and which pixels it ignores (the `list` and `paths`
+/// themselves are file names a caller resolves).
+#[derive(Clone, Debug, Default, PartialEq, vfxgraph_params::Options)]
+#[param(check)]
+pub struct StackOptions {
+    /// exposure time in seconds of each of `paths`; [] = read EXIF
+    pub times: Vec<f64>,
+    /// codes (one per channel, 0-255) marking pixels to ignore in calibration, e.g. [0, 0, 255] for the Memorial stack's blue borders; [] for none
+    pub mask_color: Vec<f64>,
+}
+
+impl StackOptions {
+    /// Every time is a positive number of seconds; every mask code an integer in 0–255.
+    pub fn check(&self) -> Result<(), String> {
+        if let Some(i) = self.times.iter().position(|t| !(t.is_finite() && *t > 0.0)) {
+            return Err(format!(
+                "param `times`: value {} ({}) is not a positive number of seconds",
+                i + 1,
+                self.times[i]
+            ));
+        }
+        if self
+            .mask_color
+            .iter()
+            .any(|v| !(0.0..=255.0).contains(v) || v.fract() != 0.0)
+        {
+            return Err("param `mask_color`: values must be integers in 0-255".into());
+        }
+        Ok(())
+    }
+
+    /// Masks the pixels of `stack` that have `mask_color` (nothing when it is empty).
+    pub fn apply_mask(&self, stack: &mut ExposureStack) -> Result<(), HdrError> {
+        if !self.mask_color.is_empty() {
+            let code: Vec<u8> = self.mask_color.iter().map(|&v| v as u8).collect();
+            stack.mask_code(&code)?;
+        }
+        Ok(())
+    }
+}
+
 /// An 8-bit image as the camera stored it: interleaved codes, no transfer function applied.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CodeImage {

@@ -41,15 +41,24 @@ use crate::image::{sample_count, Image};
 
 /// Sample precision of written EXR files.
 #[derive(
-    Clone, Copy, Debug, PartialEq, Eq, Hash, Default, serde::Serialize, serde::Deserialize,
+    Clone,
+    Copy,
+    Debug,
+    PartialEq,
+    Eq,
+    Hash,
+    Default,
+    serde::Serialize,
+    serde::Deserialize,
+    vfxgraph_params::Choice,
 )]
 #[serde(rename_all = "lowercase")]
 pub enum ExrPrecision {
+    /// 16-bit half float (IEEE 754-2008 binary16): 11-bit precision, range ±65504.
+    Half,
     /// 32-bit IEEE float: exact.
     #[default]
     Float,
-    /// 16-bit half float (IEEE 754-2008 binary16): 11-bit precision, range ±65504.
-    Half,
 }
 
 /// Lossless compression of written EXR files.
@@ -301,6 +310,32 @@ fn pick_channels<'a>(
 /// compression. Channel names: `R`, `G`, `B` (+ `A`) for colour, `Y` (+ `A`) for gray.
 pub fn encode_exr(img: &Image, options: &ExrOptions) -> Result<Vec<u8>, ImageError> {
     encode_exr_layers(&[("", img)], options)
+}
+
+/// How `write_layers` writes a multi-layer file: half floats unless asked (a compositor's
+/// layers rarely need more).
+#[derive(Clone, Copy, Debug, PartialEq, vfxgraph_params::Options)]
+pub struct LayersOptions {
+    /// sample type
+    pub precision: ExrPrecision,
+}
+
+impl Default for LayersOptions {
+    fn default() -> Self {
+        LayersOptions {
+            precision: ExrPrecision::Half,
+        }
+    }
+}
+
+impl LayersOptions {
+    /// The EXR options: `precision`, the default compression.
+    pub fn exr(&self) -> ExrOptions {
+        ExrOptions {
+            precision: self.precision,
+            ..Default::default()
+        }
+    }
 }
 
 /// Encode named layers of one size as a single-part multi-layer OpenEXR file (the layout

@@ -24,7 +24,7 @@ use crate::image::Image;
 
 pub use self::exr::{
     decode_layer as decode_exr_layer, encode_exr, encode_exr_layers, ExrCompression, ExrOptions,
-    ExrPrecision,
+    ExrPrecision, LayersOptions,
 };
 pub use self::png_jpeg::{encode_jpeg, encode_png16};
 
