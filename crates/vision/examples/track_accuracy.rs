@@ -106,6 +106,10 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
     // by radius bin of 100 px: a lens or scale bias shows as a trend.
     let mut radial = [(0.0f64, 0.0f64, 0usize); 6];
     let (cx, cy) = (intr.u0, intr.v0);
+    // Signed residual along the point's image motion to the next frame (a tracker that lags
+    // behind the motion shows a negative mean; such a bias, shared by every track of a frame,
+    // turns into camera rotation).
+    let (mut along, mut along2, mut along_n) = (0.0f64, 0.0f64, 0usize);
     for t in &tracks.tracks {
         if t.points.len() < 5 {
             continue;
@@ -136,6 +140,17 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
                 radial[b].2 += 1;
             }
             residuals.push(e);
+            if let Some(next) = ps.get(j + 1) {
+                let hn = next * x.to_homogeneous();
+                let (mx, my) = (hn.x / hn.z - px, hn.y / hn.z - py);
+                let m = mx.hypot(my);
+                if m > 0.05 && e < 2.0 {
+                    let a = ((u.x - px) * mx + (u.y - py) * my) / m;
+                    along += a;
+                    along2 += a * a;
+                    along_n += 1;
+                }
+            }
             ss += e * e;
             let a = j.min(by_age.len() - 1);
             by_age[a].0 += e;
@@ -177,6 +192,14 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
             .collect::<Vec<_>>()
             .join(" ")
     );
+    {
+        let n = along_n.max(1) as f64;
+        let m = along / n;
+        eprintln!(
+            "residual along the image motion: {m:+.4} ± {:.4} px over {along_n} observations",
+            ((along2 / n - m * m).max(0.0) / n).sqrt()
+        );
+    }
     let rms = (residuals.iter().map(|e| e * e).sum::<f64>() / residuals.len().max(1) as f64).sqrt();
     residuals.sort_by(f64::total_cmp);
     let median = residuals
