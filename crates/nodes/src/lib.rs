@@ -179,6 +179,10 @@ mod tests {
             "catcher_from_points",
             check_defaults::<render::placement::place::CatcherOptions>,
         ),
+        (
+            "export_cameras",
+            check_defaults::<vfxgraph_vision::export::ExportOptions>,
+        ),
     ];
 
     /// Walks every node type: those with an options struct declare exactly its defaults.
