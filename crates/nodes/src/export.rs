@@ -2,6 +2,8 @@
 //! `export_cameras` and `import_cameras`. The formats and their conventions live in
 //! `vfxgraph_vision::export`.
 
+use std::path::{Path, PathBuf};
+
 use serde_json::json;
 use vfxgraph_engine::fsutil::atomic_write;
 use vfxgraph_engine::{
@@ -11,7 +13,7 @@ use vfxgraph_engine::{
 use vfxgraph_imaging::Image;
 use vfxgraph_params::{read_field, Choice};
 use vfxgraph_vision::export::{
-    colors, files, read, ExportFormat, ExportOptions, ImportFormat, Shot,
+    colors, files, read, ExportFormat, ExportOptions, ImportFormat, SceneOptions, Shot,
 };
 use vfxgraph_vision::points::PointCloud;
 
@@ -166,15 +168,10 @@ fn run_export(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     if !plate.is_empty() && shot.cloud.is_some() {
         shot.colors = Some(colors::sample_point_colors(&shot, &plate));
     }
-    let out = files(format, &ctx.path("path"), &shot, &o.scene)?;
-    // The others first, the file `path` names last (its presence means the export is whole).
-    for (p, text) in out.iter().skip(1).chain(out.first()) {
-        atomic_write(p, text.as_bytes())
-            .map_err(|e| NodeError::msg(format!("cannot write {}: {e}", p.display())))?;
-    }
+    let out = write(format, &ctx.path("path"), &shot, &o.scene)?;
     let report = json!({
         "format": format.choice(),
-        "files": out.iter().map(|(f, _)| f.display().to_string()).collect::<Vec<_>>(),
+        "files": out.iter().map(|f| f.display().to_string()).collect::<Vec<_>>(),
         "frames": shot.path.frames.len(),
         "points": shot.cloud.as_ref().map_or(0, |c| c.points.len()),
         "width": shot.intrinsics.width,
@@ -184,6 +181,34 @@ fn run_export(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     });
     ctx.output("report", ReportArt(report));
     Ok(())
+}
+
+/// Writes `shot` in `format` at `path` (atomically, each file; the others first, the file
+/// `path` names last, so its presence means the export is whole); returns the files written.
+pub fn write(
+    format: ExportFormat,
+    path: &Path,
+    shot: &Shot,
+    options: &SceneOptions,
+) -> Result<Vec<PathBuf>, NodeError> {
+    let out = files(format, path, shot, options)?;
+    for (p, text) in out.iter().skip(1).chain(out.first()) {
+        atomic_write(p, text.as_bytes())
+            .map_err(|e| NodeError::msg(format!("cannot write {}: {e}", p.display())))?;
+    }
+    Ok(out.into_iter().map(|(p, _)| p).collect())
+}
+
+/// [`write`] with the format by name (`colmap`, `blender`, `usd`, `nuke`, `json`, `ply`).
+pub fn export(
+    format: &str,
+    path: &Path,
+    shot: &Shot,
+    options: &SceneOptions,
+) -> Result<Vec<PathBuf>, NodeError> {
+    let f = ExportFormat::from_choice(format)
+        .ok_or_else(|| NodeError::msg(format!("unknown export format `{format}`")))?;
+    write(f, path, shot, options)
 }
 
 fn run_import(ctx: &mut Context<'_>) -> Result<(), NodeError> {
@@ -201,7 +226,6 @@ mod tests {
     use super::*;
     use crate::testing::{params, spec};
     use nalgebra::Vector3;
-    use std::path::Path;
     use vfxgraph_engine::ParamValue;
     use vfxgraph_engine::{InputValue, Value};
     use vfxgraph_vision::camera::Pose;

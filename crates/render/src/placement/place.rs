@@ -66,7 +66,7 @@ impl PlaceOptions {
                 "`anchor_points` is set ({n} numbers) but `anchors` is `catcher`: set \
                  `anchors: points` to use them"
             )),
-            Anchors::Points if n % 3 != 0 || n == 0 => Err(format!(
+            Anchors::Points if !n.is_multiple_of(3) || n == 0 => Err(format!(
                 "`anchor_points` needs x y z per anchor (a multiple of 3 numbers), got {n}"
             )),
             _ => Ok(()),
