@@ -7,24 +7,19 @@ use std::path::{Path, PathBuf};
 use serde_json::json;
 use vfxgraph_engine::fsutil::atomic_write;
 use vfxgraph_engine::{
-    ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, ParamValue, PathRole,
-    PortSpec, Registry,
+    ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, PathRole, PortSpec,
+    Registry,
 };
 use vfxgraph_imaging::Image;
+use vfxgraph_params::{read_field, Choice};
 use vfxgraph_vision::export::{
-    blender, colmap, colors, json as json_export, nuke, ply, usd, SceneOptions, Shot, UpAxis,
+    colors, files, read, ExportFormat, ExportOptions, ImportFormat, SceneOptions, Shot,
 };
-use vfxgraph_vision::formats;
 use vfxgraph_vision::points::PointCloud;
 
 use crate::artifacts::{CameraPathArt, ImageArt, IntrinsicsArt, PointCloudArt, ReportArt};
 use crate::tracking::TracksArt;
 use crate::FnNode;
-
-/// The export formats.
-pub const FORMATS: &[&str] = &["colmap", "blender", "usd", "nuke", "json", "ply"];
-/// The up axes a solve can have.
-pub const UP_AXES: &[&str] = &["-y", "+y", "+z", "-z", "+x", "-x"];
 
 /// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
@@ -74,7 +69,7 @@ pub fn register(r: &mut Registry) {
         )
         .param(ParamSpec::required(
             "format",
-            ParamType::Enum(FORMATS),
+            ParamType::Enum(ExportFormat::CHOICES),
             "colmap, blender, usd, nuke, json or ply",
         ))
         .param(ParamSpec::required(
@@ -82,59 +77,7 @@ pub fn register(r: &mut Registry) {
             ParamType::Path(PathRole::Output),
             "the file to write (colmap: the model's cameras.txt)",
         ))
-        .param(ParamSpec::optional(
-            "fps",
-            ParamType::Float { min: 1e-3, max: 1e4 },
-            ParamValue::Float(24.0),
-            "frames per second of the scene",
-        ))
-        .param(ParamSpec::optional(
-            "start_frame",
-            ParamType::Int {
-                min: -1_000_000,
-                max: 1_000_000,
-            },
-            ParamValue::Int(1),
-            "the target's frame number of our frame 0 (target frame = start_frame + frame)",
-        ))
-        .param(ParamSpec::optional(
-            "scale",
-            ParamType::Float { min: 1e-12, max: 1e12 },
-            ParamValue::Float(1.0),
-            "scene units per solve unit (blender, usd, nuke)",
-        ))
-        .param(ParamSpec::optional(
-            "up_axis",
-            ParamType::Enum(UP_AXES),
-            ParamValue::Str("-y".into()),
-            "the solve's world axis that points up (blender, usd, nuke); -y for a level first camera",
-        ))
-        .param(ParamSpec::optional(
-            "width",
-            ParamType::Int { min: 0, max: 1 << 20 },
-            ParamValue::Int(0),
-            "image width when K does not carry it and no plate is connected (0: from K or plate)",
-        ))
-        .param(ParamSpec::optional(
-            "height",
-            ParamType::Int { min: 0, max: 1 << 20 },
-            ParamValue::Int(0),
-            "image height, as `width`",
-        ))
-        .param(ParamSpec::optional(
-            "image_names",
-            ParamType::Str,
-            ParamValue::Str(String::new()),
-            "the plate's file names as a frame pattern relative to the export (e.g. \
-             `plate/frame.%04d.png`); COLMAP image names, Blender's background, JSON",
-        ))
-        .param(ParamSpec::optional(
-            "st_map",
-            ParamType::Str,
-            ParamValue::Str(String::new()),
-            "an ST-map of the lens (e.g. from `write_st_map`), relative to the export: \
-             referenced by the usd (`vfxgraph:lens:stMap`) and nuke (note) exports",
-        ))
+        .options::<ExportOptions>()
         .output(PortSpec::one(
             "report",
             ReportArt::NAME,
@@ -160,7 +103,7 @@ pub fn register(r: &mut Registry) {
         )
         .param(ParamSpec::required(
             "format",
-            ParamType::Enum(&["colmap", "book"]),
+            ParamType::Enum(ImportFormat::CHOICES),
             "colmap or book",
         ))
         .param(ParamSpec::required(
@@ -184,19 +127,10 @@ pub fn register(r: &mut Registry) {
 }
 
 fn run_export(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let p = ctx.params();
-    let format = p.str("format").to_string();
-    let names = p.str("image_names").to_string();
-    let st_map = p.str("st_map").to_string();
-    let options = SceneOptions {
-        fps: p.f64("fps"),
-        start_frame: p.i64("start_frame"),
-        scale: p.f64("scale"),
-        up: UpAxis::parse(p.str("up_axis"))
-            .ok_or_else(|| NodeError::msg(format!("unknown up axis `{}`", p.str("up_axis"))))?,
-    };
+    let format: ExportFormat = read_field(ctx.params(), "format").map_err(NodeError::msg)?;
+    let o: ExportOptions = ctx.options()?;
     let path = ctx.input::<CameraPathArt>("cameras")?.0.clone();
-    let mut intrinsics = match (
+    let intrinsics = match (
         ctx.input_opt::<IntrinsicsArt>("intrinsics")?,
         &path.intrinsics,
     ) {
@@ -223,43 +157,21 @@ fn run_export(ctx: &mut Context<'_>) -> Result<(), NodeError> {
             .map(|(f, i)| (f, &i.0))
             .collect(),
     };
-    let (pw, ph) = (p.i64("width") as u32, p.i64("height") as u32);
-    let given = if let Some((_, first)) = plate.first() {
-        Some((first.width as u32, first.height as u32, "the plate"))
-    } else if pw > 0 && ph > 0 {
-        Some((pw, ph, "the width/height params"))
-    } else {
-        None
-    };
-    if let Some((w, h, what)) = given {
-        match (intrinsics.width, intrinsics.height) {
-            (None, None) => intrinsics = intrinsics.with_size(w, h),
-            (Some(kw), Some(kh)) if (kw, kh) != (w, h) => {
-                return Err(NodeError::msg(format!(
-                    "K is for {kw}×{kh} images but {what} says {w}×{h}"
-                )))
-            }
-            _ => {}
-        }
-    }
-    let mut shot = Shot::new(intrinsics, path);
+    let plate_size = plate
+        .first()
+        .map(|(_, i)| (i.width as u32, i.height as u32));
+    let mut shot = Shot::new(o.sized(intrinsics, plate_size)?, path);
     shot.cloud = cloud;
     shot.tracks = tracks;
-    if !names.is_empty() {
-        shot.image_pattern = Some(names);
-    }
-    if !st_map.is_empty() {
-        shot.st_map = Some(st_map);
-    }
+    o.name(&mut shot);
     shot.validate()?;
     if !plate.is_empty() && shot.cloud.is_some() {
         shot.colors = Some(colors::sample_point_colors(&shot, &plate));
     }
-    let out = ctx.path("path");
-    let files = export(&format, &out, &shot, &options)?;
+    let out = write(format, &ctx.path("path"), &shot, &o.scene)?;
     let report = json!({
-        "format": format,
-        "files": files.iter().map(|f| f.display().to_string()).collect::<Vec<_>>(),
+        "format": format.choice(),
+        "files": out.iter().map(|f| f.display().to_string()).collect::<Vec<_>>(),
         "frames": shot.path.frames.len(),
         "points": shot.cloud.as_ref().map_or(0, |c| c.points.len()),
         "width": shot.intrinsics.width,
@@ -271,79 +183,38 @@ fn run_export(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     Ok(())
 }
 
-/// Writes `shot` in `format` at `path` (atomically, each file); returns the files written.
+/// Writes `shot` in `format` at `path` (atomically, each file; the others first, the file
+/// `path` names last, so its presence means the export is whole); returns the files written.
+pub fn write(
+    format: ExportFormat,
+    path: &Path,
+    shot: &Shot,
+    options: &SceneOptions,
+) -> Result<Vec<PathBuf>, NodeError> {
+    let out = files(format, path, shot, options)?;
+    for (p, text) in out.iter().skip(1).chain(out.first()) {
+        atomic_write(p, text.as_bytes())
+            .map_err(|e| NodeError::msg(format!("cannot write {}: {e}", p.display())))?;
+    }
+    Ok(out.into_iter().map(|(p, _)| p).collect())
+}
+
+/// [`write`] with the format by name (`colmap`, `blender`, `usd`, `nuke`, `json`, `ply`).
 pub fn export(
     format: &str,
     path: &Path,
     shot: &Shot,
     options: &SceneOptions,
 ) -> Result<Vec<PathBuf>, NodeError> {
-    let write = |p: &Path, text: &str| -> Result<(), NodeError> {
-        atomic_write(p, text.as_bytes())
-            .map_err(|e| NodeError::msg(format!("cannot write {}: {e}", p.display())))
-    };
-    let one = |text: String| -> Result<Vec<PathBuf>, NodeError> {
-        write(path, &text)?;
-        Ok(vec![path.to_path_buf()])
-    };
-    match format {
-        "colmap" => {
-            let model = colmap::format(shot)?;
-            if path.file_name().and_then(|n| n.to_str()) != Some("cameras.txt") {
-                return Err(NodeError::msg(format!(
-                    "format colmap: `path` names the model's cameras.txt (images.txt and \
-                     points3D.txt are written beside it), got {}",
-                    path.display()
-                )));
-            }
-            let files = colmap::model_files(path);
-            write(&files[1], &model.images)?;
-            write(&files[2], &model.points3d)?;
-            write(&files[0], &model.cameras)?;
-            Ok(files.to_vec())
-        }
-        "blender" => one(blender::script(shot, options)?),
-        "usd" => one(usd::stage(shot, options)?),
-        "nuke" => {
-            let chan = nuke::chan(shot, options)?;
-            let note = nuke::filmback_note(shot, options)?;
-            let stem = path
-                .file_stem()
-                .map(|s| s.to_string_lossy().into_owned())
-                .unwrap_or_else(|| "camera".into());
-            let note_path = path.with_file_name(format!("{stem}_filmback.txt"));
-            write(&note_path, &note)?;
-            write(path, &chan)?;
-            Ok(vec![path.to_path_buf(), note_path])
-        }
-        "json" => one(json_export::format(shot, options.fps)?),
-        "ply" => one(ply::format(shot)?),
-        other => Err(NodeError::msg(format!("unknown export format `{other}`"))),
-    }
+    let f = ExportFormat::from_choice(format)
+        .ok_or_else(|| NodeError::msg(format!("unknown export format `{format}`")))?;
+    write(f, path, shot, options)
 }
 
 fn run_import(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let path = ctx.path("path");
-    let (cameras, intrinsics, cloud) = match ctx.params().str("format") {
-        "colmap" => {
-            let m = colmap::read(&path)?;
-            (m.path, m.intrinsics, m.cloud)
-        }
-        _ => {
-            let k = ctx
-                .input_opt::<IntrinsicsArt>("intrinsics")?
-                .ok_or_else(|| {
-                    NodeError::msg(
-                        "format book: connect `intrinsics` (the book's cameras file has no K)",
-                    )
-                })?
-                .0
-                .clone();
-            let mut cams = formats::read_cameras(&path)?;
-            cams.intrinsics = Some(k.clone());
-            (cams, k, PointCloud::default())
-        }
-    };
+    let format: ImportFormat = read_field(ctx.params(), "format").map_err(NodeError::msg)?;
+    let k = ctx.input_opt::<IntrinsicsArt>("intrinsics")?.map(|k| &k.0);
+    let (cameras, intrinsics, cloud) = read(format, &ctx.path("path"), k)?;
     ctx.output("cameras", CameraPathArt(cameras));
     ctx.output("intrinsics", IntrinsicsArt(intrinsics));
     ctx.output("points", PointCloudArt(cloud));
@@ -355,8 +226,10 @@ mod tests {
     use super::*;
     use crate::testing::{params, spec};
     use nalgebra::Vector3;
+    use vfxgraph_engine::ParamValue;
     use vfxgraph_engine::{InputValue, Value};
     use vfxgraph_vision::camera::Pose;
+    use vfxgraph_vision::formats;
     use vfxgraph_vision::formats::{CameraPath, FramePose};
     use vfxgraph_vision::rotation::axis_angle_to_r;
     use vfxgraph_vision::Intrinsics;

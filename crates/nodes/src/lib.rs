@@ -171,6 +171,18 @@ mod tests {
             "constant",
             check_defaults::<vfxgraph_imaging::ConstantOptions>,
         ),
+        (
+            "place_scene",
+            check_defaults::<render::placement::place::PlaceOptions>,
+        ),
+        (
+            "catcher_from_points",
+            check_defaults::<render::placement::place::CatcherOptions>,
+        ),
+        (
+            "export_cameras",
+            check_defaults::<vfxgraph_vision::export::ExportOptions>,
+        ),
     ];
 
     /// Walks every node type: those with an options struct declare exactly its defaults.

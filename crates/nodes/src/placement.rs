@@ -3,100 +3,64 @@
 //! onto the points measured by `point_cloud_calibrate`, by the similarity between anchor points
 //! in the scene and the measured ones; `catcher_from_points` makes the shadow catcher through
 //! the measured ground points and sets objects designed in the catcher's own frame on it. The
-//! algorithms are in the render crate's `placement` module.
+//! algorithms and their options are in the render crate's `placement` module.
 
-use nalgebra::Vector3;
 use serde_json::json;
-use vfxgraph_engine::{
-    ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, ParamValue, PortSpec,
-    Registry,
+use vfxgraph_engine::{ArtifactType, Context, Mode, NodeError, NodeSpec, PortSpec, Registry};
+use vfxgraph_render::placement::place::{
+    catcher_from_points, place_scene, CatcherOptions, Design, PlaceOptions, Viewers,
 };
-use vfxgraph_render::brdf::{Brdf, Lambert};
-use vfxgraph_render::dome::Dome;
-use vfxgraph_render::placement::{
-    catcher_polygon, first_catcher_vertices, transform_scene, umeyama, Similarity,
-};
-use vfxgraph_render::{Camera, Object, Rgb, Scene, Shape, Vec3};
+use vfxgraph_render::placement::Similarity;
+use vfxgraph_render::{Camera, Shape, Vec3};
+use vfxgraph_vision::formats::CameraPath;
 
 use crate::artifacts::{CameraPathArt, ImageArt, Points3dArt, ReportArt};
 use crate::render::SceneArt;
 use crate::FnNode;
 
-const FLIP_DOC: &str = "negate the dome's `south` after placing: the book's `south` is the \
-    HDR camera's image-down axis (GAPS ch. 10), which points at the ground in modeling.scn, so an \
-    image with the sky on its top row (Poly Haven's) needs it negated to keep the sky up";
-
-fn vec3s(v: &[f64]) -> Vec<Vec3> {
-    v.chunks_exact(3)
-        .map(|c| Vec3::new(c[0], c[1], c[2]))
-        .collect()
-}
-
 fn row(v: Vec3) -> [f64; 3] {
     [v.x, v.y, v.z]
 }
 
-/// The measured points, checked finite, optionally picked by `indices` (integers).
-fn measured(ctx: &Context<'_>, node: &str) -> Result<Vec<Vec3>, NodeError> {
+fn rows(v: &[Vec3]) -> Vec<[f64; 3]> {
+    v.iter().map(|a| row(*a)).collect()
+}
+
+/// The `points3d` input as render points.
+fn measured(ctx: &Context<'_>) -> Result<Vec<Vec3>, NodeError> {
     let pts = &ctx.input::<Points3dArt>("points3d")?.0 .0;
-    let all: Vec<Vec3> = pts.iter().map(|p| Vec3::new(p.x, p.y, p.z)).collect();
-    if let Some(i) = all.iter().position(|p| !p.is_finite()) {
-        return Err(NodeError::msg(format!(
-            "{node}: measured point {i} of `points3d` is not finite"
-        )));
-    }
-    let idx = ctx.params().f64s("indices");
-    if idx.is_empty() {
-        return Ok(all);
-    }
-    idx.iter()
-        .map(|&i| {
-            if i.fract() != 0.0 || i < 0.0 || i as usize >= all.len() {
-                Err(NodeError::msg(format!(
-                    "{node}: param `indices`: {i} is not the index of one of the {} measured \
-                     points (0-based integers)",
-                    all.len()
-                )))
-            } else {
-                Ok(all[i as usize])
-            }
+    Ok(pts.iter().map(|p| Vec3::new(p.x, p.y, p.z)).collect())
+}
+
+/// The cameras of a solved path as viewers of a catcher: their centres, and the first one as a
+/// render camera (its K, R, t) when `with_view` and the path has intrinsics.
+fn viewers(path: &CameraPath, with_view: bool) -> Result<Viewers, NodeError> {
+    let centres = path
+        .frames
+        .iter()
+        .map(|f| {
+            let c = f.pose.center();
+            Vec3::new(c.x, c.y, c.z)
         })
-        .collect()
-}
-
-/// Rebuilds the scene's dome with its (moved) orientation: from the input scene's loaded image,
-/// or from a `dome_image` input (which replaces it). `None` when there is no image.
-fn placed_dome(
-    ctx: &Context<'_>,
-    scene: &Scene,
-    loaded: Option<&Dome>,
-) -> Result<Option<Dome>, NodeError> {
-    let image = match ctx.input_opt::<ImageArt>("dome_image")? {
-        Some(img) => &img.0,
-        None => match loaded {
-            Some(d) => d.image(),
-            None => return Ok(None),
-        },
+        .collect();
+    let first = match (path.frames.first(), &path.intrinsics) {
+        (Some(f), Some(k)) if with_view => {
+            let r = &f.pose.r;
+            Some(Camera::from_krt(
+                [[k.f1, k.s, k.u0], [0.0, k.f2, k.v0], [0.0, 0.0, 1.0]],
+                [
+                    [r[(0, 0)], r[(0, 1)], r[(0, 2)]],
+                    [r[(1, 0)], r[(1, 1)], r[(1, 2)]],
+                    [r[(2, 0)], r[(2, 1)], r[(2, 2)]],
+                ],
+                [f.pose.t.x, f.pose.t.y, f.pose.t.z],
+                k.width.unwrap_or(1280) as usize,
+                k.height.unwrap_or(720) as usize,
+            )?)
+        }
+        _ => None,
     };
-    let Some(spec) = &scene.dome else {
-        return Err(NodeError::msg(
-            "`dome_image` is connected but the scene has no dome to orient it (a `.scn` \
-             hdrdome or a YAML `dome:`)",
-        ));
-    };
-    let v = |p: Vec3| Vector3::new(p.x, p.y, p.z);
-    let mut img = image.clone();
-    if ctx.input_opt::<ImageArt>("dome_image")?.is_some() && spec.scale != 1.0 {
-        let k = spec.scale as f32;
-        img.data.iter_mut().for_each(|x| *x *= k);
-    }
-    Ok(Some(Dome::new(&img, v(spec.orig), v(spec.south))?))
-}
-
-fn flip_dome(scene: &mut Scene, flip: bool) {
-    if let (true, Some(d)) = (flip, scene.dome.as_mut()) {
-        d.south = -d.south;
-    }
+    Ok(Viewers { centres, first })
 }
 
 fn similarity_json(s: &Similarity) -> serde_json::Value {
@@ -127,36 +91,7 @@ pub fn register(r: &mut Registry) {
              solve's `cameras`.",
         )
         .mode(Mode::Once)
-        .param(ParamSpec::optional(
-            "anchors",
-            ParamType::Enum(&["catcher", "points"]),
-            ParamValue::Str("catcher".into()),
-            "`catcher`: the first catcher's vertices A, B, C; `points`: the `anchor_points` param",
-        ))
-        .param(ParamSpec::optional(
-            "anchor_points",
-            ParamType::FloatList { len: None },
-            ParamValue::List(vec![]),
-            "anchors in the scene's coordinates, x y z per point (with `anchors: points`)",
-        ))
-        .param(ParamSpec::optional(
-            "indices",
-            ParamType::FloatList { len: None },
-            ParamValue::List(vec![]),
-            "which measured points pair with the anchors, in order (0-based; default all)",
-        ))
-        .param(ParamSpec::optional(
-            "max_residual",
-            ParamType::Float { min: 0.0, max: 1e6 },
-            ParamValue::Float(0.05),
-            "largest accepted RMS anchor residual over the RMS spread of the measured points",
-        ))
-        .param(ParamSpec::optional(
-            "flip_dome",
-            ParamType::Bool,
-            ParamValue::Bool(false),
-            FLIP_DOC,
-        ))
+        .options::<PlaceOptions>()
         .input(PortSpec::one("scene", SceneArt::NAME, "the designed scene"))
         .input(PortSpec::one(
             "points3d",
@@ -198,50 +133,7 @@ pub fn register(r: &mut Registry) {
              Lambertian with albedo `color` (modeling.scn's plshadow colour by default).",
         )
         .mode(Mode::Once)
-        .param(ParamSpec::optional(
-            "indices",
-            ParamType::FloatList { len: None },
-            ParamValue::List(vec![]),
-            "which measured points are ground points, in order (0-based; default all)",
-        ))
-        .param(ParamSpec::optional(
-            "margin",
-            ParamType::Float {
-                min: -0.99,
-                max: 100.0,
-            },
-            ParamValue::Float(0.0),
-            "grow the polygon about its centre by this fraction (0: through the points)",
-        ))
-        .param(ParamSpec::optional(
-            "planarity",
-            ParamType::Float { min: 0.0, max: 1.0 },
-            ParamValue::Float(0.02),
-            "largest distance of a ground point from their plane, over the polygon's size",
-        ))
-        .param(ParamSpec::optional(
-            "color",
-            ParamType::FloatList { len: Some(3) },
-            ParamValue::List(
-                [0.576563, 0.539570, 0.466020]
-                    .iter()
-                    .map(|&v| ParamValue::Float(v))
-                    .collect(),
-            ),
-            "the catcher's diffuse albedo, linear RGB",
-        ))
-        .param(ParamSpec::optional(
-            "rest",
-            ParamType::Bool,
-            ParamValue::Bool(true),
-            "move each designed object along y so its lowest point is on the ground",
-        ))
-        .param(ParamSpec::optional(
-            "flip_dome",
-            ParamType::Bool,
-            ParamValue::Bool(false),
-            "negate the placed dome's `south` (see place_scene)",
-        ))
+        .options::<CatcherOptions>()
         .input(PortSpec::one(
             "points3d",
             Points3dArt::NAME,
@@ -287,187 +179,73 @@ pub fn register(r: &mut Registry) {
 }
 
 fn run_place_scene(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    const NODE: &str = "place_scene";
+    let o: PlaceOptions = ctx.options()?;
     let art = ctx.input::<SceneArt>("scene")?;
-    let p = ctx.params();
-    let anchors: Vec<Vec3> = if p.str("anchors") == "catcher" {
-        let n = p.f64s("anchor_points").len();
-        if n > 0 {
-            return Err(NodeError::msg(format!(
-                "{NODE}: `anchor_points` is set ({n} numbers) but `anchors` is `catcher`: set \
-                 `anchors: points` to use them"
-            )));
-        }
-        first_catcher_vertices(&art.scene)
-            .ok_or_else(|| {
-                NodeError::msg(format!(
-                    "{NODE}: `anchors: catcher` but the scene has no triangle shadow catcher \
-                     (plshadow / `catcher: true`): give `anchors: points` and `anchor_points`"
-                ))
-            })?
-            .to_vec()
-    } else {
-        let v = p.f64s("anchor_points");
-        if v.len() % 3 != 0 || v.is_empty() {
-            return Err(NodeError::msg(format!(
-                "{NODE}: `anchor_points` needs x y z per anchor (a multiple of 3 numbers), got {}",
-                v.len()
-            )));
-        }
-        vec3s(&v)
+    let design = Design {
+        scene: &art.scene,
+        dome: art.dome.as_ref(),
     };
-    let pts = measured(ctx, NODE)?;
-    let fit = umeyama(&anchors, &pts).map_err(|e| NodeError::msg(format!("{NODE}: {e}")))?;
-    let max = p.f64("max_residual");
-    if fit.relative_rms.is_nan() || fit.relative_rms > max {
-        return Err(NodeError::msg(format!(
-            "{NODE}: the anchors do not match the measured points: RMS residual {:.4} of their \
-             spread (limit `max_residual` {max}); residuals {:?} — check the anchor order \
-             against the marks",
-            fit.relative_rms, fit.residuals
-        )));
-    }
-    let mut scene = transform_scene(&art.scene, &fit.similarity);
-    flip_dome(&mut scene, p.bool("flip_dome"));
-    if let Some(c) = &scene.camera {
-        c.validate()
-            .map_err(|e| NodeError::msg(format!("{NODE}: the moved camera: {e}")))?;
-    }
-    let dome = placed_dome(ctx, &scene, art.dome.as_ref())?;
+    let image = ctx.input_opt::<ImageArt>("dome_image")?.map(|i| &i.0);
+    let p = place_scene(design, image, &measured(ctx)?, &o)
+        .map_err(|e| NodeError::msg(format!("place_scene: {e}")))?;
+    let s = &p.fit.similarity;
     let report = json!({
-        "similarity": similarity_json(&fit.similarity),
-        "anchors": anchors.iter().map(|a| row(*a)).collect::<Vec<_>>(),
-        "measured": pts.iter().map(|a| row(*a)).collect::<Vec<_>>(),
-        "placed_anchors": anchors.iter().map(|a| row(fit.similarity.point(*a))).collect::<Vec<_>>(),
-        "residuals": fit.residuals,
-        "relative_rms": fit.relative_rms,
-        "dome": scene.dome.as_ref().map(|d| json!({"orig": row(d.orig), "south": row(d.south)})),
+        "similarity": similarity_json(s),
+        "anchors": rows(&p.anchors),
+        "measured": rows(&p.measured),
+        "placed_anchors": p.anchors.iter().map(|a| row(s.point(*a))).collect::<Vec<_>>(),
+        "residuals": p.fit.residuals,
+        "relative_rms": p.fit.relative_rms,
+        "dome": p.scene.dome.as_ref().map(|d| json!({"orig": row(d.orig), "south": row(d.south)})),
     });
-    ctx.output("scene", SceneArt { scene, dome });
+    ctx.output(
+        "scene",
+        SceneArt {
+            scene: p.scene,
+            dome: p.dome,
+        },
+    );
     ctx.output("report", ReportArt(report));
     Ok(())
 }
 
-/// Lifts each non-catcher object so its lowest point is at y = 0 (catcher frame).
-fn rest_on_ground(scene: &mut Scene) {
-    for o in scene.objects.iter_mut().filter(|o| !o.catcher) {
-        match &mut o.shape {
-            Shape::Sphere(s) => s.center.y = s.radius,
-            Shape::Triangles { triangles } => {
-                let low = triangles
-                    .iter()
-                    .flatten()
-                    .map(|v| v.y)
-                    .fold(f64::INFINITY, f64::min);
-                if low.is_finite() {
-                    triangles.iter_mut().flatten().for_each(|v| v.y -= low);
-                }
-            }
-        }
-    }
-}
-
 fn run_catcher_from_points(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    const NODE: &str = "catcher_from_points";
-    let pts = measured(ctx, NODE)?;
-    let p = ctx.params();
-    let path = ctx.input_opt::<CameraPathArt>("cameras")?.map(|c| &c.0);
-    let centroid = pts.iter().fold(Vec3::ZERO, |a, b| a + *b) / pts.len().max(1) as f64;
-    let up = match path {
-        Some(path) if !path.frames.is_empty() => {
-            let c = path.frames.iter().fold(Vec3::ZERO, |a, f| {
-                let c = f.pose.center();
-                a + Vec3::new(c.x, c.y, c.z)
-            }) / path.frames.len() as f64;
-            Some(c - centroid)
-        }
-        _ => None,
-    };
-    let poly = catcher_polygon(&pts, p.f64("margin"), p.f64("planarity"), up)
-        .map_err(|e| NodeError::msg(format!("{NODE}: {e}")))?;
-    let col = p.f64s("color");
-    let catcher_material = Brdf::Lambert(Lambert {
-        albedo: Rgb::new(col[0], col[1], col[2]),
-    });
-    let to_world = poly.frame.similarity();
+    let o: CatcherOptions = ctx.options()?;
+    let pts = measured(ctx)?;
     let art = ctx.input_opt::<SceneArt>("scene")?;
-    let (mut scene, loaded) = match art {
-        Some(a) => {
-            let mut designed = a.scene.clone();
-            if p.bool("rest") {
-                rest_on_ground(&mut designed);
-            }
-            (transform_scene(&designed, &to_world), a.dome.as_ref())
-        }
-        None => {
-            // A camera to look at it: the first solved frame's with its K, else one above it.
-            let camera = match path.and_then(|c| c.frames.first().map(|f| (c, f))) {
-                Some((c, f)) if c.intrinsics.is_some() => {
-                    let k = c.intrinsics.as_ref().expect("checked");
-                    let r = &f.pose.r;
-                    Camera::from_krt(
-                        [[k.f1, k.s, k.u0], [0.0, k.f2, k.v0], [0.0, 0.0, 1.0]],
-                        [
-                            [r[(0, 0)], r[(0, 1)], r[(0, 2)]],
-                            [r[(1, 0)], r[(1, 1)], r[(1, 2)]],
-                            [r[(2, 0)], r[(2, 1)], r[(2, 2)]],
-                        ],
-                        [f.pose.t.x, f.pose.t.y, f.pose.t.z],
-                        k.width.unwrap_or(1280) as usize,
-                        k.height.unwrap_or(720) as usize,
-                    )?
-                }
-                _ => {
-                    let f = &poly.frame;
-                    Camera::look_at(
-                        centroid + (f.y * 3.0 - f.z * 2.0) * f.unit,
-                        centroid,
-                        f.y,
-                        50.0,
-                        640,
-                        360,
-                    )?
-                }
-            };
-            (
-                Scene {
-                    camera: Some(camera),
-                    objects: vec![],
-                    lights: vec![],
-                    background: Rgb::new(1.0, 1.0, 1.0),
-                    dome: None,
-                },
-                None,
-            )
-        }
+    let design = art.map(|a| Design {
+        scene: &a.scene,
+        dome: a.dome.as_ref(),
+    });
+    let viewers = match ctx.input_opt::<CameraPathArt>("cameras")? {
+        Some(path) => viewers(&path.0, design.is_none())?,
+        None => Viewers::default(),
     };
-    let mut catcher = Object::new(
-        Shape::Triangles {
-            triangles: poly.triangles.clone(),
-        },
-        catcher_material,
-    );
-    catcher.catcher = true;
-    let placed: Vec<serde_json::Value> = scene
-        .objects
+    let image = ctx.input_opt::<ImageArt>("dome_image")?.map(|i| &i.0);
+    let c = catcher_from_points(&pts, &viewers, design, image, &o)
+        .map_err(|e| NodeError::msg(format!("catcher_from_points: {e}")))?;
+    let placed: Vec<serde_json::Value> = c.scene.objects[1..]
         .iter()
         .map(|o| match &o.shape {
             Shape::Sphere(s) => json!({"sphere": {"center": row(s.center), "radius": s.radius}}),
             Shape::Triangles { triangles } => json!({"triangles": triangles.len()}),
         })
         .collect();
-    scene.objects.insert(0, catcher);
-    flip_dome(&mut scene, p.bool("flip_dome"));
-    let dome = placed_dome(ctx, &scene, loaded)?;
-    let f = &poly.frame;
+    let f = &c.polygon.frame;
     let report = json!({
-        "corners": poly.corners.iter().map(|c| row(*c)).collect::<Vec<_>>(),
+        "corners": rows(&c.polygon.corners),
         "frame": {"origin": row(f.origin), "x": row(f.x), "y": row(f.y), "z": row(f.z), "unit": f.unit},
-        "planarity": poly.planarity,
-        "normal_towards_cameras": up.is_some(),
+        "planarity": c.polygon.planarity,
+        "normal_towards_cameras": c.faces_cameras,
         "objects": placed,
     });
-    ctx.output("scene", SceneArt { scene, dome });
+    ctx.output(
+        "scene",
+        SceneArt {
+            scene: c.scene,
+            dome: c.dome,
+        },
+    );
     ctx.output("report", ReportArt(report));
     Ok(())
 }
@@ -476,11 +254,15 @@ fn run_catcher_from_points(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 mod tests {
     use super::*;
     use crate::testing::{params, spec};
-    use nalgebra::{Matrix3, Point3, Rotation3, Unit};
-    use vfxgraph_engine::{InputValue, Value};
+    use nalgebra::{Matrix3, Point3, Rotation3, Unit, Vector3};
+    use vfxgraph_engine::{InputValue, ParamValue, Value};
     use vfxgraph_imaging::Image;
+    use vfxgraph_render::brdf::{Brdf, Lambert};
+    use vfxgraph_render::dome::Dome;
+    use vfxgraph_render::placement::first_catcher_vertices;
     use vfxgraph_render::shape::Sphere;
     use vfxgraph_render::DomeSpec;
+    use vfxgraph_render::{Object, Rgb, Scene};
     use vfxgraph_vision::formats::{CameraPath, FramePose};
     use vfxgraph_vision::{Points3d, Pose};
 

@@ -21,6 +21,7 @@
 pub mod blender;
 pub mod colmap;
 pub mod colors;
+pub mod files;
 pub mod json;
 pub mod lens_fit;
 pub mod nuke;
@@ -34,6 +35,8 @@ use crate::error::{Result, VisionError};
 use crate::formats::CameraPath;
 use crate::klt::Tracks;
 use crate::points::PointCloud;
+
+pub use files::{files, read, ExportFormat, ExportOptions, ImportFormat};
 
 /// The horizontal film back (mm) given to the scene formats; only the ratios focal/aperture
 /// matter for the projection, this makes the focal length read like a full-frame lens.
@@ -61,20 +64,27 @@ pub struct Shot {
 }
 
 /// Which world axis of the solve points up.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, vfxgraph_params::Choice)]
 pub enum UpAxis {
-    /// +x.
-    PosX,
-    /// −x.
-    NegX,
-    /// +y.
-    PosY,
     /// −y (the default: image y points down, so a level first camera has world up = −y).
+    #[default]
+    #[param(name = "-y")]
     NegY,
+    /// +y.
+    #[param(name = "+y")]
+    PosY,
     /// +z.
+    #[param(name = "+z")]
     PosZ,
     /// −z.
+    #[param(name = "-z")]
     NegZ,
+    /// +x.
+    #[param(name = "+x")]
+    PosX,
+    /// −x.
+    #[param(name = "-x")]
+    NegX,
 }
 
 impl UpAxis {
@@ -115,15 +125,19 @@ pub enum TargetUp {
 }
 
 /// Scene options of the DCC formats.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, vfxgraph_params::Options)]
 pub struct SceneOptions {
-    /// Frames per second.
+    /// frames per second of the scene
+    #[param(range = 1e-3..=1e4)]
     pub fps: f64,
-    /// The target's frame number of our frame 0 (target frame = `start_frame` + frame).
+    /// the target's frame number of our frame 0 (target frame = start_frame + frame)
+    #[param(range = -1_000_000..=1_000_000)]
     pub start_frame: i64,
-    /// Solve units → scene units.
+    /// scene units per solve unit (blender, usd, nuke)
+    #[param(range = 1e-12..=1e12)]
     pub scale: f64,
-    /// The solve's up axis.
+    /// the solve's world axis that points up (blender, usd, nuke); -y for a level first camera
+    #[param(name = "up_axis")]
     pub up: UpAxis,
 }
 

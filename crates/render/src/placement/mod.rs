@@ -15,9 +15,14 @@
 //!   D = B + C − A; more → their polygon, checked planar), and the catcher's own frame (origin
 //!   at the first point, x along the first edge, y the plane's normal, unit = the first edge's
 //!   length), in which objects are designed independently of the solve's arbitrary scale.
+//!
+//! [`place`] holds the two operations built on them (`place_scene`, `catcher_from_points`) and
+//! their options.
 
 use nalgebra::{Matrix3, Vector3};
 use thiserror::Error;
+
+pub mod place;
 
 use crate::camera::Camera;
 use crate::math::Vec3;
