@@ -252,17 +252,18 @@ impl Tracker {
         } else {
             0.0
         };
+        // With `noise_factor` 0 the threshold ignores σ, so measuring it only for the first
+        // frame's grain test changes nothing there.
+        let max_residual = self.params.residual_threshold(self.prev_sigma, sigma);
         if fi == 0 {
             // Grainy footage is aligned on smoothed frames (module `drift`); decided once from
             // the first frame so that every template and frame of the shot is treated alike.
             self.smooth = sigma > GRAINY_SIGMA;
+            let slots = self.params.feature_slots(img.width, img.height);
+            self.params.corners.max_corners = slots;
+            self.tracks.slots = slots;
+            self.live = vec![None; slots];
         }
-        let max_residual = self.params.residual_threshold(self.prev_sigma, sigma);
-        let sigma = if self.params.noise_factor > 0.0 {
-            sigma
-        } else {
-            0.0
-        };
         // Drift correction aligns windows of the frame smoothed by a σ = 1 px binomial filter
         // (module `drift`).
         let smoothed = self
@@ -272,12 +273,6 @@ impl Tracker {
             .then(|| img.binomial_smoothed());
         let drift_img = smoothed.as_ref().unwrap_or(img);
         self.prev_sigma = sigma;
-        if fi == 0 {
-            let slots = self.params.feature_slots(img.width, img.height);
-            self.params.corners.max_corners = slots;
-            self.tracks.slots = slots;
-            self.live = vec![None; slots];
-        }
         if let Some(prev) = &self.prev {
             if prev.size() != pyr.size() {
                 return Err(KltError::SizeMismatch {
