@@ -5,17 +5,19 @@
 //! renderer's own (`cameras_gt.json`) after the similarity that aligns a solve with the truth.
 //!
 //! Measured (release, this commit; the default feature count from the frame size, 400): every
-//! frame solved, rotation max 0.053°, centre max 0.32 % of the 1.38 m path (with the book's
-//! 150 features and the tracker before its drift-correction changes: 0.066°, 0.24 %). Before
-//! the noise-adaptive defaults the same graph kept 3 of 150 features by frame 8 and failed.
-//! Bounds: the issue's < 0.1° and 0.4 % (within about 2× of the figures).
+//! frame solved, rotation max 0.021°, centre max 0.13 % of the 1.38 m path — COLMAP's figures
+//! on this plate are 0.039°, 0.14 % (`scripts/bench/matchmove_vs_colmap.py`). Without the
+//! global adjustment's track weighting (`track_weighting: false`) 0.053°, 0.32 %; with 150,
+//! 300, 600 features 0.034°/0.20 %, 0.020°/0.12 %, 0.014°/0.086 %. Before the noise-adaptive
+//! defaults the same graph kept 3 of 150 features by frame 8 and failed. Bounds: about 2× the
+//! figures.
 
 mod common;
 
 use vfxgraph_vision::formats::{read_json, CameraPath};
 
-const ROTATION_BOUND_DEG: f64 = 0.1;
-const CENTRE_BOUND: f64 = 0.004;
+const ROTATION_BOUND_DEG: f64 = 0.045;
+const CENTRE_BOUND: f64 = 0.0027;
 
 #[test]
 fn the_default_graph_solves_the_grainy_blender_plate() {
@@ -55,14 +57,13 @@ fn the_default_graph_solves_the_grainy_blender_plate() {
 /// (`focal: unknown, distortion: k1k2`), against the renderer's cameras and lens (f = 920 px,
 /// k1 = −0.16).
 ///
-/// Measured (this commit, the default 400 features): focal 916.92 px (−0.33 %), k1 −0.170,
-/// k2 0.063, rotation max 0.25°, centre max 0.49 % of the path — the focal and centre
-/// goals (0.5 %, 0.5 %) are met, k1 is at its goal's edge (0.010 off) and the rotation goal
-/// (0.1°) is not: the rotation errors bend smoothly along the path with the lens's remaining
-/// error (the tangential terms and the principal point are not solved). Before this commit's
-/// tracker changes, with 150 features: 908.9 px, −0.203, 0.29°, 0.49 %. Bounds: the issue's
-/// focal goal, 2× the measured k1 error and rotation, and the earlier centre bound (2× the
-/// measured figure).
+/// Measured (this commit, the default 400 features): focal 918.63 px (−0.15 %), k1 −0.1648,
+/// k2 0.056, rotation max 0.115°, centre max 0.24 % of the path — the focal, k1 and
+/// centre goals (0.5 %, 0.01, 0.5 %) are met and the rotation goal (0.1°) is not: the errors
+/// bend smoothly along the path with the lens's remaining error (its tangential terms are not
+/// solved by `k1k2`; given the true p1, p2 the same solve reaches 0.064°). Without the track
+/// weighting: 916.9 px, −0.170, 0.25°, 0.49 %. Bounds: the focal and k1 goals, 2× the
+/// measured rotation and centre errors.
 #[test]
 fn an_unknown_lens_is_solved_from_the_distorted_plate() {
     let tmp = tempfile::tempdir().unwrap();
@@ -92,7 +93,7 @@ fn an_unknown_lens_is_solved_from_the_distorted_plate() {
         100.0 * max_cen
     );
     assert!(f_err.abs() < 0.005, "focal {}", k.f1);
-    assert!((k1 + 0.16).abs() < 0.02, "k1 {k1}");
-    assert!(max_rot < 0.49, "rotation errors (°): {rot:?}");
-    assert!(max_cen < 0.0098, "centre errors (m): {cen:?}");
+    assert!((k1 + 0.16).abs() < 0.01, "k1 {k1}");
+    assert!(max_rot < 0.23, "rotation errors (°): {rot:?}");
+    assert!(max_cen < 0.0047, "centre errors (m): {cen:?}");
 }

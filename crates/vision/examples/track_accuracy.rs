@@ -9,7 +9,7 @@
 //! cargo run --release -p vfxgraph-vision --example track_accuracy -- \
 //!     ../shared/data/blender_plate_dev/distorted [FEATURES] [key=value …]
 //! ```
-//! Keys: `bad=on` (print each track over 1 px with its residuals), `drift=<px|off>`, `fb=<px|off>`, `noise=<factor>`, `frames=<n>`. Prints one JSON
+//! Keys: `bad=on` (print each track over 1 px with its residuals), `drift=<px|off>`, `fb=<px|off>`, `noise=<factor>`, `frames=<n>`, `oracle=<dir>` (write `all.json` and `kept.json`, the tracks without those whose RMS against the true cameras exceeds `oracle_px`, default 1 px, to solve both and see what the bad tracks cost). Prints one JSON
 //! object: the tracking time, the tracks, the observations, the RMS and median residual over
 //! observations of tracks seen ≥ 5 frames, the share of tracks whose RMS is over 1 px, and the
 //! mean residual by track age.
@@ -36,6 +36,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
     let mut params = TrackerParams::default();
     let mut nframes = usize::MAX;
     let mut show_bad = false;
+    let mut oracle: Option<(std::path::PathBuf, f64)> = None;
     for a in args.iter().skip(1) {
         if let Ok(n) = a.parse::<usize>() {
             params.corners.max_corners = n;
@@ -55,6 +56,12 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
             "noise" => params.noise_factor = v.parse()?,
             "frames" => nframes = v.parse()?,
             "bad" => show_bad = v == "on",
+            "oracle" => oracle = Some((v.into(), 1.0)),
+            "oracle_px" => {
+                if let Some(o) = oracle.as_mut() {
+                    o.1 = v.parse()?;
+                }
+            }
             _ => return Err(format!("unknown key {k}").into()),
         }
     }
@@ -102,6 +109,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
     let mut track_rms: Vec<f64> = Vec::new();
     let mut by_age = vec![(0.0f64, 0usize); 48];
     let mut scored = 0usize;
+    let mut dropped = std::collections::HashSet::new();
     // Signed radial residual (observed − projected, along the direction from the image centre),
     // by radius bin of 100 px: a lens or scale bias shows as a trend.
     let mut radial = [(0.0f64, 0.0f64, 0usize); 6];
@@ -157,6 +165,11 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
             by_age[a].1 += 1;
         }
         track_rms.push((ss / xs.len() as f64).sqrt());
+        if let Some((_, px)) = &oracle {
+            if (ss / xs.len() as f64).sqrt() > *px {
+                dropped.insert(t.id);
+            }
+        }
         if show_bad && (ss / xs.len() as f64).sqrt() > 1.0 {
             let es: Vec<String> = ps
                 .iter()
@@ -179,6 +192,18 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
                 es.join(" ")
             );
         }
+    }
+    if let Some((dir, px)) = &oracle {
+        std::fs::create_dir_all(dir)?;
+        std::fs::write(dir.join("all.json"), tracks.to_native())?;
+        let mut kept = tracks.clone();
+        kept.tracks.retain(|t| !dropped.contains(&t.id));
+        std::fs::write(dir.join("kept.json"), kept.to_native())?;
+        eprintln!(
+            "oracle: {} of {} tracks over {px} px against the true cameras dropped",
+            dropped.len(),
+            tracks.tracks.len()
+        );
     }
     eprintln!(
         "radial residual by 100 px bin (mean ± s.e.): {}",

@@ -107,6 +107,7 @@ pub fn read_bal_str(text: &str) -> Result<Problem, BundleError> {
             camera,
             point,
             pixel: Vector2::new(x, y),
+            weight: 1.0,
         });
     }
     let mut cameras = Vec::with_capacity(nc);

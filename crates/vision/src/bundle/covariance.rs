@@ -73,7 +73,8 @@ pub fn intrinsics_covariance(problem: &Problem) -> Result<Covariances, BundleErr
             let k = &problem.intrinsics[cam.intrinsics];
             let (pred, jc, jx) =
                 project_with_jacobians(k, &cam.rotation, &cam.translation, &point.position);
-            sq += (pred - o.pixel).norm_squared();
+            let (jc, jx) = (jc * o.weight, jx * o.weight);
+            sq += ((pred - o.pixel) * o.weight).norm_squared();
             let mut idx = [usize::MAX; 9];
             idx[..6].copy_from_slice(&pose_index[o.camera]);
             idx[6..].copy_from_slice(&intr_index[cam.intrinsics]);
@@ -238,6 +239,7 @@ mod tests {
                         camera: c,
                         point: j,
                         pixel: q + sigma * n,
+                        weight: 1.0,
                     });
                 }
             }

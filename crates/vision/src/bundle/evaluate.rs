@@ -54,7 +54,7 @@ pub(crate) fn cost(problem: &Problem, loss: &Loss) -> f64 {
                     &cam.translation,
                     &problem.points[o.point].position,
                 );
-                let r = pred - o.pixel;
+                let r = (pred - o.pixel) * o.weight;
                 s += loss.evaluate(r.norm_squared())[0];
             }
             s
@@ -89,7 +89,8 @@ pub(crate) fn linearize(problem: &Problem, loss: &Loss, st: &Structure) -> Linea
                 let (rot, jl) = &rots[o.camera];
                 let (pred, j_cam, j_pt) =
                     project_with_jacobians_rj(intr, rot, jl, &cam.translation, x);
-                let r = pred - o.pixel;
+                let (j_cam, j_pt) = (j_cam * o.weight, j_pt * o.weight);
+                let r = (pred - o.pixel) * o.weight;
                 let s = r.norm_squared();
                 let (rs, alpha_sq, js) = loss.corrector(s);
                 // J ← js·(J − α/s · r rᵀ J): apply to both Jacobians.

@@ -194,6 +194,11 @@ pub struct Observation {
     pub point: usize,
     /// The measured pixel.
     pub pixel: Vector2<f64>,
+    /// The residual's weight: `predicted − pixel` is multiplied by it (with its Jacobians),
+    /// so an observation of noise σ weighted σ_ref/σ counts as one of noise σ_ref — weighted
+    /// least squares for tracks of unequal accuracy (Triggs et al. 2000, section 3.2).
+    /// 1 is plain least squares in pixels; it must be positive and finite.
+    pub weight: f64,
 }
 
 /// How the similarity gauge (3 rotation, 3 translation, 1 scale) is fixed
@@ -289,7 +294,7 @@ impl Problem {
                     what: format!("observation {i} (camera {}, point {})", o.camera, o.point),
                 });
             }
-            if !o.pixel.iter().all(|x| x.is_finite()) {
+            if !o.pixel.iter().all(|x| x.is_finite()) || !(o.weight > 0.0 && o.weight.is_finite()) {
                 return Err(BundleError::NonFinite {
                     what: format!("observation {i} pixel"),
                 });
@@ -355,10 +360,13 @@ impl Problem {
         )
     }
 
-    /// ½·Σ‖predicted − observed‖² without a robust loss (Ceres' cost with a trivial loss).
+    /// ½·Σ‖w·(predicted − observed)‖² without a robust loss (Ceres' cost with a trivial loss).
     pub fn cost(&self) -> f64 {
         0.5 * (0..self.observations.len())
-            .map(|i| (self.predict(i) - self.observations[i].pixel).norm_squared())
+            .map(|i| {
+                let o = &self.observations[i];
+                ((self.predict(i) - o.pixel) * o.weight).norm_squared()
+            })
             .sum::<f64>()
     }
 }

@@ -101,6 +101,7 @@ pub fn adjust_sequence(
                     camera,
                     point,
                     pixel: Vector2::new(xy[0], xy[1]),
+                    weight: 1.0,
                 });
             }
         }

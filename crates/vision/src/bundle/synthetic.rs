@@ -163,6 +163,7 @@ pub fn video_like(cfg: &VideoConfig) -> SyntheticProblem {
                 camera: f,
                 point: pi,
                 pixel: noisy,
+                weight: 1.0,
             });
             outliers.push(outlier);
         }

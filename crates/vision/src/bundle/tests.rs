@@ -342,6 +342,7 @@ fn model_house() -> Problem {
                     camera: v,
                     point: i,
                     pixel: corners[v][idx],
+                    weight: 1.0,
                 });
             }
         }

@@ -191,7 +191,13 @@ pub fn solve_fragment(
     for (q, x) in &best.points {
         points[frag.features[*q]] = Some(*x);
     }
-    let in_fragment = |_: usize, f: usize| f >= frag.first && f <= frag.last;
+    let in_fragment = |_: usize, f: usize| {
+        if f >= frag.first && f <= frag.last {
+            1.0
+        } else {
+            0.0
+        }
+    };
     let mut report = bundle_adjust_indexed(
         tracks,
         k,

@@ -541,8 +541,13 @@ pub fn points_by_track(tracks: &Tracks, cloud: &PointCloud) -> Vec<Option<Vector
         .collect()
 }
 
+/// The weight of track `t`'s observation in frame `f` in a bundle adjustment: 0 leaves it
+/// out, 1 is plain least squares ([`crate::bundle::Observation::weight`]).
+pub(crate) type ObservationWeight<'a> = dyn Fn(usize, usize) -> f64 + Sync + 'a;
+
 /// Bundle adjustment (book §7.7, the sparse solver of [`crate::bundle`]) of the posed frames and
-/// triangulated tracks, K fixed, over the observations `keep(track, frame)` accepts. `poses` is
+/// triangulated tracks, K fixed, over the observations of non-zero `weight(track, frame)`
+/// (their residuals multiplied by it, [`crate::bundle::Observation::weight`]). `poses` is
 /// indexed by frame index, `points` by track index; `None` entries take no part. The gauge is
 /// fixed by the first posed frame and the scale of the first baseline.
 pub(crate) fn bundle_adjust_indexed(
@@ -550,7 +555,7 @@ pub(crate) fn bundle_adjust_indexed(
     k: &Intrinsics,
     poses: &mut [Option<Pose>],
     points: &mut [Option<Vector3<f64>>],
-    keep: &(dyn Fn(usize, usize) -> bool + Sync),
+    weight: &ObservationWeight<'_>,
     loss: crate::bundle::Loss,
     max_iterations: usize,
 ) -> Result<crate::bundle::SolverReport> {
@@ -570,7 +575,7 @@ pub(crate) fn bundle_adjust_indexed(
         gauge,
         poses,
         points,
-        keep,
+        weight,
         loss,
         max_iterations,
         false,
@@ -589,7 +594,7 @@ pub(crate) fn bundle_adjust_lens(
     held: [bool; 3],
     poses: &mut [Option<Pose>],
     points: &mut [Option<Vector3<f64>>],
-    keep: &(dyn Fn(usize, usize) -> bool + Sync),
+    weight: &ObservationWeight<'_>,
     loss: crate::bundle::Loss,
     max_iterations: usize,
     covariance: bool,
@@ -602,7 +607,7 @@ pub(crate) fn bundle_adjust_lens(
         gauge,
         poses,
         points,
-        keep,
+        weight,
         loss,
         max_iterations,
         covariance,
@@ -674,7 +679,7 @@ pub(crate) fn adjust_with_block(
     gauge: crate::bundle::Gauge,
     poses: &mut [Option<Pose>],
     points: &mut [Option<Vector3<f64>>],
-    keep: &(dyn Fn(usize, usize) -> bool + Sync),
+    weight: &ObservationWeight<'_>,
     loss: crate::bundle::Loss,
     max_iterations: usize,
     covariance: bool,
@@ -703,11 +708,17 @@ pub(crate) fn adjust_with_block(
         let before = observations.len();
         for (j, o) in t.points.iter().enumerate() {
             let f = t.first + j;
-            if f < poses.len() && cam_index[f] != usize::MAX && keep(ti, f) {
+            let w = if f < poses.len() && cam_index[f] != usize::MAX {
+                weight(ti, f)
+            } else {
+                0.0
+            };
+            if w > 0.0 {
                 observations.push(Observation {
                     camera: cam_index[f],
                     point: pi,
                     pixel: nalgebra::Vector2::new(o[0], o[1]),
+                    weight: w,
                 });
             }
         }

@@ -516,7 +516,8 @@ pub fn solve_rotations(
                     flags[ti] = keep;
                 }
             }
-            let keep = |ti: usize, f: usize| flags[ti][f - tracks.tracks[ti].first];
+            let keep =
+                |ti: usize, f: usize| f64::from(u8::from(flags[ti][f - tracks.tracks[ti].first]));
             let block = super::lens_block(&k, held);
             let last = round + 1 == thresholds.len();
             let (_, b, c) = super::adjust_with_block(
