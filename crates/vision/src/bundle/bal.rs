@@ -194,7 +194,7 @@ pub fn write_bal(problem: &Problem, path: impl AsRef<Path>) -> Result<(), Bundle
             )?;
         }
         for c in &problem.cameras {
-            let k = &problem.intrinsics[c.intrinsics].params;
+            let k = &problem.intrinsics[c.intrinsics].params[..3];
             for v in c
                 .rotation
                 .iter()
@@ -228,7 +228,10 @@ mod tests {
         let p = read_bal_str(TINY).unwrap();
         assert_eq!(p.cameras.len(), 2);
         assert_eq!(p.observations.len(), 3);
-        assert_eq!(p.intrinsics[1].params, [600.0, 0.0, 0.0]);
+        assert_eq!(
+            p.intrinsics[1].params,
+            [600.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+        );
         let dir = std::env::temp_dir().join(format!("bal_rt_{}.txt", std::process::id()));
         write_bal(&p, &dir).unwrap();
         let q = read_bal(&dir).unwrap();

@@ -15,15 +15,19 @@ use nalgebra::{DMatrix, Matrix3, SMatrix};
 
 use super::error::BundleError;
 use super::problem::Problem;
-use super::residual::project_with_jacobians;
+use super::residual::{project_with_jacobians, CAMERA_COLUMNS as CC, INTRINSICS};
+
+/// The covariance of an intrinsics block's parameters (in the order of
+/// [`super::Intrinsics::params`]; rows and columns of held or unused parameters are zero).
+pub type IntrinsicsCovariance = SMatrix<f64, INTRINSICS, INTRINSICS>;
 
 /// Per intrinsics block its covariance (`None` when fixed), and σ̂.
-pub type Covariances = (Vec<Option<Matrix3<f64>>>, f64);
+pub type Covariances = (Vec<Option<IntrinsicsCovariance>>, f64);
 
 /// Largest reduced (camera-side) dimension [`intrinsics_covariance`] inverts densely.
 pub const MAX_DIMENSION: usize = 2400;
 
-/// The covariance of every intrinsics block's three parameters at the problem's current values
+/// The covariance of every intrinsics block's parameters at the problem's current values
 /// (`None` for a fixed block; rows and columns of held parameters are zero), and σ̂, the RMS
 /// residual per coordinate with the degrees of freedom removed. Errors when the reduced system
 /// is larger than [`MAX_DIMENSION`] or singular (a gauge left free).
@@ -42,10 +46,10 @@ pub fn intrinsics_covariance(problem: &Problem) -> Result<Covariances, BundleErr
             }
         }
     }
-    let mut intr_index = vec![[usize::MAX; 3]; problem.intrinsics.len()];
+    let mut intr_index = vec![[usize::MAX; INTRINSICS]; problem.intrinsics.len()];
     for (k, b) in problem.intrinsics.iter().enumerate() {
-        for u in 0..3 {
-            if !b.fixed && !b.held[u] {
+        for u in 0..b.len() {
+            if !b.is_held(u) {
                 intr_index[k][u] = n;
                 n += 1;
             }
@@ -65,8 +69,8 @@ pub fn intrinsics_covariance(problem: &Problem) -> Result<Covariances, BundleErr
     for (p, obs) in by_point.iter().enumerate() {
         let point = &problem.points[p];
         let mut v = Matrix3::<f64>::zeros();
-        // Per observation: the global indices of its 9 camera columns and Jcᵀ·Jx.
-        let mut ws: Vec<([usize; 9], SMatrix<f64, 9, 3>)> = Vec::with_capacity(obs.len());
+        // Per observation: the global indices of its camera columns and Jcᵀ·Jx.
+        let mut ws: Vec<([usize; CC], SMatrix<f64, CC, 3>)> = Vec::with_capacity(obs.len());
         for &i in obs {
             let o = &problem.observations[i];
             let cam = &problem.cameras[o.camera];
@@ -75,15 +79,15 @@ pub fn intrinsics_covariance(problem: &Problem) -> Result<Covariances, BundleErr
                 project_with_jacobians(k, &cam.rotation, &cam.translation, &point.position);
             let (jc, jx) = (jc * o.weight, jx * o.weight);
             sq += ((pred - o.pixel) * o.weight).norm_squared();
-            let mut idx = [usize::MAX; 9];
+            let mut idx = [usize::MAX; CC];
             idx[..6].copy_from_slice(&pose_index[o.camera]);
             idx[6..].copy_from_slice(&intr_index[cam.intrinsics]);
             let u = jc.transpose() * jc;
-            for a in 0..9 {
+            for a in 0..CC {
                 if idx[a] == usize::MAX {
                     continue;
                 }
-                for b in 0..9 {
+                for b in 0..CC {
                     if idx[b] != usize::MAX {
                         s[(idx[a], idx[b])] += u[(a, b)];
                     }
@@ -104,11 +108,11 @@ pub fn intrinsics_covariance(problem: &Problem) -> Result<Covariances, BundleErr
             let t = wa * v_inv;
             for (ib, wb) in &ws {
                 let m = t * wb.transpose();
-                for a in 0..9 {
+                for a in 0..CC {
                     if ia[a] == usize::MAX {
                         continue;
                     }
-                    for b in 0..9 {
+                    for b in 0..CC {
                         if ib[b] != usize::MAX {
                             s[(ia[a], ib[b])] -= m[(a, b)];
                         }
@@ -140,9 +144,9 @@ pub fn intrinsics_covariance(problem: &Problem) -> Result<Covariances, BundleErr
         .zip(&problem.intrinsics)
         .map(|(idx, b)| {
             (!b.fixed).then(|| {
-                let mut c = Matrix3::zeros();
-                for a in 0..3 {
-                    for d in 0..3 {
+                let mut c = IntrinsicsCovariance::zeros();
+                for a in 0..INTRINSICS {
+                    for d in 0..INTRINSICS {
                         if idx[a] != usize::MAX && idx[d] != usize::MAX {
                             c[(a, d)] = sigma2 * inv[(idx[a], idx[d])];
                         }
@@ -205,7 +209,8 @@ mod tests {
             .collect();
         let block = Intrinsics::pinhole(f_true, 640.0, 360.0, false);
         let mut block = block;
-        block.held = [false, true, true];
+        block.held[1] = true;
+        block.held[2] = true;
         let truth = Problem {
             cameras: cams,
             intrinsics: vec![block],

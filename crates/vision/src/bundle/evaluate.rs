@@ -6,7 +6,7 @@ use rayon::prelude::*;
 
 use super::loss::Loss;
 use super::problem::Problem;
-use super::residual::{project_rt, project_with_jacobians_rj};
+use super::residual::{project_rt, project_with_jacobians_rj, CAMERA_COLUMNS as CC};
 use super::rotation::{angle_axis_to_matrix, rotation_and_left_jacobian};
 use super::schur::Structure;
 
@@ -17,9 +17,12 @@ pub(crate) const CHUNK: usize = 4096;
 pub(crate) struct Linearization {
     /// Loss-corrected residuals.
     pub residuals: Vec<[f64; 2]>,
-    /// Loss-corrected camera Jacobians, row-major 2×9, columns held by the gauge or belonging
-    /// to fixed blocks zeroed.
-    pub jc: Vec<[f64; 18]>,
+    /// Loss-corrected camera Jacobians, row-major 2×`columns` per observation (see
+    /// [`Linearization::jc`]), columns held by the gauge or belonging to fixed blocks zeroed.
+    jc: Vec<f64>,
+    /// Camera columns stored per Jacobian row ([`Structure::columns`]): the problem's widest
+    /// model's, so a pinhole or BAL problem stores 9, not [`CC`].
+    pub columns: usize,
     /// Loss-corrected point Jacobians, row-major 2×3 (zero for fixed points).
     pub jp: Vec<[f64; 6]>,
     /// Gradient Jᵀr of the reduced (camera-side) parameters.
@@ -30,6 +33,20 @@ pub(crate) struct Linearization {
     pub jtj_p: Vec<[f64; 9]>,
     /// Diagonal of JᵀJ on the reduced parameters (squared column norms).
     pub diag_f: Vec<f64>,
+}
+
+impl Linearization {
+    /// Observation `a`'s camera Jacobian: row 0 at `[0..columns]`, row 1 at
+    /// `[columns..2·columns]`.
+    #[inline]
+    pub fn jc(&self, a: usize) -> &[f64] {
+        &self.jc[2 * self.columns * a..2 * self.columns * (a + 1)]
+    }
+
+    /// Number of observations.
+    pub fn len(&self) -> usize {
+        self.residuals.len()
+    }
 }
 
 /// ½·Σ ρ(‖rᵢ‖²) at the problem's current parameters, reduced in a fixed order.
@@ -72,11 +89,12 @@ pub(crate) fn linearize(problem: &Problem, loss: &Loss, st: &Structure) -> Linea
         .map(|c| rotation_and_left_jacobian(&c.rotation))
         .collect();
     let mut residuals = vec![[0.0; 2]; n];
-    let mut jc = vec![[0.0; 18]; n];
+    let w = st.columns;
+    let mut jc = vec![0.0; 2 * w * n];
     let mut jp = vec![[0.0; 6]; n];
     residuals
         .par_chunks_mut(CHUNK)
-        .zip(jc.par_chunks_mut(CHUNK))
+        .zip(jc.par_chunks_mut(2 * w * CHUNK))
         .zip(jp.par_chunks_mut(CHUNK))
         .enumerate()
         .for_each(|(ci, ((rr, jjc), jjp))| {
@@ -94,13 +112,13 @@ pub(crate) fn linearize(problem: &Problem, loss: &Loss, st: &Structure) -> Linea
                 let s = r.norm_squared();
                 let (rs, alpha_sq, js) = loss.corrector(s);
                 // J ← js·(J − α/s · r rᵀ J): apply to both Jacobians.
-                let mut c = [0.0; 18];
+                let mut c = [0.0; 2 * CC];
                 let mut p = [0.0; 6];
-                for col in 0..9 {
+                for col in 0..st.columns {
                     let (a0, a1) = (j_cam[(0, col)], j_cam[(1, col)]);
                     let dot = r.x * a0 + r.y * a1;
                     c[col] = js * (a0 - alpha_sq * r.x * dot);
-                    c[9 + col] = js * (a1 - alpha_sq * r.y * dot);
+                    c[w + col] = js * (a1 - alpha_sq * r.y * dot);
                 }
                 for col in 0..3 {
                     let (a0, a1) = (j_pt[(0, col)], j_pt[(1, col)]);
@@ -110,17 +128,17 @@ pub(crate) fn linearize(problem: &Problem, loss: &Loss, st: &Structure) -> Linea
                 }
                 // Zero the columns that are not optimised.
                 let mask = st.obs_mask(st.obs_fb[i]);
-                for col in 0..9 {
+                for col in 0..st.columns {
                     if mask[col] {
                         c[col] = 0.0;
-                        c[9 + col] = 0.0;
+                        c[w + col] = 0.0;
                     }
                 }
                 if !st.point_free[o.point] {
                     p = [0.0; 6];
                 }
                 rr[k] = [rs * r.x, rs * r.y];
-                jjc[k] = c;
+                jjc[2 * w * k..2 * w * (k + 1)].copy_from_slice(&c[..2 * w]);
                 jjp[k] = p;
             }
         });
@@ -159,10 +177,10 @@ pub(crate) fn linearize(problem: &Problem, loss: &Loss, st: &Structure) -> Linea
             let mut dg = vec![0.0; d];
             let cols = st.cols(b);
             for &a in st.row_observations(b) {
-                let (j, r) = (&jc[a as usize], &residuals[a as usize]);
+                let (j, r) = (&jc[2 * w * a as usize..], &residuals[a as usize]);
                 for u in 0..d {
                     let cu = cols[u] as usize;
-                    let (j0, j1) = (j[cu], j[9 + cu]);
+                    let (j0, j1) = (j[cu], j[w + cu]);
                     g[u] += j0 * r[0] + j1 * r[1];
                     dg[u] += j0 * j0 + j1 * j1;
                 }
@@ -179,6 +197,7 @@ pub(crate) fn linearize(problem: &Problem, loss: &Loss, st: &Structure) -> Linea
     Linearization {
         residuals,
         jc,
+        columns: w,
         jp,
         g_f,
         g_p,

@@ -202,7 +202,7 @@ fn back_substitute(
 
 /// Jcₐ δf for observation a (2-vector).
 fn camera_jdelta(st: &Structure, lin: &Linearization, a: usize, df: &[f64]) -> [f64; 2] {
-    let jc = &lin.jc[a];
+    let jc = lin.jc(a);
     let mut out = [0.0; 2];
     for &b in &st.obs_fb[a] {
         if b == NONE {
@@ -211,7 +211,7 @@ fn camera_jdelta(st: &Structure, lin: &Linearization, a: usize, df: &[f64]) -> [
         let o = st.fblock_offset[b as usize];
         for (u, &c) in st.cols(b as usize).iter().enumerate() {
             out[0] += jc[c as usize] * df[o + u];
-            out[1] += jc[9 + c as usize] * df[o + u];
+            out[1] += jc[lin.columns + c as usize] * df[o + u];
         }
     }
     out
@@ -219,7 +219,7 @@ fn camera_jdelta(st: &Structure, lin: &Linearization, a: usize, df: &[f64]) -> [
 
 /// Predicted decrease of the Gauss–Newton model: −(gᵀδ + ½‖Jδ‖²), reduced in a fixed order.
 fn model_decrease(st: &Structure, lin: &Linearization, df: &[f64], dp: &[[f64; 3]]) -> f64 {
-    let n = lin.jc.len();
+    let n = lin.len();
     let partial: Vec<f64> = (0..n.div_ceil(CHUNK))
         .into_par_iter()
         .map(|c| {

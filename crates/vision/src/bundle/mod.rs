@@ -52,13 +52,14 @@ pub mod synthetic;
 
 pub use bal::{read_bal, read_bal_str, write_bal};
 pub use bench::{solve_bal_file, BalBenchOptions, BalBenchReport};
-pub use covariance::intrinsics_covariance;
+pub use covariance::{intrinsics_covariance, IntrinsicsCovariance};
 pub use error::BundleError;
 pub use linear_solver::LinearSolverKind;
 pub use lm::{solve, SolverOptions};
 pub use loss::Loss;
 pub use problem::{CameraModel, CameraPose, Gauge, Intrinsics, Observation, Point, Problem};
 pub use report::{SolverReport, TerminationReason};
+pub use residual::INTRINSICS;
 pub use sequence::{adjust_sequence, AdjustedSequence};
 
 #[cfg(test)]

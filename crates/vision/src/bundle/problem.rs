@@ -9,9 +9,10 @@ use nalgebra::{Vector2, Vector3};
 use serde::{Deserialize, Serialize};
 
 use super::error::BundleError;
+use super::residual::INTRINSICS;
 
-/// The camera model of an intrinsics block; it fixes the meaning of the three intrinsic
-/// parameters and of the pixel coordinates of the observations.
+/// The camera model of an intrinsics block; it fixes the meaning of its parameters (three, or
+/// seven for [`CameraModel::Radial`]) and of the pixel coordinates of the observations.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub enum CameraModel {
     /// The project's model (book 4.2, DESIGN.md §3): x ~ K(RX + t), camera looking down +z,
@@ -27,41 +28,40 @@ pub enum CameraModel {
     /// predicted = f·(1 + k1‖p‖² + k2‖p‖⁴)·p, pixels centred on the principal point with y up,
     /// camera looking down −z. Parameters `[f, k1, k2]`.
     Bal,
-    /// The project's pinhole frame seen through a radial lens ([`crate::lens`]): with
-    /// p = (X/Z, Y/Z) and q = d(p) the lens's distorted point, the pixel is
-    /// `(f·qx + skew·qy + cx, aspect·f·qy + cy)`. Parameters `[f, k1, k2]`: the focal length and
-    /// the first two radial coefficients of `lens` (Brown–Conrady's k1, k2 with its k3, p1, p2
-    /// held; or the division model's k1, k2), the principal point held. This is what a
-    /// matchmove with an unknown lens refines, as Blender's and libmv's camera solvers do.
+    /// The project's pinhole frame seen through a lens ([`crate::lens`]): with p = (X/Z, Y/Z)
+    /// and q = d(p) the lens's distorted point, the pixel is
+    /// `(f·qx + skew·qy + cx, aspect·f·qy + cy)`. Parameters `[f, k1, k2, p1, p2, cx, cy]`: the
+    /// focal length, Brown–Conrady's radial k1, k2 and tangential p1, p2 (its k3 held from
+    /// `lens`) — or the division model's k1, k2 (p1, p2 zero and held) — and the principal
+    /// point. This is what a matchmove with an unknown lens refines, as Blender's and libmv's
+    /// camera solvers do; `held` says which of the seven stay.
     Radial {
         /// fy / fx, held constant.
         aspect: f64,
         /// K[0][1], held constant.
         skew: f64,
-        /// Principal point, held constant.
-        cx: f64,
-        /// Principal point, held constant.
-        cy: f64,
-        /// The lens model; its k1, k2 are replaced by the block's parameters, the rest held.
+        /// The lens model; its k1, k2 (and Brown–Conrady's p1, p2) are replaced by the block's
+        /// parameters, the rest held.
         lens: crate::lens::Distortion,
     },
 }
 
 impl CameraModel {
-    /// The lens of a [`CameraModel::Radial`] block with its radial coefficients set to
-    /// `k1`, `k2` (the identity for the other models).
-    pub fn lens_with(&self, k1: f64, k2: f64) -> crate::lens::Distortion {
+    /// The lens of a [`CameraModel::Radial`] block whose parameters are `params`
+    /// (`[f, k1, k2, p1, p2, cx, cy]`; the identity for the other models).
+    pub fn lens_with(&self, params: &[f64; INTRINSICS]) -> crate::lens::Distortion {
         use crate::lens::Distortion;
+        let [_, k1, k2, p1, p2, ..] = *params;
         match *self {
             CameraModel::Radial { lens, .. } => match lens {
                 Distortion::None => Distortion::BrownConrady {
                     k1,
                     k2,
                     k3: 0.0,
-                    p1: 0.0,
-                    p2: 0.0,
+                    p1,
+                    p2,
                 },
-                Distortion::BrownConrady { k3, p1, p2, .. } => {
+                Distortion::BrownConrady { k3, .. } => {
                     Distortion::BrownConrady { k1, k2, k3, p1, p2 }
                 }
                 Distortion::Division { .. } => Distortion::Division { k1, k2 },
@@ -69,19 +69,29 @@ impl CameraModel {
             _ => Distortion::None,
         }
     }
+
+    /// Number of parameters of a block of this model.
+    pub fn len(&self) -> usize {
+        match self {
+            CameraModel::Pinhole { .. } | CameraModel::Bal => 3,
+            CameraModel::Radial { .. } => INTRINSICS,
+        }
+    }
 }
 
-/// An intrinsics parameter block: a camera model and its three parameters.
+/// An intrinsics parameter block: a camera model and its parameters.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Intrinsics {
     /// What the parameters mean.
     pub model: CameraModel,
-    /// `[f, cx, cy]` for [`CameraModel::Pinhole`], `[f, k1, k2]` for [`CameraModel::Bal`].
-    pub params: [f64; 3],
+    /// `[f, cx, cy]` for [`CameraModel::Pinhole`], `[f, k1, k2]` for [`CameraModel::Bal`]
+    /// (the rest zero), `[f, k1, k2, p1, p2, cx, cy]` for [`CameraModel::Radial`].
+    pub params: [f64; INTRINSICS],
     /// Held constant during the solve.
     pub fixed: bool,
-    /// Parameters held constant when the block is free (e.g. k2 of a k1-only lens solve).
-    pub held: [bool; 3],
+    /// Parameters held constant when the block is free (e.g. k2 of a k1-only lens solve);
+    /// those past the model's [`CameraModel::len`] are ignored.
+    pub held: [bool; INTRINSICS],
 }
 
 impl Intrinsics {
@@ -92,9 +102,9 @@ impl Intrinsics {
                 aspect: 1.0,
                 skew: 0.0,
             },
-            params: [f, cx, cy],
+            params: [f, cx, cy, 0.0, 0.0, 0.0, 0.0],
             fixed,
-            held: [false; 3],
+            held: [false; INTRINSICS],
         }
     }
 
@@ -102,41 +112,48 @@ impl Intrinsics {
     pub fn bal(f: f64, k1: f64, k2: f64, fixed: bool) -> Self {
         Intrinsics {
             model: CameraModel::Bal,
-            params: [f, k1, k2],
+            params: [f, k1, k2, 0.0, 0.0, 0.0, 0.0],
             fixed,
-            held: [false; 3],
+            held: [false; INTRINSICS],
         }
     }
 
-    /// A [`CameraModel::Radial`] block `[f, k1, k2]` of a camera with principal point
-    /// `(cx, cy)`, square pixels and zero skew.
+    /// A [`CameraModel::Radial`] block `[f, k1, k2, p1, p2, cx, cy]` of a camera with
+    /// principal point `(cx, cy)`, square pixels and zero skew, free (p1, p2 held for a
+    /// division lens).
     pub fn radial(f: f64, cx: f64, cy: f64, lens: crate::lens::Distortion) -> Self {
-        let (k1, k2) = match lens {
-            crate::lens::Distortion::None => (0.0, 0.0),
-            crate::lens::Distortion::BrownConrady { k1, k2, .. }
-            | crate::lens::Distortion::Division { k1, k2 } => (k1, k2),
+        use crate::lens::Distortion;
+        let (k1, k2, p1, p2) = match lens {
+            Distortion::None => (0.0, 0.0, 0.0, 0.0),
+            Distortion::BrownConrady { k1, k2, p1, p2, .. } => (k1, k2, p1, p2),
+            Distortion::Division { k1, k2 } => (k1, k2, 0.0, 0.0),
         };
+        let division = matches!(lens, Distortion::Division { .. });
         Intrinsics {
             model: CameraModel::Radial {
                 aspect: 1.0,
                 skew: 0.0,
-                cx,
-                cy,
                 lens,
             },
-            params: [f, k1, k2],
+            params: [f, k1, k2, p1, p2, cx, cy],
             fixed: false,
-            held: [false; 3],
+            held: [false, false, false, division, division, false, false],
         }
+    }
+
+    /// Number of parameters of the block ([`CameraModel::len`]).
+    pub fn len(&self) -> usize {
+        self.model.len()
+    }
+
+    /// Whether parameter `u` stays constant in a solve (the block is fixed, or `u` is held).
+    pub fn is_held(&self, u: usize) -> bool {
+        self.fixed || self.held[u]
     }
 
     /// Number of parameters the solve changes (0 when fixed).
     pub fn num_free(&self) -> usize {
-        if self.fixed {
-            0
-        } else {
-            self.held.iter().filter(|h| !**h).count()
-        }
+        (0..self.len()).filter(|&u| !self.is_held(u)).count()
     }
 }
 
@@ -248,14 +265,8 @@ impl Problem {
             let consts_ok = match k.model {
                 CameraModel::Pinhole { aspect, skew } => aspect.is_finite() && skew.is_finite(),
                 CameraModel::Bal => true,
-                CameraModel::Radial {
-                    aspect,
-                    skew,
-                    cx,
-                    cy,
-                    lens,
-                } => {
-                    [aspect, skew, cx, cy].iter().all(|v| v.is_finite())
+                CameraModel::Radial { aspect, skew, lens } => {
+                    [aspect, skew].iter().all(|v| v.is_finite())
                         && lens.params().iter().all(|v| v.is_finite())
                 }
             };

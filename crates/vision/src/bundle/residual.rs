@@ -2,16 +2,27 @@
 //! Hartley & Zisserman 6.1 for the pinhole, Agarwal et al. 2010 / Snavely's Bundler for BAL).
 //!
 //! For an observation of point X in a camera (ω, t) with intrinsics k the residual is
-//! `project(k, ω, t, X) − observed` (2 values); its Jacobian has 9 camera columns
-//! `[ω (3), t (3), k (3)]` and 3 point columns.
+//! `project(k, ω, t, X) − observed` (2 values); its Jacobian has [`CAMERA_COLUMNS`] camera
+//! columns `[ω (3), t (3), k (up to 7)]` and 3 point columns.
 
 use nalgebra::{Matrix2x3, Matrix3, SMatrix, Vector2, Vector3};
 
 use super::problem::{CameraModel, Intrinsics};
 use super::rotation::{angle_axis_to_matrix, rotation_and_left_jacobian, skew};
 
-/// 2×9 Jacobian with respect to `[ω, t, intrinsics]`.
-pub type CameraJacobian = SMatrix<f64, 2, 9>;
+/// Most parameters of an intrinsics block (the radial–tangential lens's
+/// `[f, k1, k2, p1, p2, cx, cy]`, [`CameraModel::Radial`]).
+pub const INTRINSICS: usize = 7;
+
+/// Local camera columns of an observation's Jacobian: ω, t and the intrinsics block's.
+pub const CAMERA_COLUMNS: usize = 6 + INTRINSICS;
+
+/// 2×13 Jacobian with respect to `[ω, t, intrinsics]` (columns past a model's parameters are
+/// zero).
+pub type CameraJacobian = SMatrix<f64, 2, CAMERA_COLUMNS>;
+
+/// 2×7 Jacobian with respect to an intrinsics block's parameters.
+type IntrinsicsJacobian = SMatrix<f64, 2, INTRINSICS>;
 
 /// Predicted pixel of X (see [`CameraModel`] for each model's formula).
 pub fn project(
@@ -36,12 +47,12 @@ pub fn project_rt(
 fn project_camera_frame(k: &Intrinsics, p: &Vector3<f64>) -> Vector2<f64> {
     match k.model {
         CameraModel::Pinhole { aspect, skew } => {
-            let [f, cx, cy] = k.params;
+            let [f, cx, cy, ..] = k.params;
             let (xn, yn) = (p.x / p.z, p.y / p.z);
             Vector2::new(f * xn + skew * yn + cx, aspect * f * yn + cy)
         }
         CameraModel::Bal => {
-            let [f, k1, k2] = k.params;
+            let [f, k1, k2, ..] = k.params;
             let (px, py) = (-p.x / p.z, -p.y / p.z);
             let r2 = px * px + py * py;
             let d = 1.0 + r2 * (k1 + k2 * r2);
@@ -52,25 +63,19 @@ fn project_camera_frame(k: &Intrinsics, p: &Vector3<f64>) -> Vector2<f64> {
 }
 
 /// The [`CameraModel::Radial`] projection of a camera-frame point P with
-/// `(pixel, ∂pixel/∂P, ∂pixel/∂[f, k1, k2])`. Brown–Conrady in closed form; the division
-/// model through [`crate::lens::Distortion`]'s Newton inverse and implicit-function Jacobians
-/// (a point where it does not converge projects to NaN, which the solver's step rejects).
-fn radial(k: &Intrinsics, p: &Vector3<f64>) -> (Vector2<f64>, Matrix2x3<f64>, Matrix2x3<f64>) {
-    let CameraModel::Radial {
-        aspect,
-        skew,
-        cx,
-        cy,
-        lens,
-    } = k.model
-    else {
+/// `(pixel, ∂pixel/∂P, ∂pixel/∂[f, k1, k2, p1, p2, cx, cy])`. Brown–Conrady in closed form; the
+/// division model (whose p1, p2 are zero and held) through [`crate::lens::Distortion`]'s Newton
+/// inverse and implicit-function Jacobians (a point where it does not converge projects to NaN,
+/// which the solver's step rejects).
+fn radial(k: &Intrinsics, p: &Vector3<f64>) -> (Vector2<f64>, Matrix2x3<f64>, IntrinsicsJacobian) {
+    let CameraModel::Radial { aspect, skew, lens } = k.model else {
         unreachable!("radial() is called on Radial blocks only")
     };
-    let [f, k1, k2] = k.params;
+    let [f, k1, k2, p1, p2, cx, cy] = k.params;
     let iz = 1.0 / p.z;
     let (x, y) = (p.x * iz, p.y * iz);
     let dn = Matrix2x3::new(iz, 0.0, -x * iz, 0.0, iz, -y * iz);
-    // q = d(x, y), ∂q/∂(x, y) and ∂q/∂(k1, k2).
+    // q = d(x, y), ∂q/∂(x, y) and ∂q/∂(k1, k2, p1, p2).
     let (q, jq, jk) = match lens {
         crate::lens::Distortion::Division { .. } => {
             let d = crate::lens::Distortion::Division { k1, k2 };
@@ -82,18 +87,27 @@ fn radial(k: &Intrinsics, p: &Vector3<f64>) -> (Vector2<f64>, Matrix2x3<f64>, Ma
                 (Ok(q), Ok(jq), Ok(jk)) => (
                     q,
                     jq,
-                    nalgebra::Matrix2::new(jk[(0, 0)], jk[(0, 1)], jk[(1, 0)], jk[(1, 1)]),
+                    nalgebra::Matrix2x4::new(
+                        jk[(0, 0)],
+                        jk[(0, 1)],
+                        0.0,
+                        0.0,
+                        jk[(1, 0)],
+                        jk[(1, 1)],
+                        0.0,
+                        0.0,
+                    ),
                 ),
                 _ => {
                     let nan = Vector2::new(f64::NAN, f64::NAN);
-                    return (nan, Matrix2x3::zeros(), Matrix2x3::zeros());
+                    return (nan, Matrix2x3::zeros(), IntrinsicsJacobian::zeros());
                 }
             }
         }
         _ => {
-            let (k3, p1, p2) = match lens {
-                crate::lens::Distortion::BrownConrady { k3, p1, p2, .. } => (k3, p1, p2),
-                _ => (0.0, 0.0, 0.0),
+            let k3 = match lens {
+                crate::lens::Distortion::BrownConrady { k3, .. } => k3,
+                _ => 0.0,
             };
             let r2 = x * x + y * y;
             let rho = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3));
@@ -108,21 +122,28 @@ fn radial(k: &Intrinsics, p: &Vector3<f64>) -> (Vector2<f64>, Matrix2x3<f64>, Ma
                 2.0 * drho * x * y + 2.0 * p1 * x + 2.0 * p2 * y,
                 rho + 2.0 * drho * y * y + 6.0 * p1 * y + 2.0 * p2 * x,
             );
-            let jk = nalgebra::Matrix2::new(r2 * x, r2 * r2 * x, r2 * y, r2 * r2 * y);
+            let jk = nalgebra::Matrix2x4::new(
+                r2 * x,
+                r2 * r2 * x,
+                2.0 * x * y,
+                r2 + 2.0 * x * x,
+                r2 * y,
+                r2 * r2 * y,
+                r2 + 2.0 * y * y,
+                2.0 * x * y,
+            );
             (q, jq, jk)
         }
     };
     let a = nalgebra::Matrix2::new(f, skew, 0.0, aspect * f);
     let pred = Vector2::new(f * q[0] + skew * q[1] + cx, aspect * f * q[1] + cy);
     let ak = a * jk;
-    let dk = Matrix2x3::new(
-        q[0],
-        ak[(0, 0)],
-        ak[(0, 1)],
-        aspect * q[1],
-        ak[(1, 0)],
-        ak[(1, 1)],
-    );
+    let mut dk = IntrinsicsJacobian::zeros();
+    dk[(0, 0)] = q[0];
+    dk[(1, 0)] = aspect * q[1];
+    dk.fixed_view_mut::<2, 4>(0, 1).copy_from(&ak);
+    dk[(0, 5)] = 1.0;
+    dk[(1, 6)] = 1.0;
     (pred, a * jq * dn, dk)
 }
 
@@ -150,20 +171,28 @@ pub fn project_with_jacobians_rj(
     let d_rx_d_omega = -skew(&rx) * jl;
     let p = rx + t;
     let iz = 1.0 / p.z;
-    let (pred, d_pred_d_p, d_pred_d_k): (Vector2<f64>, Matrix2x3<f64>, Matrix2x3<f64>) =
+    let (pred, d_pred_d_p, d_pred_d_k): (Vector2<f64>, Matrix2x3<f64>, IntrinsicsJacobian) =
         match k.model {
             CameraModel::Pinhole { aspect, skew } => {
-                let [f, cx, cy] = k.params;
+                let [f, cx, cy, ..] = k.params;
                 let (xn, yn) = (p.x * iz, p.y * iz);
                 // ∂(xn, yn)/∂P
                 let dn = Matrix2x3::new(iz, 0.0, -xn * iz, 0.0, iz, -yn * iz);
                 let a = nalgebra::Matrix2::new(f, skew, 0.0, aspect * f);
                 let pred = Vector2::new(f * xn + skew * yn + cx, aspect * f * yn + cy);
-                let dk = Matrix2x3::new(xn, 1.0, 0.0, aspect * yn, 0.0, 1.0);
+                let mut dk = IntrinsicsJacobian::zeros();
+                dk.fixed_view_mut::<2, 3>(0, 0).copy_from(&Matrix2x3::new(
+                    xn,
+                    1.0,
+                    0.0,
+                    aspect * yn,
+                    0.0,
+                    1.0,
+                ));
                 (pred, a * dn, dk)
             }
             CameraModel::Bal => {
-                let [f, k1, k2] = k.params;
+                let [f, k1, k2, ..] = k.params;
                 let (px, py) = (-p.x * iz, -p.y * iz);
                 let dp = Matrix2x3::new(-iz, 0.0, -px * iz, 0.0, -iz, -py * iz);
                 let r2 = px * px + py * py;
@@ -178,14 +207,15 @@ pub fn project_with_jacobians_rj(
                     f * d + c * py * py,
                 );
                 let pred = Vector2::new(f * d * px, f * d * py);
-                let dk = Matrix2x3::new(
+                let mut dk = IntrinsicsJacobian::zeros();
+                dk.fixed_view_mut::<2, 3>(0, 0).copy_from(&Matrix2x3::new(
                     d * px,
                     f * r2 * px,
                     f * r2 * r2 * px,
                     d * py,
                     f * r2 * py,
                     f * r2 * r2 * py,
-                );
+                ));
                 (pred, a * dp, dk)
             }
             CameraModel::Radial { .. } => radial(k, &p),
@@ -195,7 +225,8 @@ pub fn project_with_jacobians_rj(
     let mut jc = CameraJacobian::zeros();
     jc.fixed_view_mut::<2, 3>(0, 0).copy_from(&d_omega);
     jc.fixed_view_mut::<2, 3>(0, 3).copy_from(&d_pred_d_p);
-    jc.fixed_view_mut::<2, 3>(0, 6).copy_from(&d_pred_d_k);
+    jc.fixed_view_mut::<2, INTRINSICS>(0, 6)
+        .copy_from(&d_pred_d_k);
     (pred, jc, d_x)
 }
 
@@ -212,43 +243,38 @@ mod tests {
     fn check_tol(k: Intrinsics, omega: Vector3<f64>, t: Vector3<f64>, x: Vector3<f64>, tol: f64) {
         let (pred, jc, jx) = project_with_jacobians(&k, &omega, &t, &x);
         assert!((pred - project(&k, &omega, &t, &x)).norm() < 1e-12);
-        let f = |v: &[f64; 12]| {
-            let kk = Intrinsics {
-                params: [v[6], v[7], v[8]],
-                ..k
-            };
+        // Parameters: ω (3), t (3), the block's (INTRINSICS), X (3).
+        const N: usize = CAMERA_COLUMNS + 3;
+        let f = |v: &[f64; N]| {
+            let mut kk = k;
+            kk.params.copy_from_slice(&v[6..CAMERA_COLUMNS]);
             project(
                 &kk,
                 &Vector3::new(v[0], v[1], v[2]),
                 &Vector3::new(v[3], v[4], v[5]),
-                &Vector3::new(v[9], v[10], v[11]),
+                &Vector3::new(
+                    v[CAMERA_COLUMNS],
+                    v[CAMERA_COLUMNS + 1],
+                    v[CAMERA_COLUMNS + 2],
+                ),
             )
         };
-        let base = [
-            omega.x,
-            omega.y,
-            omega.z,
-            t.x,
-            t.y,
-            t.z,
-            k.params[0],
-            k.params[1],
-            k.params[2],
-            x.x,
-            x.y,
-            x.z,
-        ];
-        for i in 0..12 {
+        let mut base = [0.0; N];
+        base[..3].copy_from_slice(omega.as_slice());
+        base[3..6].copy_from_slice(t.as_slice());
+        base[6..CAMERA_COLUMNS].copy_from_slice(&k.params);
+        base[CAMERA_COLUMNS..].copy_from_slice(x.as_slice());
+        for i in 0..N {
             let h = 1e-6 * base[i].abs().max(1e-2);
             let mut vp = base;
             vp[i] += h;
             let mut vm = base;
             vm[i] -= h;
             let fd = (f(&vp) - f(&vm)) / (2.0 * h);
-            let an = if i < 9 {
+            let an = if i < CAMERA_COLUMNS {
                 jc.column(i).into_owned()
             } else {
-                jx.column(i - 9).into_owned()
+                jx.column(i - CAMERA_COLUMNS).into_owned()
             };
             let tol = tol * (1.0 + an.norm());
             assert!((fd - an).norm() < tol, "param {i}: fd {fd} analytic {an}");
@@ -262,9 +288,9 @@ mod tests {
                 aspect: 1.05,
                 skew: 0.7,
             },
-            params: [800.0, 320.0, 240.0],
+            params: [800.0, 320.0, 240.0, 0.0, 0.0, 0.0, 0.0],
             fixed: false,
-            held: [false; 3],
+            held: [false; INTRINSICS],
         };
         check(
             k,

@@ -25,18 +25,19 @@ use rayon::prelude::*;
 
 use super::evaluate::Linearization;
 use super::problem::Problem;
+use super::residual::{CAMERA_COLUMNS as CC, INTRINSICS};
 
 pub(crate) const NONE: u32 = u32::MAX;
 
-/// What a reduced (camera-side) block parameterises: some of the 9 local camera columns
+/// What a reduced (camera-side) block parameterises: some of the [`CC`] local camera columns
 /// `[ω, t, k]` of its observations. A camera's pose and its own (unshared) free intrinsics form
-/// one block of up to 9 parameters; an intrinsics block shared by several cameras is a block of
-/// its own (columns 6..9).
+/// one block of up to 6 + 7 parameters; an intrinsics block shared by several cameras is a
+/// block of its own (columns 6.. of its model's parameters).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) struct FBlock {
     /// The camera whose pose (and exclusive intrinsics) this block holds.
     pub camera: Option<usize>,
-    /// The intrinsics block updated by columns 6..9 of this block, if any.
+    /// The intrinsics block updated by columns 6.. of this block, if any.
     pub intrinsics: Option<usize>,
 }
 
@@ -57,10 +58,14 @@ pub(crate) struct Structure {
     pub fblocks: Vec<FBlock>,
     pub fblock_dim: Vec<usize>,
     pub fblock_offset: Vec<usize>,
-    /// Local camera columns (0..9) of each f-block's parameters, `fblock_dim` of them.
-    pub fblock_cols: Vec<[u8; 9]>,
+    /// Local camera columns (0..[`CC`]) of each f-block's parameters, `fblock_dim` of them.
+    pub fblock_cols: Vec<[u8; CC]>,
     /// Components of each f-block held constant by the gauge.
-    pub fblock_mask: Vec<[bool; 9]>,
+    pub fblock_mask: Vec<[bool; CC]>,
+    /// Camera columns any observation uses: 6 + the largest intrinsics block's parameters
+    /// (9 for the pinhole and BAL models, whose Jacobians then cost what they did before the
+    /// lens blocks).
+    pub columns: usize,
     pub n_reduced: usize,
     /// Internal observation order → index in `Problem::observations`. Observations are
     /// processed sorted by point so that the partners of an observation are contiguous in
@@ -116,8 +121,8 @@ impl Structure {
         for (i, c) in problem.cameras.iter().enumerate() {
             let k = c.intrinsics;
             let intr_free = !problem.intrinsics[k].fixed;
-            let mut cols = [0u8; 9];
-            let mut mask = [false; 9];
+            let mut cols = [0u8; CC];
+            let mut mask = [false; CC];
             let mut d = 0;
             if !c.fixed && masks[i].iter().any(|m| !m) {
                 for u in 0..6 {
@@ -128,9 +133,9 @@ impl Structure {
             }
             let exclusive = intr_free && users[k] == 1;
             if exclusive {
-                for u in 6..9 {
-                    cols[d] = u as u8;
-                    mask[d] = problem.intrinsics[k].held[u - 6];
+                for u in 0..problem.intrinsics[k].len() {
+                    cols[d] = (6 + u) as u8;
+                    mask[d] = problem.intrinsics[k].held[u];
                     d += 1;
                 }
             }
@@ -154,10 +159,15 @@ impl Structure {
                     camera: None,
                     intrinsics: Some(k),
                 });
-                fblock_dim.push(3);
-                fblock_cols.push([6, 7, 8, 0, 0, 0, 0, 0, 0]);
-                let h = problem.intrinsics[k].held;
-                fblock_mask.push([h[0], h[1], h[2], false, false, false, false, false, false]);
+                let n = problem.intrinsics[k].len();
+                let (mut cols, mut mask) = ([0u8; CC], [false; CC]);
+                for u in 0..n {
+                    cols[u] = (6 + u) as u8;
+                    mask[u] = problem.intrinsics[k].held[u];
+                }
+                fblock_dim.push(n);
+                fblock_cols.push(cols);
+                fblock_mask.push(mask);
             }
         }
         let n_shared = fblocks.iter().filter(|b| b.camera.is_none()).count();
@@ -227,7 +237,14 @@ impl Structure {
             };
             upper_start.push(if same { upper_start[k - 1] } else { k as u32 });
         }
+        let columns = 6 + problem
+            .intrinsics
+            .iter()
+            .map(|k| k.len())
+            .max()
+            .unwrap_or(0);
         let mut st = Structure {
+            columns,
             fblocks,
             fblock_dim,
             fblock_offset,
@@ -384,9 +401,9 @@ impl Structure {
         &self.fblock_cols[b][..self.fblock_dim[b]]
     }
 
-    /// Which of the 9 camera columns of an observation with f-blocks `fb` are not optimised.
-    pub fn obs_mask(&self, fb: [u32; 2]) -> [bool; 9] {
-        let mut m = [true; 9];
+    /// Which of the camera columns of an observation with f-blocks `fb` are not optimised.
+    pub fn obs_mask(&self, fb: [u32; 2]) -> [bool; CC] {
+        let mut m = [true; CC];
         for b in fb {
             if b != NONE {
                 let b = b as usize;
@@ -425,7 +442,7 @@ fn csr<T: Copy + Default>(
 struct Terms<'a> {
     lin: &'a Linearization,
     v: &'a [[f64; 6]],
-    g: &'a [[f64; 9]],
+    g: &'a [[f64; 3 * INTRINSICS]],
 }
 
 /// The damped reduced camera system `S δf = b` (upper block triangle of S).
@@ -546,25 +563,28 @@ impl Structure {
         ReducedSystem { values, rhs, c_inv }
     }
 
-    /// Per point, `G_p = Σ_b Jpᵦᵀ Jcᵦ[k]` (row-major 3×3: point coordinate × the shared
-    /// block's three columns) over its observations, when a shared block is assembled
+    /// Per point, `G_p = Σ_b Jpᵦᵀ Jcᵦ[k]` (row-major 3×[`INTRINSICS`]: point coordinate × the
+    /// shared block's columns) over its observations, when a shared block is assembled
     /// point-wise (module docs); empty otherwise.
-    fn shared_point_sums(&self, lin: &Linearization) -> Vec<[f64; 9]> {
-        if self.shared.is_none() {
+    fn shared_point_sums(&self, lin: &Linearization) -> Vec<[f64; 3 * INTRINSICS]> {
+        let Some(k) = self.shared else {
             return Vec::new();
-        }
+        };
+        let cols = self.cols(k);
+        let w1 = lin.columns;
         (0..self.point_ptr.len() - 1)
             .into_par_iter()
             .map(|p| {
-                let mut g = [0.0; 9];
+                let mut g = [0.0; 3 * INTRINSICS];
                 if !self.point_free[p] {
                     return g;
                 }
                 for &b in self.point_observations(p) {
-                    let (jp, jc) = (&lin.jp[b as usize], &lin.jc[b as usize]);
+                    let (jp, jc) = (&lin.jp[b as usize], lin.jc(b as usize));
                     for i in 0..3 {
-                        for w in 0..3 {
-                            g[3 * i + w] += jp[i] * jc[6 + w] + jp[3 + i] * jc[15 + w];
+                        for (w, &c) in cols.iter().enumerate() {
+                            let c = c as usize;
+                            g[INTRINSICS * i + w] += jp[i] * jc[c] + jp[3 + i] * jc[w1 + c];
                         }
                     }
                 }
@@ -650,13 +670,14 @@ impl Structure {
         let dr = self.fblock_dim[r];
         let cols_r = self.cols(r);
         let p = self.obs_point[a] as usize;
-        let jca = &lin.jc[a];
+        let jca = lin.jc(a);
+        let w1 = lin.columns;
         let va = &v[a];
         let free = self.point_free[p];
         // Rows of Jcₐᵀ restricted to this block's columns.
-        let mut ja = [[0.0f64; 2]; 9];
+        let mut ja = [[0.0f64; 2]; CC];
         for (u, &cu) in cols_r.iter().enumerate() {
-            ja[u] = [jca[cu as usize], jca[9 + cu as usize]];
+            ja[u] = [jca[cu as usize], jca[w1 + cu as usize]];
         }
         // rhs: + Jcₐᵀ (Vₐ g_p)
         if free {
@@ -669,21 +690,25 @@ impl Structure {
         }
         if let Some(k) = self.shared {
             // The shared column, point-wise: Jcₐᵀ (Jcₐ[k] − Vₐ G_p).
-            let mut m = [[0.0f64; 3]; 2];
-            m[0].copy_from_slice(&jca[6..9]);
-            m[1].copy_from_slice(&jca[15..18]);
+            let cols_k = self.cols(k);
+            let nk = cols_k.len();
+            let mut m = [[0.0f64; INTRINSICS]; 2];
+            for (w, &c) in cols_k.iter().enumerate() {
+                m[0][w] = jca[c as usize];
+                m[1][w] = jca[w1 + c as usize];
+            }
             if free {
                 let g = &t.g[p];
                 for (row, mr) in m.iter_mut().enumerate() {
-                    for (w, x) in mr.iter_mut().enumerate() {
+                    for (w, x) in mr[..nk].iter_mut().enumerate() {
                         *x -= va[3 * row] * g[w]
-                            + va[3 * row + 1] * g[3 + w]
-                            + va[3 * row + 2] * g[6 + w];
+                            + va[3 * row + 1] * g[INTRINSICS + w]
+                            + va[3 * row + 2] * g[2 * INTRINSICS + w];
                     }
                 }
             }
-            let blk = &mut vals[block_offset(k)..][..dr * 3];
-            for (u, row) in blk.chunks_exact_mut(3).enumerate() {
+            let blk = &mut vals[block_offset(k)..][..dr * nk];
+            for (u, row) in blk.chunks_exact_mut(nk).enumerate() {
                 let (a0, a1) = (ja[u][0], ja[u][1]);
                 for (w, x) in row.iter_mut().enumerate() {
                     *x += a0 * m[0][w] + a1 * m[1][w];
@@ -727,13 +752,13 @@ impl Structure {
                 q[0] += 1.0;
                 q[3] += 1.0;
             }
-            // T = Q Jcᵦ (2×9); the block gains Jcₐ[:, cols_r]ᵀ T[:, cols_c].
-            let jcb = &lin.jc[bi];
-            let mut t0 = [0.0; 9];
-            let mut t1 = [0.0; 9];
-            for col in 0..9 {
-                t0[col] = q[0] * jcb[col] + q[1] * jcb[9 + col];
-                t1[col] = q[2] * jcb[col] + q[3] * jcb[9 + col];
+            // T = Q Jcᵦ (2 × columns); the block gains Jcₐ[:, cols_r]ᵀ T[:, cols_c].
+            let jcb = lin.jc(bi);
+            let mut t0 = [0.0; CC];
+            let mut t1 = [0.0; CC];
+            for col in 0..self.columns {
+                t0[col] = q[0] * jcb[col] + q[1] * jcb[w1 + col];
+                t1[col] = q[2] * jcb[col] + q[3] * jcb[w1 + col];
             }
             for &c in &fbs {
                 if c == NONE || (c as usize) < r {
@@ -743,7 +768,7 @@ impl Structure {
                 let dc = self.fblock_dim[c];
                 let blk = &mut vals[block_offset(c)..][..dr * dc];
                 if dc == 9 {
-                    // The common case (pose + own intrinsics, or BAL): a full 9-wide row.
+                    // The common case (pose + own three intrinsics, as BAL's): columns 0..9.
                     for (u, row) in blk.chunks_exact_mut(9).enumerate() {
                         let (a0, a1) = (ja[u][0], ja[u][1]);
                         for w in 0..9 {
@@ -840,7 +865,7 @@ mod tests {
         let mut p = s.problem;
         // One lens for the shot, free but for cy; a duplicated observation; a fixed point.
         p.intrinsics[0].fixed = false;
-        p.intrinsics[0].held = [false, false, true];
+        p.intrinsics[0].held[2] = true;
         for i in (0..p.observations.len()).step_by(11) {
             let mut o = p.observations[i];
             o.pixel.y -= 0.2;

@@ -53,14 +53,10 @@ pub fn adjust_sequence(
             k.f1
         )));
     }
-    let intrinsics = Intrinsics {
-        model: CameraModel::Pinhole {
-            aspect: k.f2 / k.f1,
-            skew: k.s,
-        },
-        params: [k.f1, k.u0, k.v0],
-        fixed: !refine_intrinsics,
-        held: [false; 3],
+    let mut intrinsics = Intrinsics::pinhole(k.f1, k.u0, k.v0, !refine_intrinsics);
+    intrinsics.model = CameraModel::Pinhole {
+        aspect: k.f2 / k.f1,
+        skew: k.s,
     };
     let cameras: Vec<CameraPose> = path
         .frames
@@ -118,7 +114,7 @@ pub fn adjust_sequence(
         },
     };
     let report = solve(&mut problem, options)?;
-    let [f, u0, v0] = problem.intrinsics[0].params;
+    let [f, u0, v0, ..] = problem.intrinsics[0].params;
     let mut k_out = k.clone();
     k_out.f2 = f * k.f2 / k.f1;
     k_out.f1 = f;

@@ -303,9 +303,9 @@ fn model_house() -> Problem {
                 aspect: k[(1, 1)] / k[(0, 0)],
                 skew: k[(0, 1)],
             },
-            params: [k[(0, 0)], k[(0, 2)], k[(1, 2)]],
+            params: [k[(0, 0)], k[(0, 2)], k[(1, 2)], 0.0, 0.0, 0.0, 0.0],
             fixed: true,
-            held: [false; 3],
+            held: [false; super::INTRINSICS],
         });
         cameras.push(CameraPose {
             rotation: matrix_to_angle_axis(&r),

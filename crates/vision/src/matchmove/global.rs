@@ -218,7 +218,7 @@ pub fn global_lens_adjust(
     k: &Intrinsics,
     poses: &[Option<Pose>],
     options: &GlobalOptions,
-    held: [bool; 3],
+    held: super::Held,
 ) -> Result<(
     super::Poses,
     super::TrackPoints,
@@ -237,7 +237,7 @@ fn global_adjust(
     k: &Intrinsics,
     poses: &[Option<Pose>],
     options: &GlobalOptions,
-    lens: Option<[bool; 3]>,
+    lens: Option<super::Held>,
 ) -> Result<(
     super::Poses,
     super::TrackPoints,

@@ -52,8 +52,20 @@ pub enum DistortionMode {
     K1,
     /// Brown–Conrady k1 and k2.
     K1k2,
+    /// Brown–Conrady k1, k2 and the tangential p1, p2 (OpenCV's model; k3 held).
+    Brown,
     /// Fitzgibbon's one-parameter division model (wide angles).
     Division,
+}
+
+/// Where the principal point is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Choice)]
+#[serde(rename_all = "lowercase")]
+pub enum PrincipalPoint {
+    /// Held: the intrinsics' (the image's centre without intrinsics).
+    Centre,
+    /// Refined with the lens, from the intrinsics' (or the centre).
+    Refine,
 }
 
 /// The lens part of a matchmove.
@@ -65,8 +77,11 @@ pub struct LensOptions {
     /// the lens distortion solved with the cameras
     ///
     /// `none` holds the intrinsics' own distortion (none for a pinhole); `k1`, `k1k2`:
-    /// Brown–Conrady radial terms (OpenCV's model); `division`: Fitzgibbon's model.
+    /// Brown–Conrady radial terms (OpenCV's model); `brown`: with the tangential p1, p2;
+    /// `division`: Fitzgibbon's model.
     pub distortion: DistortionMode,
+    /// the principal point: centre (held) or refine (solved with the lens)
+    pub principal_point: PrincipalPoint,
     /// rounds of undistort → pinhole solve → lens adjustment, when the lens is solved
     #[param(range = 1..=5)]
     pub lens_rounds: usize,
@@ -83,6 +98,7 @@ impl Default for LensOptions {
         LensOptions {
             focal: FocalMode::Known,
             distortion: DistortionMode::None,
+            principal_point: PrincipalPoint::Centre,
             lens_rounds: 1,
             width: 0,
             height: 0,
@@ -126,17 +142,19 @@ impl LensOptions {
     /// Whether anything of the lens is solved (otherwise [`matchmove_with_lens`] is the book's
     /// matchmove on the undistorted tracks).
     pub fn solves_lens(&self) -> bool {
-        self.focal != FocalMode::Known || self.distortion != DistortionMode::None
+        self.focal != FocalMode::Known
+            || self.distortion != DistortionMode::None
+            || self.principal_point == PrincipalPoint::Refine
     }
 
-    /// The lens whose k1, k2 the adjustment refines, from the intrinsics' own distortion, and
-    /// the held flags of the block `[f, k1, k2]`.
-    pub fn block(&self, k: &Intrinsics) -> Result<(Distortion, [bool; 3])> {
+    /// The lens whose parameters the adjustment refines, from the intrinsics' own distortion,
+    /// and the held flags of the block `[f, k1, k2, p1, p2, cx, cy]`.
+    pub fn block(&self, k: &Intrinsics) -> Result<(Distortion, super::Held)> {
         let f_held = self.focal == FocalMode::Known;
         let own = k.distortion;
         let (lens, k1_held, k2_held) = match self.distortion {
             DistortionMode::None => (own, true, true),
-            DistortionMode::K1 | DistortionMode::K1k2 => {
+            DistortionMode::K1 | DistortionMode::K1k2 | DistortionMode::Brown => {
                 let lens = match own {
                     Distortion::BrownConrady { .. } => own,
                     Distortion::None => Distortion::BrownConrady {
@@ -169,7 +187,12 @@ impl LensOptions {
                 (lens, false, true)
             }
         };
-        Ok((lens, [f_held, k1_held, k2_held]))
+        let p_held = self.distortion != DistortionMode::Brown;
+        let c_held = self.principal_point == PrincipalPoint::Centre;
+        Ok((
+            lens,
+            [f_held, k1_held, k2_held, p_held, p_held, c_held, c_held],
+        ))
     }
 }
 
@@ -357,7 +380,7 @@ pub fn matchmove_with_lens(
 fn general_with_lens(
     tracks: &Tracks,
     mut k: Intrinsics,
-    held: [bool; 3],
+    held: super::Held,
     lens: &LensOptions,
     options: &MatchmoveOptions,
     progress: &(dyn Fn(&str, usize, usize) + Sync),

@@ -50,6 +50,7 @@ pub use global::{global_bundle_adjust, GlobalOptions};
 pub use junction::{join_fragments, ScaleOptions};
 pub use lens_solve::{
     estimate_focal, matchmove_with_lens, undistort_tracks, DistortionMode, FocalMode, LensOptions,
+    PrincipalPoint,
 };
 pub use pair::PairOptions;
 pub use relax::{relax, RelaxOptions};
@@ -559,14 +560,10 @@ pub(crate) fn bundle_adjust_indexed(
     loss: crate::bundle::Loss,
     max_iterations: usize,
 ) -> Result<crate::bundle::SolverReport> {
-    let block = crate::bundle::Intrinsics {
-        model: crate::bundle::CameraModel::Pinhole {
-            aspect: k.f2 / k.f1,
-            skew: k.s,
-        },
-        params: [k.f1, k.u0, k.v0],
-        fixed: true,
-        held: [false; 3],
+    let mut block = crate::bundle::Intrinsics::pinhole(k.f1, k.u0, k.v0, true);
+    block.model = crate::bundle::CameraModel::Pinhole {
+        aspect: k.f2 / k.f1,
+        skew: k.s,
     };
     let gauge = crate::bundle::Gauge::FixFirstCameraAndScale;
     adjust_with_block(
@@ -591,7 +588,7 @@ pub(crate) fn bundle_adjust_indexed(
 pub(crate) fn bundle_adjust_lens(
     tracks: &Tracks,
     k: &Intrinsics,
-    held: [bool; 3],
+    held: Held,
     poses: &mut [Option<Pose>],
     points: &mut [Option<Vector3<f64>>],
     weight: &ObservationWeight<'_>,
@@ -615,21 +612,20 @@ pub(crate) fn bundle_adjust_lens(
     Ok((intrinsics_of_block(k, &b), cov))
 }
 
-/// The solved intrinsics of a lens block for a report: focal length, k1, k2 with their
-/// standard deviations where free and known (`cov`).
+/// Which parameters of a lens block `[f, k1, k2, p1, p2, cx, cy]` stay constant
+/// ([`crate::bundle::CameraModel::Radial`]).
+pub(crate) type Held = [bool; crate::bundle::INTRINSICS];
+
+/// The solved intrinsics of a lens block for a report: the focal length and every free lens
+/// parameter, with their standard deviations where known (`cov`).
 pub(crate) fn solved_intrinsics(
     k: &Intrinsics,
-    held: [bool; 3],
+    held: Held,
     cov: Option<&BlockCovariance>,
 ) -> Vec<report::SolvedIntrinsic> {
-    let (k1, k2) = match k.distortion {
-        crate::lens::Distortion::BrownConrady { k1, k2, .. }
-        | crate::lens::Distortion::Division { k1, k2 } => (k1, k2),
-        crate::lens::Distortion::None => (0.0, 0.0),
-    };
-    let names = ["focal_px", "k1", "k2"];
-    let values = [k.f1, k1, k2];
-    (0..3)
+    let values = lens_block(k, held).params;
+    let names = ["focal_px", "k1", "k2", "p1", "p2", "cx_px", "cy_px"];
+    (0..names.len())
         .filter(|&i| i == 0 || !held[i])
         .map(|i| report::SolvedIntrinsic {
             name: names[i].into(),
@@ -643,9 +639,9 @@ pub(crate) fn solved_intrinsics(
         .collect()
 }
 
-/// The bundle adjuster's lens block `[f, k1, k2]` of `k` ([`crate::bundle::CameraModel::Radial`]:
-/// its principal point, aspect, skew and lens model held), free but for `held`.
-pub(crate) fn lens_block(k: &Intrinsics, held: [bool; 3]) -> crate::bundle::Intrinsics {
+/// The bundle adjuster's lens block `[f, k1, k2, p1, p2, cx, cy]` of `k`
+/// ([`crate::bundle::CameraModel::Radial`]: its aspect, skew and k3 held), free but for `held`.
+pub(crate) fn lens_block(k: &Intrinsics, held: Held) -> crate::bundle::Intrinsics {
     let mut block = crate::bundle::Intrinsics::radial(k.f1, k.u0, k.v0, k.distortion);
     if let crate::bundle::CameraModel::Radial { aspect, skew, .. } = &mut block.model {
         *aspect = k.f2 / k.f1;
@@ -655,19 +651,22 @@ pub(crate) fn lens_block(k: &Intrinsics, held: [bool; 3]) -> crate::bundle::Intr
     block
 }
 
-/// `k` with the focal length and radial terms of an adjusted [`lens_block`].
+/// `k` with the focal length, lens and principal point of an adjusted [`lens_block`].
 pub(crate) fn intrinsics_of_block(k: &Intrinsics, b: &crate::bundle::Intrinsics) -> Intrinsics {
-    let [f, k1, k2] = b.params;
+    let [f, .., cx, cy] = b.params;
     let mut out = k.clone();
     out.f1 = f;
     out.f2 = f * k.f2 / k.f1;
-    out.distortion = b.model.lens_with(k1, k2);
+    out.u0 = cx;
+    out.v0 = cy;
+    out.distortion = b.model.lens_with(&b.params);
     out
 }
 
-/// The covariance of a lens block's `[f, k1, k2]` at the solution, with σ̂
+/// The covariance of a lens block's `[f, k1, k2, p1, p2, cx, cy]` at the solution, with σ̂
 /// ([`crate::bundle::intrinsics_covariance`]), or why it is not available.
-pub(crate) type BlockCovariance = std::result::Result<(nalgebra::Matrix3<f64>, f64), String>;
+pub(crate) type BlockCovariance =
+    std::result::Result<(crate::bundle::IntrinsicsCovariance, f64), String>;
 
 /// The bundle adjustment of [`bundle_adjust_indexed`] with one shared intrinsics block and the
 /// given gauge; returns the solver's report, the adjusted block and, when `covariance`, the

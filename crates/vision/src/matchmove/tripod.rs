@@ -472,7 +472,7 @@ fn direction(
 pub fn solve_rotations(
     tracks: &Tracks,
     k: &Intrinsics,
-    held: [bool; 3],
+    held: super::Held,
     options: &MatchmoveOptions,
     parallax: Option<&Parallax>,
     progress: &(dyn Fn(&str, usize, usize) + Sync),
