@@ -440,7 +440,7 @@ def run_vfxgraph(binary, graph, work, threads, features, log, redirect_outputs=F
     total = time.perf_counter() - t0
     r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu_total = (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
-    res = {"label": f"vfxgraph ({'features=150 default' if tag == 'default' else 'features=' + str(features)})",
+    res = {"label": f"vfxgraph ({'default features: one per 36×36 px' if tag == 'default' else 'features=' + str(features)})",
            "command": " ".join(cmd), "returncode": proc.returncode,
            "times": {"total": total}, "cpu": {"total": cpu_total}}
     if proc.returncode != 0 or not out.exists():
