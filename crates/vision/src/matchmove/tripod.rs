@@ -244,59 +244,75 @@ fn decision(pairs: Vec<PairParallax>, parallax: &[f64], options: &MotionOptions)
     }
 }
 
+/// The models of [`fit_pairs`] for frames `a`, `b` (`None` when a RANSAC finds none).
+fn fit_pair(
+    tracks: &Tracks,
+    k: Option<&Intrinsics>,
+    a: usize,
+    b: usize,
+    seed: u64,
+) -> Option<PairParallax> {
+    let obs: Vec<([f64; 2], [f64; 2])> = tracks
+        .tracks
+        .iter()
+        .filter(|t| t.first <= a && t.end() > b)
+        .map(|t| (t.points[a - t.first], t.points[b - t.first]))
+        .collect();
+    let mut rng = Pcg64::seed_from_u64(seed);
+    let rotation_px = match k {
+        Some(k) => {
+            let rays: Vec<_> = obs.iter().map(|(p, q)| (ray(k, p), ray(k, q))).collect();
+            let est = RotationEstimator { focal: k.f1 };
+            let params = RansacParams::with_threshold(ROTATION_THRESHOLD);
+            let Ok(rot) = ransac(&est, &rays, &params, &mut rng) else {
+                return None;
+            };
+            median(rays.iter().map(|d| est.residual(&rot.model, d)).collect())
+        }
+        None => f64::NAN,
+    };
+    let pts: Vec<_> = obs
+        .iter()
+        .map(|(p, q)| (Point2::new(p[0], p[1]), Point2::new(q[0], q[1])))
+        .collect();
+    let params = RansacParams::with_threshold(ROTATION_THRESHOLD);
+    let Ok(h) = ransac(&HomographyEstimator, &pts, &params, &mut rng) else {
+        return None;
+    };
+    let homography_px = median(
+        pts.iter()
+            .map(|d| HomographyEstimator.residual(&h.model, d))
+            .collect(),
+    );
+    let fe = FundamentalEstimator::default();
+    let Ok(f) = ransac(&fe, &pts, &RansacParams::with_threshold(1.5), &mut rng) else {
+        return None;
+    };
+    let epipolar_px = median(pts.iter().map(|d| fe.residual(&f.model, d)).collect());
+    if (rotation_px.is_finite() || k.is_none()) && epipolar_px.is_finite() {
+        return Some(PairParallax {
+            frames: [tracks.frames[a], tracks.frames[b]],
+            tracks: obs.len(),
+            rotation_px,
+            homography_px,
+            epipolar_px,
+        });
+    }
+    None
+}
+
 /// The three models of every pair of [`frame_pairs`]: the rotation (when `k` is given; NaN
 /// otherwise), the homography and the fundamental matrix, each by RANSAC, with the median
 /// residual of every common track.
 fn fit_pairs(tracks: &Tracks, k: Option<&Intrinsics>, seed: u64) -> Result<Vec<PairParallax>> {
-    let mut pairs = Vec::new();
-    for (pi, (a, b)) in frame_pairs(tracks).into_iter().enumerate() {
-        let obs: Vec<([f64; 2], [f64; 2])> = tracks
-            .tracks
-            .iter()
-            .filter(|t| t.first <= a && t.end() > b)
-            .map(|t| (t.points[a - t.first], t.points[b - t.first]))
-            .collect();
-        let mut rng = Pcg64::seed_from_u64(derive_seed(seed, 11, pi as u64));
-        let rotation_px = match k {
-            Some(k) => {
-                let rays: Vec<_> = obs.iter().map(|(p, q)| (ray(k, p), ray(k, q))).collect();
-                let est = RotationEstimator { focal: k.f1 };
-                let params = RansacParams::with_threshold(ROTATION_THRESHOLD);
-                let Ok(rot) = ransac(&est, &rays, &params, &mut rng) else {
-                    continue;
-                };
-                median(rays.iter().map(|d| est.residual(&rot.model, d)).collect())
-            }
-            None => f64::NAN,
-        };
-        let pts: Vec<_> = obs
-            .iter()
-            .map(|(p, q)| (Point2::new(p[0], p[1]), Point2::new(q[0], q[1])))
-            .collect();
-        let params = RansacParams::with_threshold(ROTATION_THRESHOLD);
-        let Ok(h) = ransac(&HomographyEstimator, &pts, &params, &mut rng) else {
-            continue;
-        };
-        let homography_px = median(
-            pts.iter()
-                .map(|d| HomographyEstimator.residual(&h.model, d))
-                .collect(),
-        );
-        let fe = FundamentalEstimator::default();
-        let Ok(f) = ransac(&fe, &pts, &RansacParams::with_threshold(1.5), &mut rng) else {
-            continue;
-        };
-        let epipolar_px = median(pts.iter().map(|d| fe.residual(&f.model, d)).collect());
-        if (rotation_px.is_finite() || k.is_none()) && epipolar_px.is_finite() {
-            pairs.push(PairParallax {
-                frames: [tracks.frames[a], tracks.frames[b]],
-                tracks: obs.len(),
-                rotation_px,
-                homography_px,
-                epipolar_px,
-            });
-        }
-    }
+    use rayon::prelude::*;
+    // Each pair on its own seeded generator: the same pairs whatever the thread count.
+    let fitted: Vec<Option<PairParallax>> = frame_pairs(tracks)
+        .into_par_iter()
+        .enumerate()
+        .map(|(pi, (a, b))| fit_pair(tracks, k, a, b, derive_seed(seed, 11, pi as u64)))
+        .collect();
+    let pairs: Vec<PairParallax> = fitted.into_iter().flatten().collect();
     if pairs.is_empty() {
         return Err(VisionError::Degenerate(format!(
             "no two frames share {MIN_COMMON} tracks: the camera's motion cannot be measured"
