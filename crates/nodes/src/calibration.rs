@@ -13,6 +13,18 @@ use vfxgraph_vision::two_view::{reconstruct_two_view, TwoViewParams};
 use crate::artifacts::{CameraArt, IndicesArt, IntrinsicsArt, Points2dArt, Points3dArt, ReportArt};
 use crate::FnNode;
 
+/// Reads file param `path` with `read` and sets output `port` to `wrap` of what it read.
+fn read_into<T, A: ArtifactType, E: std::error::Error>(
+    ctx: &mut Context<'_>,
+    port: &str,
+    read: fn(&std::path::Path) -> Result<T, E>,
+    wrap: fn(T) -> A,
+) -> Result<(), NodeError> {
+    let value = read(&ctx.path("path"))?;
+    ctx.output(port, wrap(value));
+    Ok(())
+}
+
 /// A node run once that reads file `path` (documented by `path_doc`) into output `port`.
 fn file_reader(
     name: &'static str,
@@ -45,11 +57,7 @@ pub fn register(r: &mut Registry) {
         )
         .threads(vfxgraph_engine::Threads::One)
         .memory(vfxgraph_engine::Memory::Fixed(256)),
-        |ctx| {
-            let k = formats::read_intrinsics(&ctx.path("path"))?;
-            ctx.output("intrinsics", IntrinsicsArt(k));
-            Ok(())
-        },
+        |ctx| read_into(ctx, "intrinsics", formats::read_intrinsics, IntrinsicsArt),
     ));
     r.register_node(FnNode::new(
         file_reader(
@@ -58,11 +66,7 @@ pub fn register(r: &mut Registry) {
             "points file",
             PortSpec::one("points", Points2dArt::NAME, "pixel coordinates"),
         ),
-        |ctx| {
-            let p = formats::read_points2d(&ctx.path("path"))?;
-            ctx.output("points", Points2dArt(p));
-            Ok(())
-        },
+        |ctx| read_into(ctx, "points", formats::read_points2d, Points2dArt),
     ));
     r.register_node(FnNode::new(
         file_reader(
@@ -71,11 +75,7 @@ pub fn register(r: &mut Registry) {
             "points file",
             PortSpec::one("points", Points3dArt::NAME, "world coordinates"),
         ),
-        |ctx| {
-            let p = formats::read_points3d(&ctx.path("path"))?;
-            ctx.output("points", Points3dArt(p));
-            Ok(())
-        },
+        |ctx| read_into(ctx, "points", formats::read_points3d, Points3dArt),
     ));
     r.register_node(FnNode::new(
         NodeSpec::new(

@@ -16,10 +16,11 @@ use vfxgraph_render::differential::{
 };
 use vfxgraph_render::ImageSize;
 
-use crate::artifacts::{CameraPathArt, ImageArt, IntrinsicsArt, ReportArt};
+use crate::artifacts::{ImageArt, ReportArt};
 use crate::hdr::DomeArt;
 use crate::render::{
-    camera_for_frame, check_finite, instance_camera, pick_light, with_sync_progress, SceneArt,
+    camera_for_frame, check_finite, instance_camera, pick_light, scene_inputs, with_sync_progress,
+    SceneArt,
 };
 use crate::{output_path, FnNode};
 
@@ -59,35 +60,15 @@ pub(crate) fn size_params(spec: NodeSpec) -> NodeSpec {
     spec.options::<ImageSize>()
 }
 
+/// The inputs of the shot's renders ([`scene_inputs`]).
 pub(crate) fn light_and_camera_inputs(spec: NodeSpec) -> NodeSpec {
-    spec.input(PortSpec::one(
-        "scene",
-        SceneArt::NAME,
-        "objects and shadow catchers",
-    ))
-    .input(
-        PortSpec::one(
-            "dome",
-            DomeArt::NAME,
-            "a light dome replacing the scene's dome or background",
-        )
-        .optional(),
-    )
-    .input(
-        PortSpec::one(
-            "cameras",
-            CameraPathArt::NAME,
+    scene_inputs(
+        spec,
+        [
+            "objects and shadow catchers",
             "the solved camera path (K from `intrinsics`, the path, or the scene camera)",
-        )
-        .optional(),
-    )
-    .input(
-        PortSpec::one(
-            "intrinsics",
-            IntrinsicsArt::NAME,
             "K (and image size) replacing the path's and the scene camera's",
-        )
-        .optional(),
+        ],
     )
 }
 
