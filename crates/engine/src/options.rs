@@ -82,6 +82,16 @@ impl NodeSpec {
         }
         self
     }
+
+    /// Adds the params of options struct `T` with the values of `defaults` as their defaults
+    /// (a node type whose defaults differ from `T`'s `Default`, as an OpenCV cross-check
+    /// without drift correction).
+    pub fn options_from<T: Options>(mut self, defaults: &T) -> Self {
+        for d in T::params_from(defaults) {
+            self = self.param(d.into());
+        }
+        self
+    }
 }
 
 impl Context<'_> {
@@ -221,5 +231,51 @@ mod tests {
         values.insert("reference".to_string(), ParamValue::Int(3));
         let read = Files::read(&Params::new(values)).unwrap();
         assert_eq!((read.plate.as_str(), read.reference), ("a.exr", Some(3)));
+    }
+
+    /// A flattened struct whose defaults the outer struct sets, and floats whose 0 is off.
+    #[derive(Debug, PartialEq, Options)]
+    struct Outer {
+        #[param(flatten)]
+        inner: Thresholds,
+    }
+
+    #[derive(Debug, Default, PartialEq, Options)]
+    struct Thresholds {
+        /// a threshold; 0 = off
+        check: Option<f32>,
+        /// a tolerance
+        tolerance: f32,
+    }
+
+    impl Default for Outer {
+        fn default() -> Self {
+            Outer {
+                inner: Thresholds {
+                    check: Some(2.5),
+                    tolerance: 1e-5,
+                },
+            }
+        }
+    }
+
+    #[test]
+    fn flattened_defaults_are_the_outer_structs_and_zero_is_off() {
+        let spec = NodeSpec::new("t", "test").options::<Outer>();
+        assert_eq!(spec.params[0].default, Some(ParamValue::Float(2.5)));
+        // An f32 default is its shortest decimal, not its binary value.
+        assert_eq!(spec.params[1].default, Some(ParamValue::Float(1e-5)));
+        let spec = NodeSpec::new("t", "test").options_from(&Outer {
+            inner: Thresholds::default(),
+        });
+        assert_eq!(spec.params[0].default, Some(ParamValue::Float(0.0)));
+        let mut values = BTreeMap::new();
+        values.insert("check".to_string(), ParamValue::Float(0.0));
+        values.insert("tolerance".to_string(), ParamValue::Float(1e-5));
+        let read = Outer::read(&Params::new(values.clone())).unwrap();
+        assert_eq!(read.inner.check, None);
+        assert_eq!(read.inner.tolerance, 1e-5_f32);
+        values.insert("check".to_string(), ParamValue::Float(2.5));
+        assert_eq!(Outer::read(&Params::new(values)).unwrap(), Outer::default());
     }
 }

@@ -10,7 +10,8 @@
 //!   crate), PFM and Radiance RGBE `.hdr` (hand-written). sRGB is decoded to linear on read and
 //!   encoded on write; float formats are stored as they are.
 //! - [`color`]: the IEC 61966-2-1 sRGB transfer functions and Rec. 709 luminance.
-//! - [`draw`]: plots drawn into images (the response curve figure).
+//! - [`draw`]: plots and overlays drawn into images (the response curve figure; lines, crosses,
+//!   squares and colours by id for track overlays).
 //! - [`tonemap`]: photographic exposure and display tone mapping (clip, or Reinhard et al. 2002).
 //!
 //! No function of this crate panics on the content of a file: malformed, truncated or huge inputs

@@ -1,103 +1,81 @@
 //! Camera calibration nodes (book chapters 2–5): `read_intrinsics`, `read_points2d`,
 //! `read_points3d`, `calibrate_camera`, `two_view`, `write_camera`, `write_report`.
 
-use rand::SeedableRng;
-use rand_pcg::Pcg64;
 use vfxgraph_engine::fsutil::atomic_write;
 use vfxgraph_engine::{
-    ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, ParamValue, PathRole,
-    PortSpec, Registry,
+    ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, PathRole, PortSpec,
+    Registry,
 };
-use vfxgraph_vision::calibration::{calibrate_camera, CalibrationMethod, CalibrationOptions};
+use vfxgraph_vision::calibration::{calibrate_camera, CalibrateParams};
 use vfxgraph_vision::formats;
-use vfxgraph_vision::ransac::RansacParams;
-use vfxgraph_vision::two_view::{reconstruct_two_view, EpipolarResidual, TwoViewOptions};
+use vfxgraph_vision::two_view::{reconstruct_two_view, TwoViewParams};
 
 use crate::artifacts::{CameraArt, IndicesArt, IntrinsicsArt, Points2dArt, Points3dArt, ReportArt};
 use crate::FnNode;
 
-fn path_in(doc: &'static str) -> ParamSpec {
-    ParamSpec::required("path", ParamType::Path(PathRole::Input), doc)
+/// Reads file param `path` with `read` and sets output `port` to `wrap` of what it read.
+fn read_into<T, A: ArtifactType, E: std::error::Error>(
+    ctx: &mut Context<'_>,
+    port: &str,
+    read: fn(&std::path::Path) -> Result<T, E>,
+    wrap: fn(T) -> A,
+) -> Result<(), NodeError> {
+    let value = read(&ctx.path("path"))?;
+    ctx.output(port, wrap(value));
+    Ok(())
+}
+
+/// A node run once that reads file `path` (documented by `path_doc`) into output `port`.
+fn file_reader(
+    name: &'static str,
+    doc: &'static str,
+    path_doc: &'static str,
+    port: PortSpec,
+) -> NodeSpec {
+    NodeSpec::new(name, doc)
+        .mode(Mode::Once)
+        .param(ParamSpec::required(
+            "path",
+            ParamType::Path(PathRole::Input),
+            path_doc,
+        ))
+        .output(port)
 }
 
 fn path_out(doc: &'static str) -> ParamSpec {
     ParamSpec::required("path", ParamType::Path(PathRole::Output), doc)
 }
 
-fn seed_param() -> ParamSpec {
-    ParamSpec::optional(
-        "seed",
-        ParamType::Int {
-            min: 0,
-            max: i64::MAX,
-        },
-        ParamValue::Int(0),
-        "RANSAC random seed",
-    )
-}
-
-fn threshold_param(default: f64, doc: &'static str) -> ParamSpec {
-    ParamSpec::optional(
-        "ransac_threshold_px",
-        ParamType::Float { min: 0.0, max: 1e6 },
-        ParamValue::Float(default),
-        doc,
-    )
-}
-
 /// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
     r.register_node(FnNode::new(
-        NodeSpec::new(
+        file_reader(
             "read_intrinsics",
             "Reads camera intrinsics K: the book's g7cam.txt (3×3 matrix, rows) or JSON.",
+            "g7cam.txt-style K file, or .json",
+            PortSpec::one("intrinsics", IntrinsicsArt::NAME, "K"),
         )
-        .mode(Mode::Once)
         .threads(vfxgraph_engine::Threads::One)
-        .memory(vfxgraph_engine::Memory::Fixed(256))
-        .param(path_in("g7cam.txt-style K file, or .json"))
-        .output(PortSpec::one("intrinsics", IntrinsicsArt::NAME, "K")),
-        |ctx| {
-            let k = formats::read_intrinsics(&ctx.path("path"))?;
-            ctx.output("intrinsics", IntrinsicsArt(k));
-            Ok(())
-        },
+        .memory(vfxgraph_engine::Memory::Fixed(256)),
+        |ctx| read_into(ctx, "intrinsics", formats::read_intrinsics, IntrinsicsArt),
     ));
     r.register_node(FnNode::new(
-        NodeSpec::new(
+        file_reader(
             "read_points2d",
             "Reads image points, `u v` per line (the book's calib_projs.txt), or JSON.",
-        )
-        .mode(Mode::Once)
-        .param(path_in("points file"))
-        .output(PortSpec::one(
-            "points",
-            Points2dArt::NAME,
-            "pixel coordinates",
-        )),
-        |ctx| {
-            let p = formats::read_points2d(&ctx.path("path"))?;
-            ctx.output("points", Points2dArt(p));
-            Ok(())
-        },
+            "points file",
+            PortSpec::one("points", Points2dArt::NAME, "pixel coordinates"),
+        ),
+        |ctx| read_into(ctx, "points", formats::read_points2d, Points2dArt),
     ));
     r.register_node(FnNode::new(
-        NodeSpec::new(
+        file_reader(
             "read_points3d",
             "Reads 3D points, `X Y Z` per line, or JSON.",
-        )
-        .mode(Mode::Once)
-        .param(path_in("points file"))
-        .output(PortSpec::one(
-            "points",
-            Points3dArt::NAME,
-            "world coordinates",
-        )),
-        |ctx| {
-            let p = formats::read_points3d(&ctx.path("path"))?;
-            ctx.output("points", Points3dArt(p));
-            Ok(())
-        },
+            "points file",
+            PortSpec::one("points", Points3dArt::NAME, "world coordinates"),
+        ),
+        |ctx| read_into(ctx, "points", formats::read_points3d, Points3dArt),
     ));
     r.register_node(FnNode::new(
         NodeSpec::new(
@@ -113,23 +91,7 @@ pub fn register(r: &mut Registry) {
             Points2dArt::NAME,
             "their projections, same order",
         ))
-        .param(ParamSpec::optional(
-            "method",
-            ParamType::Enum(&["dlt", "restricted", "tsai"]),
-            ParamValue::Str("restricted".into()),
-            "calibration model",
-        ))
-        .param(ParamSpec::optional(
-            "principal_point",
-            ParamType::FloatList { len: None },
-            ParamValue::List(vec![]),
-            "[u0, v0] for tsai (pixels)",
-        ))
-        .param(threshold_param(
-            0.0,
-            "RANSAC inlier threshold in pixels; 0 uses every match",
-        ))
-        .param(seed_param())
+        .options::<CalibrateParams>()
         .output(PortSpec::one("camera", CameraArt::NAME, "K[R|t]"))
         .output(PortSpec::one(
             "report",
@@ -160,17 +122,7 @@ pub fn register(r: &mut Registry) {
             IntrinsicsArt::NAME,
             "K of both views",
         ))
-        .param(threshold_param(
-            1.0,
-            "RANSAC inlier threshold (Sampson distance, pixels)",
-        ))
-        .param(ParamSpec::optional(
-            "residual",
-            ParamType::Enum(&["sampson", "algebraic"]),
-            ParamValue::Str("sampson".into()),
-            "RANSAC residual",
-        ))
-        .param(seed_param())
+        .options::<TwoViewParams>()
         .output(PortSpec::one(
             "camera_b",
             CameraArt::NAME,
@@ -231,69 +183,29 @@ pub fn register(r: &mut Registry) {
 }
 
 fn write_json<T: serde::Serialize>(ctx: &Context<'_>, value: &T) -> Result<(), NodeError> {
-    let path = ctx.path("path");
     let mut text = serde_json::to_string_pretty(value)?;
     text.push('\n');
-    if let Some(parent) = path.parent() {
-        std::fs::create_dir_all(parent)
-            .map_err(|e| NodeError::msg(format!("cannot create {}: {e}", parent.display())))?;
-    }
+    let path = crate::output_path(ctx, "path")?;
     atomic_write(&path, text.as_bytes())
         .map_err(|e| NodeError::msg(format!("cannot write {}: {e}", path.display())))
 }
 
-fn ransac_params(ctx: &Context<'_>) -> Option<RansacParams> {
-    let t = ctx.params().f64("ransac_threshold_px");
-    (t > 0.0).then(|| RansacParams::with_threshold(t))
-}
-
-fn rng(ctx: &Context<'_>) -> Pcg64 {
-    Pcg64::seed_from_u64(ctx.params().i64("seed") as u64)
-}
-
 fn run_calibrate(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+    let o: CalibrateParams = ctx.options()?;
     let p3 = &ctx.input::<Points3dArt>("points3d")?.0;
     let p2 = &ctx.input::<Points2dArt>("points2d")?.0;
-    let method = match ctx.params().str("method") {
-        "dlt" => CalibrationMethod::Dlt,
-        "tsai" => CalibrationMethod::Tsai,
-        _ => CalibrationMethod::Restricted,
-    };
-    let pp = ctx.params().f64s("principal_point");
-    let principal_point = match (method, pp.as_slice()) {
-        (_, [u, v]) => Some(nalgebra::Point2::new(*u, *v)),
-        (CalibrationMethod::Tsai, _) => {
-            return Err(NodeError::msg(
-                "method tsai needs `principal_point: [u0, v0]` (pixels)",
-            ))
-        }
-        (_, []) => None,
-        _ => return Err(NodeError::msg("`principal_point` is [u0, v0]")),
-    };
-    let opts = CalibrationOptions {
-        method,
-        principal_point,
-        ransac: ransac_params(ctx),
-        ..Default::default()
-    };
-    let (camera, report) = calibrate_camera(&p3.0, &p2.0, &opts, &mut rng(ctx))?;
+    let (camera, report) = calibrate_camera(&p3.0, &p2.0, &o.options()?, &mut o.rng())?;
     ctx.output("camera", CameraArt(camera));
     ctx.output("report", ReportArt(serde_json::to_value(&report)?));
     Ok(())
 }
 
 fn run_two_view(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+    let o: TwoViewParams = ctx.options()?;
     let a = &ctx.input::<Points2dArt>("points_a")?.0;
     let b = &ctx.input::<Points2dArt>("points_b")?.0;
     let k = &ctx.input::<IntrinsicsArt>("intrinsics")?.0;
-    let mut opts = TwoViewOptions::default();
-    if let Some(r) = ransac_params(ctx) {
-        opts.ransac = r;
-    }
-    if ctx.params().str("residual") == "algebraic" {
-        opts.residual = EpipolarResidual::Algebraic;
-    }
-    let rec = reconstruct_two_view(&a.0, &b.0, k, k, &opts, &mut rng(ctx))?;
+    let rec = reconstruct_two_view(&a.0, &b.0, k, k, &o.options(), &mut o.rng())?;
     ctx.output("camera_b", CameraArt(rec.camera_b.clone()));
     ctx.output("points3d", Points3dArt(rec.points3d.clone()));
     ctx.output("inliers", IndicesArt(rec.point_indices.clone()));
@@ -305,7 +217,9 @@ fn run_two_view(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 mod tests {
     use super::*;
     use crate::testing::{params, spec};
-    use vfxgraph_engine::{InputValue, Value};
+    use rand::SeedableRng;
+    use rand_pcg::Pcg64;
+    use vfxgraph_engine::{InputValue, ParamValue, Value};
     use vfxgraph_vision::{synthetic, Camera, Points2d, Points3d};
 
     struct Scene {

@@ -113,12 +113,7 @@ fn run_write_image(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     check_pattern(ctx)?;
     let port = ctx.input_port(0);
     let img = &ctx.input::<ImageArt>(port)?.0;
-    let path = ctx.path("path");
-    if let Some(parent) = path.parent() {
-        std::fs::create_dir_all(parent)
-            .map_err(|e| NodeError::msg(format!("cannot create {}: {e}", parent.display())))?;
-    }
-    write_image(&path, img)?;
+    write_image(&crate::output_path(ctx, "path")?, img)?;
     Ok(())
 }
 

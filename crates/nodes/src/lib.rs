@@ -102,6 +102,8 @@ mod tests {
     use crate::testing::check_defaults;
     use vfxgraph_imaging::hdr;
     use vfxgraph_render as render;
+    use vfxgraph_video as video;
+    use vfxgraph_vision::{camera_path, klt};
 
     /// Every node type whose params come from an options struct, and that struct: the nodes
     /// of a family are listed here when the family is converted.
@@ -182,6 +184,35 @@ mod tests {
         (
             "export_cameras",
             check_defaults::<vfxgraph_vision::export::ExportOptions>,
+        ),
+        ("klt_track", check_defaults::<klt::TrackerParams>),
+        ("write_tracks", check_defaults::<klt::WriteTracksOptions>),
+        ("draw_tracks", check_defaults::<klt::DrawTracksOptions>),
+        ("read_video", check_defaults::<video::ReadVideoOptions>),
+        ("write_video", check_defaults::<video::WriteVideoOptions>),
+        (
+            "synthetic_camera_path",
+            check_defaults::<camera_path::SyntheticPathOptions>,
+        ),
+        (
+            "project_marks",
+            check_defaults::<camera_path::ProjectMarksOptions>,
+        ),
+        (
+            "calibrate_camera",
+            check_defaults::<vfxgraph_vision::calibration::CalibrateParams>,
+        ),
+        (
+            "two_view",
+            check_defaults::<vfxgraph_vision::two_view::TwoViewParams>,
+        ),
+        (
+            "proxy_from_points",
+            check_defaults::<render::proxy::ProxyOptions>,
+        ),
+        (
+            "catcher_texture",
+            check_defaults::<render::local_scene::LocalTextureOptions>,
         ),
     ];
 

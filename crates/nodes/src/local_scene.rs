@@ -6,13 +6,10 @@
 //! nodes never see them and a change of an object reruns only what renders it.
 
 use vfxgraph_engine::{ArtifactType, Context, NodeError, NodeSpec, PortSpec, Registry};
-use vfxgraph_imaging::Image;
-use vfxgraph_params::Options;
-use vfxgraph_render::catcher_texture::{TextureOptions, View};
-use vfxgraph_render::local_scene::{texture_local_scene, FaceTexture};
-
-use vfxgraph_render::proxy::{box_faces, box_on_plane, catchers, plane_patch};
-use vfxgraph_render::{Rgb, Shape, Vec3};
+use vfxgraph_render::catcher_texture::View;
+use vfxgraph_render::local_scene::{add_objects, texture_local_scene_report, LocalTextureOptions};
+use vfxgraph_render::proxy::{add_proxies, ProxyOptions};
+use vfxgraph_render::Vec3;
 
 use crate::artifacts::{ImageArt, Points3dArt, ReportArt};
 use crate::hdr::DomeArt;
@@ -20,198 +17,14 @@ use crate::render::{camera_for_frame, pick_light, SceneArt};
 use crate::shot::{light_and_camera_inputs, size_params};
 use crate::FnNode;
 
-/// The params of `catcher_texture`.
-#[derive(Debug, PartialEq, Options)]
-#[param(check)]
-pub(crate) struct CatcherTextureParams {
-    /// the plate frames to estimate from, which must be clean (without the CG objects or their shadows); empty = every frame of the plate
-    frames: Vec<f64>,
-    /// which shadow catcher (0 = the scene's first), a planar one
-    catcher: usize,
-    /// texels along the catcher's longer side
-    #[param(range = 1..=8192)]
-    resolution: usize,
-    /// spacing of the irradiance grid, in texels (irradiance is smooth away from contact shadows)
-    #[param(range = 1..=256)]
-    irradiance_cell: usize,
-    /// paths per irradiance grid point
-    #[param(range = 1..=1048576)]
-    irradiance_samples: u32,
-    /// maximum scattering vertices of the irradiance paths
-    #[param(range = 1..=64)]
-    max_depth: u32,
-    /// a texel is estimated when seen in at least this many frames (else it keeps the uniform colour)
-    #[param(range = 1..=100000)]
-    min_frames: usize,
-    /// the physical albedo range's upper end (estimates are clamped to [0, max_albedo])
-    #[param(range = 0.01..=1.0)]
-    max_albedo: f64,
-    /// estimates, each rendering the irradiance with the previous texture (catchers that see one another)
-    #[param(range = 1..=10)]
-    iterations: usize,
-    /// also texture every other planar catcher the frames see (proxy faces), after `catcher`; a proxy's faces and texels no frame sees take the median albedo of its seen texels
-    others: bool,
-    /// texels along the longer side of each other catcher
-    #[param(range = 1..=8192)]
-    others_resolution: usize,
-}
-
-impl CatcherTextureParams {
-    fn check(&self) -> Result<(), String> {
-        if let Some(f) = self.frames.iter().find(|f| f.fract() != 0.0) {
-            return Err(format!("param `frames`: {f} is not a frame number"));
-        }
-        Ok(())
-    }
-}
-
-impl Default for CatcherTextureParams {
-    fn default() -> Self {
-        let d = TextureOptions::default();
-        CatcherTextureParams {
-            frames: Vec::new(),
-            catcher: d.catcher,
-            resolution: d.resolution,
-            irradiance_cell: 8,
-            irradiance_samples: 1024,
-            max_depth: d.max_depth,
-            min_frames: d.min_frames,
-            max_albedo: d.max_albedo,
-            iterations: d.iterations,
-            others: true,
-            others_resolution: 64,
-        }
-    }
-}
-
-/// The params of `proxy_from_points`.
-#[derive(Debug, PartialEq, Options)]
-pub(crate) struct ProxyParams {
-    /// boxes, 4 indices into `points3d` each: three base corners a, b, c (b adjacent to a and c) and the corner above a
-    boxes: Vec<f64>,
-    /// boxes standing on the first catcher's plane (the ground), 3 indices into `points3d` each: top corners a, b, c (b adjacent to a and c) — for a box whose base corners are hidden
-    tops: Vec<f64>,
-    /// plane patches, 4 indices into `points3d` each: the corners in order around the patch
-    planes: Vec<f64>,
-    /// the proxies' starting diffuse colour (catcher_texture then estimates it from the plate)
-    albedo: Vec<f64>,
-}
-
-impl Default for ProxyParams {
-    fn default() -> Self {
-        ProxyParams {
-            boxes: Vec::new(),
-            tops: Vec::new(),
-            planes: Vec::new(),
-            albedo: vec![0.18, 0.18, 0.18],
-        }
-    }
-}
-
-/// The measured points named by `indices` (groups of `size`).
-fn groups(
-    pts: &[Vec3],
-    indices: &[f64],
-    what: &str,
-    size: usize,
-) -> Result<Vec<Vec<Vec3>>, NodeError> {
-    indices
-        .chunks(size)
-        .enumerate()
-        .map(|(g, c)| {
-            let one = if what == "planes" {
-                "plane patch"
-            } else {
-                "box"
-            };
-            if c.len() < size {
-                return Err(NodeError::msg(format!(
-                    "param `{what}`: {} {g} has {} point indices, a {} needs {size}",
-                    one,
-                    c.len(),
-                    one
-                )));
-            }
-            c.iter()
-                .map(|&i| {
-                    if i.fract() != 0.0 || i < 0.0 || i as usize >= pts.len() {
-                        Err(NodeError::msg(format!(
-                            "param `{what}`: {i} is not the index of one of the {} measured \
-                             points (0-based)",
-                            pts.len()
-                        )))
-                    } else {
-                        Ok(pts[i as usize])
-                    }
-                })
-                .collect()
-        })
-        .collect()
-}
-
-/// A point on the scene's first catcher (the ground) and its normal, from its first triangle.
-fn ground_plane(scene: &vfxgraph_render::Scene) -> Result<(Vec3, Vec3), NodeError> {
-    let tri = scene
-        .catchers()
-        .find_map(|o| match &o.shape {
-            Shape::Triangles { triangles } => triangles.first().copied(),
-            _ => None,
-        })
-        .ok_or_else(|| {
-            NodeError::msg(
-                "param `tops`: a box by its top stands on the first catcher's plane, but the \
-                 scene has no triangle catcher",
-            )
-        })?;
-    Ok((tri[0], (tri[1] - tri[0]).cross(tri[2] - tri[0])))
-}
-
 fn run_proxy_from_points(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let p: ProxyParams = ctx.options()?;
+    let o: ProxyOptions = ctx.options()?;
     let art = ctx.input::<SceneArt>("scene")?;
-    let pts: Vec<Vec3> = ctx
-        .input::<Points3dArt>("points3d")?
-        .0
-         .0
+    let pts: Vec<Vec3> = (ctx.input::<Points3dArt>("points3d")?.0 .0)
         .iter()
         .map(|p| Vec3::new(p.x, p.y, p.z))
         .collect();
-    if p.boxes.is_empty() && p.tops.is_empty() && p.planes.is_empty() {
-        return Err(NodeError::msg(
-            "no proxies: give `boxes`, `planes` (4 point indices each) and/or `tops` (3)",
-        ));
-    }
-    if p.albedo.len() != 3 || p.albedo.iter().any(|a| !(0.0..=1.0).contains(a)) {
-        return Err(NodeError::msg("param `albedo`: 3 values in [0, 1]"));
-    }
-    let albedo = Rgb::new(p.albedo[0], p.albedo[1], p.albedo[2]);
-    let mut scene = art.scene.clone();
-    let mut faces = 0;
-    for (g, q) in groups(&pts, &p.boxes, "boxes", 4)?.iter().enumerate() {
-        let f = box_faces(q).map_err(|e| NodeError::msg(format!("box {g}: {e}")))?;
-        faces += f.len();
-        scene.objects.extend(catchers(f, albedo));
-    }
-    let tops = groups(&pts, &p.tops, "tops", 3)?;
-    if !tops.is_empty() {
-        let (origin, normal) = ground_plane(&art.scene)?;
-        for (g, q) in tops.iter().enumerate() {
-            let f = box_on_plane(q, origin, normal)
-                .map_err(|e| NodeError::msg(format!("tops box {g}: {e}")))?;
-            faces += f.len();
-            scene.objects.extend(catchers(f, albedo));
-        }
-    }
-    for (g, q) in groups(&pts, &p.planes, "planes", 4)?.iter().enumerate() {
-        let f = plane_patch(q).map_err(|e| NodeError::msg(format!("plane {g}: {e}")))?;
-        faces += 1;
-        scene.objects.extend(catchers(vec![f], albedo));
-    }
-    let report = serde_json::json!({
-        "boxes": p.boxes.len() / 4 + p.tops.len() / 3,
-        "planes": p.planes.len() / 4,
-        "catcher_faces": faces,
-    });
+    let (scene, report) = add_proxies(&art.scene, &pts, &o).map_err(NodeError::msg)?;
     let dome = art.dome.clone();
     ctx.output("scene", SceneArt { scene, dome });
     ctx.output("report", ReportArt(report));
@@ -221,23 +34,7 @@ fn run_proxy_from_points(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 fn run_add_objects(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let local = ctx.input::<SceneArt>("scene")?;
     let cg = ctx.input::<SceneArt>("objects")?;
-    let insert: Vec<_> = cg
-        .scene
-        .objects
-        .iter()
-        .filter(|o| !o.catcher)
-        .cloned()
-        .collect();
-    if insert.is_empty() {
-        return Err(NodeError::msg(format!(
-            "the `objects` scene has no synthetic objects (its {} objects are all shadow \
-             catchers)",
-            cg.scene.objects.len()
-        )));
-    }
-    let mut scene = local.scene.clone();
-    scene.objects.extend(insert);
-    scene.lights.extend(cg.scene.lights.iter().cloned());
+    let scene = add_objects(&local.scene, &cg.scene).map_err(NodeError::msg)?;
     let dome = local.dome.clone();
     ctx.output("scene", SceneArt { scene, dome });
     Ok(())
@@ -276,7 +73,7 @@ pub fn register(r: &mut Registry) {
              its texture with catcher_texture), so it receives the objects' shadows, is seen \
              in their reflections and occludes the dome for their lighting.",
         )
-        .options::<ProxyParams>()
+        .options::<ProxyOptions>()
         .input(PortSpec::one("scene", SceneArt::NAME, "the placed scene"))
         .input(PortSpec::one(
             "points3d",
@@ -313,7 +110,7 @@ pub fn register(r: &mut Registry) {
             // 3: a face's irradiance on the side the plate sees it from, and the irradiance
             // grid's points no camera sees (under a box) left out of the interpolation.
             .version(3)
-            .options::<CatcherTextureParams>(),
+            .options::<LocalTextureOptions>(),
         ))
         .input(PortSpec::sequence(
             "plate",
@@ -342,7 +139,7 @@ pub fn register(r: &mut Registry) {
 }
 
 fn run_catcher_texture(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let p: CatcherTextureParams = ctx.options()?;
+    let o: LocalTextureOptions = ctx.options()?;
     let art = ctx.input::<SceneArt>("scene")?;
     let input_dome = ctx.input_opt::<DomeArt>("dome")?.map(|d| &d.0);
     let light = pick_light(input_dome, art)?;
@@ -351,10 +148,10 @@ fn run_catcher_texture(ctx: &mut Context<'_>) -> Result<(), NodeError> {
         (Some(a), Some(b)) => format!("{}–{}", a.0, b.0),
         _ => "none".into(),
     };
-    let wanted: Vec<i64> = if p.frames.is_empty() {
+    let wanted: Vec<i64> = if o.frames.is_empty() {
         plates.iter().map(|(f, _)| *f).collect()
     } else {
-        p.frames.iter().map(|&f| f as i64).collect()
+        o.frames.iter().map(|&f| f as i64).collect()
     };
     let mut chosen = Vec::new();
     for f in &wanted {
@@ -367,8 +164,7 @@ fn run_catcher_texture(ctx: &mut Context<'_>) -> Result<(), NodeError> {
                     "param `frames`: the plate has no frame {f} (its frames are {range})"
                 ))
             })?;
-        let camera = camera_for_frame(ctx, &art.scene, Some(*f))?;
-        chosen.push((*f, camera, plate));
+        chosen.push((*f, camera_for_frame(ctx, &art.scene, Some(*f))?, plate));
     }
     let views: Vec<View> = chosen
         .iter()
@@ -378,68 +174,26 @@ fn run_catcher_texture(ctx: &mut Context<'_>) -> Result<(), NodeError> {
             plate,
         })
         .collect();
-    let options = TextureOptions {
-        catcher: p.catcher,
-        resolution: p.resolution,
-        irradiance_cell: p.irradiance_cell,
-        irradiance_samples: p.irradiance_samples,
-        max_depth: p.max_depth,
-        seed: ctx.seed(),
-        min_frames: p.min_frames,
-        max_albedo: p.max_albedo,
-        iterations: p.iterations,
-    };
-    let (scene, rep, others) = texture_local_scene(
+    let out = texture_local_scene_report(
         &art.scene,
         light.env(),
         &views,
-        &options,
-        p.others.then_some(p.others_resolution),
+        &o,
+        ctx.seed(),
         Some(ctx.cancel_flag()),
     )
     .map_err(|e| NodeError::msg(e.to_string()))?;
-    let others: Vec<serde_json::Value> = others
-        .iter()
-        .map(|c| match &c.texture {
-            FaceTexture::Estimated {
-                texels_estimated,
-                clamped_fraction,
-                median_albedo,
-                mean_irradiance,
-            } => serde_json::json!({"catcher": c.catcher, "proxy": c.proxy,
-                "centre": c.centre, "normal": c.normal,
-                "texels_estimated": texels_estimated, "clamped_fraction": clamped_fraction,
-                "median_albedo": median_albedo, "mean_irradiance": mean_irradiance}),
-            FaceTexture::Unestimated { why, filled } => serde_json::json!({"catcher": c.catcher,
-                "proxy": c.proxy, "centre": c.centre, "normal": c.normal, "skipped": why,
-                "filled_with_proxy_median": filled}),
-        })
-        .collect();
-    let m = &rep.map;
-    let seen = Image::from_fn(m.width, m.height, 1, |x, y, _| {
-        rep.seen[y * m.width + x] as f32
-    });
-    let texels = m.width * m.height;
-    let report = serde_json::json!({
-        "frames": wanted,
-        "width": m.width,
-        "height": m.height,
-        "corner": [m.origin.x, m.origin.y, m.origin.z],
-        "u_edge": [m.u.x, m.u.y, m.u.z],
-        "v_edge": [m.v.x, m.v.y, m.v.z],
-        "uniform_colour": rep.uniform,
-        "texels_estimated": rep.estimated,
-        "fraction_estimated": rep.estimated as f64 / texels as f64,
-        "clamped_fraction": rep.clamped_fraction,
-        "pixels_per_frame": rep.pixels_per_frame,
-        "mean_irradiance": rep.mean_irradiance,
-        "others": others,
-    });
     let dome = art.dome.clone();
-    ctx.output("scene", SceneArt { scene, dome });
-    ctx.output("albedo", ImageArt(rep.albedo));
-    ctx.output("seen", ImageArt(seen));
-    ctx.output("report", ReportArt(report));
+    ctx.output(
+        "scene",
+        SceneArt {
+            scene: out.scene,
+            dome,
+        },
+    );
+    ctx.output("albedo", ImageArt(out.albedo));
+    ctx.output("seen", ImageArt(out.seen));
+    ctx.output("report", ReportArt(out.report));
     Ok(())
 }
 
@@ -450,6 +204,7 @@ mod tests {
     use nalgebra::Point3;
     use std::path::Path;
     use vfxgraph_engine::{InputValue, ParamValue, Value};
+    use vfxgraph_imaging::Image;
     use vfxgraph_vision::Points3d;
 
     fn scene(camera_at: &str) -> SceneArt {

@@ -4,36 +4,17 @@
 //! by projecting known 3-D points with the true cameras and rounding to whole pixels, in the
 //! book's marked-points form of chapter 8).
 
-use nalgebra::{Point2, Point3, Vector3};
 use vfxgraph_engine::{
-    ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, ParamValue, PortSpec,
-    Registry, Threads,
+    ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, PortSpec, Registry,
+    Threads,
 };
-use vfxgraph_vision::camera_path::{orbit_path, Orbit};
-use vfxgraph_vision::formats::{MarkedFrame, MarkedPoints};
-use vfxgraph_vision::{Camera, Intrinsics, Points2d};
+use vfxgraph_vision::camera_path::{
+    project_marks, synthetic_path, ProjectMarksOptions, SyntheticPathOptions,
+};
 
 use crate::artifacts::{CameraPathArt, IntrinsicsArt};
 use crate::modeling::MarkedPointsArt;
 use crate::FnNode;
-
-fn float(name: &'static str, min: f64, max: f64, default: f64, doc: &'static str) -> ParamSpec {
-    ParamSpec::optional(
-        name,
-        ParamType::Float { min, max },
-        ParamValue::Float(default),
-        doc,
-    )
-}
-
-fn floats(name: &'static str, len: Option<usize>, default: &[f64], doc: &'static str) -> ParamSpec {
-    ParamSpec::optional(
-        name,
-        ParamType::FloatList { len },
-        ParamValue::List(default.iter().map(|v| ParamValue::Float(*v)).collect()),
-        doc,
-    )
-}
 
 /// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
@@ -49,91 +30,7 @@ pub fn register(r: &mut Registry) {
         )
         .threads(Threads::One)
         .mode(Mode::Once)
-        .param(ParamSpec::optional(
-            "frames",
-            ParamType::Int {
-                min: 1,
-                max: 100_000,
-            },
-            ParamValue::Int(40),
-            "number of frames",
-        ))
-        .param(ParamSpec::optional(
-            "first_frame",
-            ParamType::Int {
-                min: 0,
-                max: 1 << 40,
-            },
-            ParamValue::Int(1),
-            "number of the first frame",
-        ))
-        .param(floats(
-            "target",
-            Some(3),
-            &[0.0, 0.0, 0.0],
-            "the point looked at",
-        ))
-        .param(float(
-            "radius",
-            1e-6,
-            1e9,
-            4.0,
-            "horizontal distance to the target's axis at the first frame",
-        ))
-        .param(float(
-            "radius_end",
-            1e-6,
-            1e9,
-            4.0,
-            "…at the last frame (a dolly)",
-        ))
-        .param(float(
-            "height",
-            -1e9,
-            1e9,
-            1.5,
-            "camera height above the target",
-        ))
-        .param(float(
-            "crane",
-            -1e9,
-            1e9,
-            0.0,
-            "extra height at mid-shot (sine over the shot)",
-        ))
-        .param(float(
-            "start",
-            -1e4,
-            1e4,
-            0.0,
-            "azimuth of the first camera, degrees (0: on +z of the target)",
-        ))
-        .param(float(
-            "sweep",
-            -1e4,
-            1e4,
-            30.0,
-            "azimuth swept over the shot, degrees",
-        ))
-        .param(float(
-            "focal",
-            1e-3,
-            1e7,
-            400.0,
-            "focal length, pixels (f1 = f2)",
-        ))
-        .param(ParamSpec::optional(
-            "width",
-            ParamType::Int { min: 1, max: 65536 },
-            ParamValue::Int(320),
-            "image width, pixels",
-        ))
-        .param(ParamSpec::optional(
-            "height_px",
-            ParamType::Int { min: 1, max: 65536 },
-            ParamValue::Int(240),
-            "image height, pixels",
-        ))
+        .options::<SyntheticPathOptions>()
         .output(PortSpec::one(
             "cameras",
             CameraPathArt::NAME,
@@ -164,12 +61,7 @@ pub fn register(r: &mut Registry) {
             ParamType::FloatList { len: None },
             "the frames marked (whole numbers)",
         ))
-        .param(ParamSpec::optional(
-            "round",
-            ParamType::Bool,
-            ParamValue::Bool(true),
-            "round to whole pixels, as a click is",
-        ))
+        .options::<ProjectMarksOptions>()
         .input(PortSpec::one(
             "cameras",
             CameraPathArt::NAME,
@@ -181,81 +73,17 @@ pub fn register(r: &mut Registry) {
 }
 
 fn run_synthetic_camera_path(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let p = ctx.params();
-    let t = p.f64s("target");
-    let (w, h) = (p.i64("width") as u32, p.i64("height_px") as u32);
-    let f = p.f64("focal");
-    let k = Intrinsics::new(f, f, (w as f64 - 1.0) / 2.0, (h as f64 - 1.0) / 2.0).with_size(w, h);
-    let orbit = Orbit {
-        target: Vector3::new(t[0], t[1], t[2]),
-        radius: p.f64("radius"),
-        radius_end: p.f64("radius_end"),
-        height: p.f64("height"),
-        crane: p.f64("crane"),
-        start: p.f64("start"),
-        sweep: p.f64("sweep"),
-        frames: p.i64("frames") as usize,
-        first_frame: p.i64("first_frame") as usize,
-    };
-    let path = orbit_path(&orbit, &k)?;
+    let (path, k) = synthetic_path(&ctx.options()?)?;
     ctx.output("cameras", CameraPathArt(path));
     ctx.output("intrinsics", IntrinsicsArt(k));
     Ok(())
 }
 
 fn run_project_marks(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let p = ctx.params();
-    let coords = p.f64s("points");
-    if coords.is_empty() || coords.len() % 3 != 0 {
-        return Err(NodeError::msg(format!(
-            "`points` needs x y z per point: {} numbers is not a positive multiple of 3",
-            coords.len()
-        )));
-    }
-    let points: Vec<Point3<f64>> = coords
-        .chunks(3)
-        .map(|c| Point3::new(c[0], c[1], c[2]))
-        .collect();
-    let round = p.bool("round");
-    let frames = p.f64s("frames");
+    let o: ProjectMarksOptions = ctx.options()?;
+    let (points, frames) = (ctx.params().f64s("points"), ctx.params().f64s("frames"));
     let path = &ctx.input::<CameraPathArt>("cameras")?.0;
-    let k = path
-        .intrinsics
-        .clone()
-        .ok_or_else(|| NodeError::msg("the camera path carries no intrinsics K"))?;
-    let mut marks = MarkedPoints::default();
-    for &f in &frames {
-        if !(f >= 0.0 && f.fract() == 0.0) {
-            return Err(NodeError::msg(format!(
-                "`frames`: {f} is not a frame number"
-            )));
-        }
-        let f = f as usize;
-        let pose = path
-            .frames
-            .iter()
-            .find(|p| p.frame == f)
-            .ok_or_else(|| NodeError::msg(format!("the camera path has no frame {f}")))?;
-        let cam = Camera::new(k.clone(), pose.pose.r, pose.pose.t);
-        let mut px = Vec::with_capacity(points.len());
-        for (i, x) in points.iter().enumerate() {
-            if cam.depth(x) <= 0.0 {
-                return Err(NodeError::msg(format!(
-                    "point {i} is behind the camera of frame {f}"
-                )));
-            }
-            let q = cam.project(x)?;
-            px.push(if round {
-                Point2::new(q.x.round(), q.y.round())
-            } else {
-                q
-            });
-        }
-        marks.frames.push(MarkedFrame {
-            frame: f,
-            points: Points2d(px),
-        });
-    }
+    let marks = project_marks(path, &points, &frames, &o)?;
     ctx.output("marks", MarkedPointsArt(marks));
     Ok(())
 }
@@ -264,7 +92,7 @@ fn run_project_marks(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 mod tests {
     use super::*;
     use crate::testing::{params, spec};
-    use vfxgraph_engine::{InputValue, Value};
+    use vfxgraph_engine::{InputValue, ParamValue, Value};
 
     fn path(set: &[(&str, ParamValue)]) -> Result<(CameraPathArt, IntrinsicsArt), NodeError> {
         let sp = spec("synthetic_camera_path");

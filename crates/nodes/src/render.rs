@@ -70,6 +70,17 @@ impl ArtifactType for SceneArt {
     }
 }
 
+/// The inputs of a node that renders a scene: `scene`, and the optional `dome` (replacing the
+/// scene's light), `cameras` and `intrinsics`; `docs`: those of scene, cameras and intrinsics.
+pub(crate) fn scene_inputs(spec: NodeSpec, docs: [&'static str; 3]) -> NodeSpec {
+    let [scene, cameras, intrinsics] = docs;
+    let dome = "a light dome replacing the scene's dome or background";
+    spec.input(PortSpec::one("scene", SceneArt::NAME, scene))
+        .input(PortSpec::one("dome", DomeArt::NAME, dome).optional())
+        .input(PortSpec::one("cameras", CameraPathArt::NAME, cameras).optional())
+        .input(PortSpec::one("intrinsics", IntrinsicsArt::NAME, intrinsics).optional())
+}
+
 /// Registers the artifact and nodes of this module.
 pub fn register(r: &mut Registry) {
     r.register_artifact::<SceneArt>();
@@ -100,9 +111,10 @@ pub fn register(r: &mut Registry) {
         run_read_scene,
     ));
     r.register_node(FnNode::new(
-        NodeSpec::new(
-            "render",
-            "Path-traces a scene (book ch. 9): next-event estimation on the area lights and \
+        scene_inputs(
+            NodeSpec::new(
+                "render",
+                "Path-traces a scene (book ch. 9): next-event estimation on the area lights and \
              the dome with multiple importance sampling, Russian roulette, one random stream \
              per pixel (same image for any thread count). Light: the `dome` input if \
              connected, else the scene's dome, else its background colour. With `cameras` \
@@ -110,40 +122,21 @@ pub fn register(r: &mut Registry) {
              f with the scene camera's K (or the `intrinsics` input's, or the path's; a scene \
              without a camera takes its K and image size from those). Output: mean radiance \
              per pixel (linear HDR) and the variance of that mean.",
-        )
-        .mode(Mode::Either)
-        .seeded()
-        // Measured (max RSS of graphs/farm_shot.yaml's 2 frames at 640×480 and 1920×1080):
-        // 32 MiB + 96 B/pixel.
-        .memory(vfxgraph_engine::Memory::Image {
-            base_mib: 64,
-            bytes_per_pixel: 96,
-        })
-        .options::<RenderOptions>()
-        .input(PortSpec::one("scene", SceneArt::NAME, "the scene"))
-        .input(
-            PortSpec::one(
-                "dome",
-                DomeArt::NAME,
-                "a light dome replacing the scene's dome or background",
             )
-            .optional(),
-        )
-        .input(
-            PortSpec::one(
-                "cameras",
-                CameraPathArt::NAME,
+            .mode(Mode::Either)
+            .seeded()
+            // Measured (max RSS of graphs/farm_shot.yaml's 2 frames at 640×480 and 1920×1080):
+            // 32 MiB + 96 B/pixel.
+            .memory(vfxgraph_engine::Memory::Image {
+                base_mib: 64,
+                bytes_per_pixel: 96,
+            })
+            .options::<RenderOptions>(),
+            [
+                "the scene",
                 "a solved camera path: frame f renders with that frame's [R|t]",
-            )
-            .optional(),
-        )
-        .input(
-            PortSpec::one(
-                "intrinsics",
-                IntrinsicsArt::NAME,
                 "K (and image size, if known) replacing the scene camera's",
-            )
-            .optional(),
+            ],
         )
         .output(PortSpec::one(
             "image",

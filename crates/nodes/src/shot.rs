@@ -16,10 +16,11 @@ use vfxgraph_render::differential::{
 };
 use vfxgraph_render::ImageSize;
 
-use crate::artifacts::{CameraPathArt, ImageArt, IntrinsicsArt, ReportArt};
+use crate::artifacts::{ImageArt, ReportArt};
 use crate::hdr::DomeArt;
 use crate::render::{
-    camera_for_frame, check_finite, instance_camera, pick_light, with_sync_progress, SceneArt,
+    camera_for_frame, check_finite, instance_camera, pick_light, scene_inputs, with_sync_progress,
+    SceneArt,
 };
 use crate::{output_path, FnNode};
 
@@ -59,35 +60,15 @@ pub(crate) fn size_params(spec: NodeSpec) -> NodeSpec {
     spec.options::<ImageSize>()
 }
 
+/// The inputs of the shot's renders ([`scene_inputs`]).
 pub(crate) fn light_and_camera_inputs(spec: NodeSpec) -> NodeSpec {
-    spec.input(PortSpec::one(
-        "scene",
-        SceneArt::NAME,
-        "objects and shadow catchers",
-    ))
-    .input(
-        PortSpec::one(
-            "dome",
-            DomeArt::NAME,
-            "a light dome replacing the scene's dome or background",
-        )
-        .optional(),
-    )
-    .input(
-        PortSpec::one(
-            "cameras",
-            CameraPathArt::NAME,
+    scene_inputs(
+        spec,
+        [
+            "objects and shadow catchers",
             "the solved camera path (K from `intrinsics`, the path, or the scene camera)",
-        )
-        .optional(),
-    )
-    .input(
-        PortSpec::one(
-            "intrinsics",
-            IntrinsicsArt::NAME,
             "K (and image size) replacing the path's and the scene camera's",
-        )
-        .optional(),
+        ],
     )
 }
 
@@ -311,23 +292,11 @@ fn run_differential_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     .map_err(|e| NodeError::msg(e.to_string()))?;
     check_finite(out.stats.nonfinite)?;
     let l = &out.layers;
-    let image = match plate {
-        Some(plate) => composite(l, plate, o.mode).map_err(NodeError::msg)?,
-        None => Image::from_fn(l.beauty.width, l.beauty.height, 3, |x, y, c| {
-            l.beauty.get(x, y, c) + l.catcher_with.get(x, y, c)
-        }),
-    };
-    let shadow = l.shadow_ratio();
-    let layers = vec![
-        ("composite".to_string(), image.clone()),
-        ("beauty".to_string(), l.beauty.clone()),
-        ("shadow".to_string(), shadow.clone()),
-        ("shadow_difference".to_string(), l.shadow_difference()),
-        ("catcher_with".to_string(), l.catcher_with.clone()),
-        ("catcher_without".to_string(), l.catcher_without.clone()),
-        ("variance".to_string(), l.variance.clone()),
-        ("samples".to_string(), l.samples.clone()),
-    ];
+    let image = l
+        .composite_or_render(plate, o.mode)
+        .map_err(NodeError::msg)?;
+    let layers = l.named(&image);
+    let shadow = layers[2].1.clone();
     let s = out.stats;
     let report = serde_json::json!({
         "frame": ctx.frame(),
@@ -369,31 +338,7 @@ fn plate_of(ctx: &Context<'_>) -> Result<Option<Image>, NodeError> {
 fn run_composite(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: CompositeOptions = ctx.options()?;
     let layers = &ctx.input::<LayersArt>("layers")?.0;
-    let get = |name: &str| {
-        layers
-            .iter()
-            .find(|(n, _)| n == name)
-            .map(|(_, i)| i.clone())
-            .ok_or_else(|| {
-                NodeError::msg(format!(
-                    "the layers have no `{name}` (they have: {}): connect differential_render's \
-                     `layers`",
-                    layers
-                        .iter()
-                        .map(|(n, _)| n.as_str())
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                ))
-            })
-    };
-    let beauty = get("beauty")?;
-    let l = DifferentialLayers {
-        catcher_with: get("catcher_with")?,
-        catcher_without: get("catcher_without")?,
-        variance: Image::new(beauty.width, beauty.height, 3),
-        samples: Image::new(beauty.width, beauty.height, 1),
-        beauty,
-    };
+    let l = DifferentialLayers::from_named(layers).map_err(NodeError::msg)?;
     let plate = match plate_of(ctx)? {
         Some(p) => p,
         None => {

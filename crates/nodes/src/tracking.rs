@@ -4,12 +4,12 @@
 use vfxgraph_engine::artifact::{decode_json, encode_json};
 use vfxgraph_engine::fsutil::atomic_write;
 use vfxgraph_engine::{
-    ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, ParamValue, PathRole,
-    PortSpec, Registry,
+    ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, PathRole, PortSpec,
+    Registry,
 };
-use vfxgraph_imaging::Image;
 use vfxgraph_vision::klt::{
-    track_sequence, CornerParams, GrayImage, LkParams, TrackerParams, Tracks,
+    draw_tracks, track_sequence, DrawTracksOptions, GrayImage, TrackerParams, Tracks,
+    WriteTracksOptions,
 };
 
 use crate::artifacts::ImageArt;
@@ -35,15 +35,13 @@ impl ArtifactType for TracksArt {
     }
 }
 
-const FORMATS: &[&str] = &["book", "native"];
-
 /// Registers the artifact and nodes of this module.
 pub fn register(r: &mut Registry) {
     r.register_artifact::<TracksArt>();
     r.register_node(FnNode::new(
         klt_spec(
             "klt_track",
-            1.0,
+            &TrackerParams::default(),
             "KLT feature tracking (book ch. 6): Shi–Tomasi corners in the first frame, pyramidal \
                  Lucas–Kanade frame to frame, disposal of features that leave the image, become \
                  untrackable or whose window residual exceeds `max_residual` (6.5), and refill of \
@@ -84,12 +82,7 @@ pub fn register(r: &mut Registry) {
             ParamType::Path(PathRole::Output),
             "the file to write",
         ))
-        .param(ParamSpec::optional(
-            "format",
-            ParamType::Enum(FORMATS),
-            ParamValue::Str("book".into()),
-            "book | native",
-        ))
+        .options::<WriteTracksOptions>()
         .input(PortSpec::one("tracks", TracksArt::NAME, "the tracks")),
         run_write_tracks,
     ));
@@ -101,15 +94,7 @@ pub fn register(r: &mut Registry) {
              cross, and tracks lost at this frame as red squares.",
         )
         .mode(Mode::PerFrame)
-        .param(ParamSpec::optional(
-            "trail",
-            ParamType::Int {
-                min: 0,
-                max: 100_000,
-            },
-            ParamValue::Int(15),
-            "frames of path drawn behind each feature",
-        ))
+        .options::<DrawTracksOptions>()
         .input(PortSpec::one("frames", ImageArt::NAME, "the frame"))
         .input(PortSpec::one("tracks", TracksArt::NAME, "the tracks"))
         .output(PortSpec::one(
@@ -121,100 +106,17 @@ pub fn register(r: &mut Registry) {
     ));
 }
 
-/// The spec shared by `klt_track` and its OpenCV cross-check `klt_track_opencv`: the same
-/// params, defaults and ports.
-/// The spec of `klt_track` and of `klt_track_opencv`, which differ in their default drift
-/// correction (OpenCV's tracker has none).
-pub(crate) fn klt_spec(name: &'static str, drift_default: f64, doc: &'static str) -> NodeSpec {
-    let pos = |min: f64, max: f64| ParamType::Float { min, max };
+/// The spec of `klt_track` and of its OpenCV cross-check `klt_track_opencv`: the params of
+/// [`TrackerParams`] with `defaults`' values (they differ in the default drift correction:
+/// OpenCV's tracker has none), the same ports.
+pub(crate) fn klt_spec(
+    name: &'static str,
+    defaults: &TrackerParams,
+    doc: &'static str,
+) -> NodeSpec {
     NodeSpec::new(name, doc)
         .mode(Mode::Once)
-        .param(ParamSpec::optional(
-            "features",
-            ParamType::Int {
-                min: 0,
-                max: 100_000,
-            },
-            ParamValue::Int(0),
-            "feature slots per frame (the book's N: 150); 0 = from the frame size, one per \
-             36 × 36 px block and at least 150 (400 at 960 × 540)",
-        ))
-        .param(ParamSpec::optional(
-            "min_distance",
-            pos(0.0, 10_000.0),
-            ParamValue::Float(10.0),
-            "minimum distance between features, pixels",
-        ))
-        .param(ParamSpec::optional(
-            "quality",
-            pos(0.0, 1.0),
-            ParamValue::Float(1e-5),
-            "corner score threshold relative to the best corner (OpenCV qualityLevel)",
-        ))
-        .param(ParamSpec::optional(
-            "window",
-            ParamType::Int { min: 3, max: 255 },
-            ParamValue::Int(21),
-            "LK window side, pixels (odd)",
-        ))
-        .param(ParamSpec::optional(
-            "levels",
-            ParamType::Int { min: 0, max: 12 },
-            ParamValue::Int(3),
-            "pyramid levels above the image",
-        ))
-        .param(ParamSpec::optional(
-            "iterations",
-            ParamType::Int { min: 1, max: 1000 },
-            ParamValue::Int(30),
-            "maximum LK iterations per level",
-        ))
-        .param(ParamSpec::optional(
-            "epsilon",
-            pos(0.0, 10.0),
-            ParamValue::Float(0.01),
-            "LK stops when a step is shorter than this, pixels",
-        ))
-        .param(ParamSpec::optional(
-            "max_residual",
-            pos(0.0, 1e9),
-            ParamValue::Float(12.0),
-            "a feature whose window RMS residual (0–255 gray levels) exceeds this is lost",
-        ))
-        .param(ParamSpec::optional(
-            "noise_factor",
-            pos(0.0, 1e6),
-            ParamValue::Float(3.0),
-            "…or this many times the frame pair's measured noise √(σa² + σb²) when larger \
-             (grainy footage); 0 = max_residual only (the book)",
-        ))
-        .param(ParamSpec::optional(
-            "fb_threshold",
-            pos(0.0, 1e9),
-            ParamValue::Float(1.0),
-            "forward–backward check: lost if tracking back misses the start by more than \
-             this many pixels; 0 = off",
-        ))
-        .param(ParamSpec::optional(
-            "replace_lost",
-            ParamType::Bool,
-            ParamValue::Bool(true),
-            "refill lost slots with new corners (book 6.5)",
-        ))
-        .param(ParamSpec::optional(
-            "border",
-            pos(0.0, 10_000.0),
-            ParamValue::Float(10.0),
-            "no corners closer than this to the edge; features closer are lost",
-        ))
-        .param(ParamSpec::optional(
-            "drift_correction",
-            pos(0.0, 1e3),
-            ParamValue::Float(drift_default),
-            "re-align each step to the feature's first window and keep that position when it \
-             moves less than this many pixels (no drift along long tracks); 0 = off, the \
-             book's frame-to-frame tracker",
-        ))
+        .options_from(defaults)
         .input(PortSpec::sequence(
             "frames",
             ImageArt::NAME,
@@ -223,40 +125,18 @@ pub(crate) fn klt_spec(name: &'static str, drift_default: f64, doc: &'static str
         .output(PortSpec::one("tracks", TracksArt::NAME, "the tracks"))
 }
 
-pub(crate) fn tracker_params(ctx: &Context<'_>) -> TrackerParams {
-    let p = ctx.params();
-    let window = p.i64("window") as usize;
-    let fb = p.f64("fb_threshold") as f32;
-    TrackerParams {
-        corners: CornerParams {
-            max_corners: p.i64("features") as usize,
-            quality: p.f64("quality") as f32,
-            min_distance: p.f64("min_distance") as f32,
-            block_size: 3,
-        },
-        lk: LkParams {
-            window,
-            levels: p.i64("levels") as usize,
-            max_iterations: p.i64("iterations") as u32,
-            epsilon: p.f64("epsilon") as f32,
-            ..LkParams::default()
-        },
-        max_residual: p.f64("max_residual") as f32,
-        noise_factor: p.f64("noise_factor") as f32,
-        fb_threshold: (fb > 0.0).then_some(fb),
-        replace_lost: p.bool("replace_lost"),
-        border: p.f64("border") as f32,
-        drift_correction: Some(p.f64("drift_correction") as f32).filter(|&d| d > 0.0),
-    }
+/// The frames of input `frames` as gray images (the trackers' input).
+pub(crate) fn gray_frames(ctx: &Context<'_>) -> Result<Vec<(i64, GrayImage)>, NodeError> {
+    Ok(ctx
+        .sequence::<ImageArt>("frames")?
+        .iter()
+        .map(|(f, img)| (*f, GrayImage::from_image(&img.0)))
+        .collect())
 }
 
 pub(crate) fn run_klt_track(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let params = tracker_params(ctx);
-    let frames = ctx.sequence::<ImageArt>("frames")?;
-    let grays: Vec<(i64, GrayImage)> = frames
-        .iter()
-        .map(|(f, img)| (*f, GrayImage::from_image(&img.0)))
-        .collect();
+    let params: TrackerParams = ctx.options()?;
+    let grays = gray_frames(ctx)?;
     let refs: Vec<(i64, &GrayImage)> = grays.iter().map(|(f, g)| (*f, g)).collect();
     let tracks = track_sequence(&refs, &params, |x| ctx.progress(x))
         .map_err(|e| NodeError::msg(format!("klt_track: {e}")))?;
@@ -275,85 +155,19 @@ fn run_read_tracks(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 }
 
 fn run_write_tracks(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let tracks = &ctx.input::<TracksArt>("tracks")?.0;
-    let text = match ctx.params().str("format") {
-        "native" => tracks.to_native(),
-        _ => tracks.to_book(),
-    };
-    let path = ctx.path("path");
-    if let Some(parent) = path.parent() {
-        std::fs::create_dir_all(parent)
-            .map_err(|e| NodeError::msg(format!("cannot create {}: {e}", parent.display())))?;
-    }
+    let o: WriteTracksOptions = ctx.options()?;
+    let text = o.format.text(&ctx.input::<TracksArt>("tracks")?.0);
+    let path = crate::output_path(ctx, "path")?;
     atomic_write(&path, text.as_bytes())
-        .map_err(|e| NodeError::msg(format!("cannot write {}: {e}", path.display())))?;
-    Ok(())
-}
-
-/// A bright, fully saturated colour (linear RGB) from a track id.
-fn id_colour(id: u64) -> [f32; 3] {
-    let h = (id.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 40) as f32 / (1u64 << 24) as f32;
-    let h6 = h * 6.0;
-    let x = 1.0 - (h6 % 2.0 - 1.0).abs();
-    let (r, g, b) = match h6 as u32 {
-        0 => (1.0, x, 0.0),
-        1 => (x, 1.0, 0.0),
-        2 => (0.0, 1.0, x),
-        3 => (0.0, x, 1.0),
-        4 => (x, 0.0, 1.0),
-        _ => (1.0, 0.0, x),
-    };
-    [r, g, b]
-}
-
-fn plot(img: &mut Image, x: i64, y: i64, c: [f32; 3]) {
-    if x >= 0 && y >= 0 && (x as usize) < img.width && (y as usize) < img.height {
-        img.pixel_mut(x as usize, y as usize)[..3].copy_from_slice(&c);
-    }
-}
-
-fn line(img: &mut Image, a: [f64; 2], b: [f64; 2], c: [f32; 3]) {
-    let n = ((b[0] - a[0]).abs().max((b[1] - a[1]).abs()).ceil() as i64).clamp(1, 100_000);
-    for k in 0..=n {
-        let t = k as f64 / n as f64;
-        let x = a[0] + (b[0] - a[0]) * t;
-        let y = a[1] + (b[1] - a[1]) * t;
-        plot(img, x.round() as i64, y.round() as i64, c);
-    }
+        .map_err(|e| NodeError::msg(format!("cannot write {}: {e}", path.display())))
 }
 
 fn run_draw_tracks(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let trail = ctx.params().i64("trail").max(0) as usize;
-    let frame = ctx.frame().unwrap_or(0);
-    let mut img = ctx.input::<ImageArt>("frames")?.0.to_rgb();
+    let o: DrawTracksOptions = ctx.options()?;
+    let img = &ctx.input::<ImageArt>("frames")?.0;
     let tracks = &ctx.input::<TracksArt>("tracks")?.0;
-    if let Some(fi) = tracks.frames.iter().position(|&f| f == frame) {
-        for t in &tracks.tracks {
-            if let Some(p) = t.at(fi) {
-                let c = id_colour(t.id);
-                let from = fi.saturating_sub(trail).max(t.first);
-                for g in from..fi {
-                    if let (Some(a), Some(b)) = (t.at(g), t.at(g + 1)) {
-                        line(&mut img, a, b, c);
-                    }
-                }
-                let (x, y) = (p[0].round() as i64, p[1].round() as i64);
-                for d in -3..=3 {
-                    plot(&mut img, x + d, y, c);
-                    plot(&mut img, x, y + d, c);
-                }
-            }
-            if let Some(l) = t.lost.filter(|l| l.frame == fi) {
-                let (x, y) = (l.at[0].round() as i64, l.at[1].round() as i64);
-                for d in -3..=3 {
-                    for (dx, dy) in [(d, -3), (d, 3), (-3, d), (3, d)] {
-                        plot(&mut img, x + dx, y + dy, [1.0, 0.0, 0.0]);
-                    }
-                }
-            }
-        }
-    }
-    ctx.output("image", ImageArt(img));
+    let drawn = draw_tracks(img, tracks, ctx.frame().unwrap_or(0), &o);
+    ctx.output("image", ImageArt(drawn));
     Ok(())
 }
 
@@ -361,7 +175,9 @@ fn run_draw_tracks(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 mod tests {
     use super::*;
     use crate::testing::{params, spec};
-    use vfxgraph_engine::{InputValue, Value};
+    use vfxgraph_engine::{InputValue, ParamValue, Value};
+    use vfxgraph_imaging::draw::id_colour;
+    use vfxgraph_imaging::Image;
 
     /// A textured frame whose content moves by (1.5, 0.75) px per frame.
     fn frame(k: usize) -> Image {

@@ -39,8 +39,7 @@ use opencv::video;
 use vfxgraph_engine::{Context, NodeError, Registry};
 use vfxgraph_vision::klt::{GrayImage, Loss, LostReason, Track, TrackerParams, Tracks};
 
-use crate::artifacts::ImageArt;
-use crate::tracking::{klt_spec, tracker_params, TracksArt};
+use crate::tracking::{gray_frames, klt_spec, TracksArt};
 use crate::FnNode;
 
 /// Registers `klt_track_opencv`.
@@ -48,7 +47,10 @@ pub fn register(r: &mut Registry) {
     r.register_node(FnNode::new(
         klt_spec(
             "klt_track_opencv",
-            0.0,
+            &TrackerParams {
+                drift_correction: None,
+                ..TrackerParams::default()
+            },
             "klt_track with OpenCV's goodFeaturesToTrack + calcOpticalFlowPyrLK (what the book \
              used) in place of ours, same params and output, to cross-check klt_track in a \
              graph. Differences: max_residual is compared with OpenCV's mean absolute window \
@@ -60,18 +62,14 @@ pub fn register(r: &mut Registry) {
 }
 
 fn run_klt_track_opencv(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let mut params = tracker_params(ctx);
+    let mut params: TrackerParams = ctx.options()?;
     if params.drift_correction.is_some() {
         return Err(NodeError::msg(
             "klt_track_opencv: drift_correction is only implemented by klt_track (OpenCV's \
              tracker has no first-window monitoring); set it to 0 or use klt_track",
         ));
     }
-    let frames = ctx.sequence::<ImageArt>("frames")?;
-    let grays: Vec<(i64, GrayImage)> = frames
-        .iter()
-        .map(|(f, img)| (*f, GrayImage::from_image(&img.0)))
-        .collect();
+    let grays = gray_frames(ctx)?;
     let refs: Vec<(i64, &GrayImage)> = grays.iter().map(|(f, g)| (*f, g)).collect();
     if let Some((_, g)) = refs.first() {
         params.corners.max_corners = params.feature_slots(g.width, g.height);
@@ -373,6 +371,7 @@ mod tests {
     use vfxgraph_vision::formats::flo::read_flo;
 
     use super::*;
+    use crate::artifacts::ImageArt;
     use crate::testing::{params, spec};
 
     /// Runs a tracking node on `(frame, image)` pairs with `set` params over the book's

@@ -3,16 +3,11 @@
 //! bundled, no system library); with `backend: opencv` (a build with the `opencv` cargo
 //! feature) any file OpenCV's VideoCapture opens, into the same frames.
 
-use std::path::{Path, PathBuf};
-use std::sync::{Arc, Mutex};
-use std::time::SystemTime;
-
 use vfxgraph_engine::{
-    ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, ParamValue, PathRole,
-    PortSpec, Registry, Threads,
+    ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, PathRole, PortSpec,
+    Registry, Threads,
 };
-use vfxgraph_imaging::{tonemap, Image, Operator};
-use vfxgraph_video::{write_mp4, ColorInfo, Matrix, Video, VideoError};
+use vfxgraph_video::{open_shared, write_video, ReadVideoOptions, WriteVideoOptions};
 
 use crate::artifacts::ImageArt;
 use crate::FnNode;
@@ -33,14 +28,7 @@ pub fn register(r: &mut Registry) {
             ParamType::Path(PathRole::Input),
             "the video file, relative to the graph file",
         ))
-        .param(ParamSpec::optional(
-            "backend",
-            ParamType::Enum(BACKENDS),
-            ParamValue::Str("native".into()),
-            "native (H.264 MP4, no system library) | opencv (any codec OpenCV's VideoCapture \
-             reads; needs a build with the `opencv` cargo feature; OpenCV converts Y'CbCr \
-             with BT.601 whatever the stream declares)",
-        ))
+        .options::<ReadVideoOptions>()
         .output(PortSpec::one(
             "sequence",
             ImageArt::NAME,
@@ -64,46 +52,7 @@ pub fn register(r: &mut Registry) {
             ParamType::Path(PathRole::Output),
             "the .mp4 file, relative to the graph file",
         ))
-        .param(ParamSpec::optional(
-            "fps",
-            ParamType::Float {
-                min: 0.1,
-                max: 1000.0,
-            },
-            ParamValue::Float(24.0),
-            "frames per second (23.976, 24, 25, 30, …)",
-        ))
-        .param(ParamSpec::optional(
-            "quality",
-            ParamType::Int { min: 0, max: 51 },
-            ParamValue::Int(20),
-            "the largest H.264 quantiser (QP): lower is better and larger; 0–10 is near \
-             lossless, 18–23 what streaming services use",
-        ))
-        .param(ParamSpec::optional(
-            "keyframe_interval",
-            ParamType::Int {
-                min: 0,
-                max: 100_000,
-            },
-            ParamValue::Int(24),
-            "a key frame every this many frames (0: the first only); smaller seeks faster",
-        ))
-        .param(ParamSpec::optional(
-            "tonemap",
-            ParamType::Enum(TONEMAPS),
-            ParamValue::Str("srgb".into()),
-            "srgb (clip to [0, 1], as PNG frames are) | reinhard (L/(1+L), for HDR input)",
-        ))
-        .param(ParamSpec::optional(
-            "exposure",
-            ParamType::Float {
-                min: -30.0,
-                max: 30.0,
-            },
-            ParamValue::Float(0.0),
-            "stops applied before the tone map",
-        ))
+        .options::<WriteVideoOptions>()
         .input(PortSpec::sequence(
             "sequence",
             ImageArt::NAME,
@@ -113,132 +62,33 @@ pub fn register(r: &mut Registry) {
     ));
 }
 
-const TONEMAPS: &[&str] = &["srgb", "reinhard"];
-
-const BACKENDS: &[&str] = &["native", "opencv"];
-
-/// An opened video file, through one of the readers.
-enum Source {
-    Native(Video),
-    #[cfg(feature = "opencv")]
-    OpenCv(vfxgraph_video::Capture),
-}
-
-impl Source {
-    fn open(path: &Path, backend: &str) -> Result<Source, NodeError> {
-        let err = |e: VideoError| NodeError::msg(e.to_string());
-        match backend {
-            #[cfg(feature = "opencv")]
-            "opencv" => vfxgraph_video::Capture::open(path)
-                .map(Source::OpenCv)
-                .map_err(err),
-            #[cfg(not(feature = "opencv"))]
-            "opencv" => Err(NodeError::msg(format!(
-                "read_video: param `backend: opencv` needs a vfxgraph built with the `opencv` \
-                 cargo feature, and this one was built without it: install OpenCV \
-                 (`apt-get install libopencv-dev clang libclang-dev`) and rebuild with \
-                 `cargo build --release --features opencv`, or use `backend: native` (H.264 \
-                 MP4 only) for {}",
-                path.display()
-            ))),
-            _ => Video::open(path).map(Source::Native).map_err(err),
-        }
-    }
-
-    fn frame(&self, frame: i64) -> Result<Image, VideoError> {
-        match self {
-            Source::Native(v) => v.frame(frame),
-            #[cfg(feature = "opencv")]
-            Source::OpenCv(c) => c.frame(frame),
-        }
-    }
-}
-
-/// The last opened video (the file is parsed once for all the frames of a run); keyed by
-/// path, size, modification time and backend.
-type Opened = Option<(PathBuf, u64, Option<SystemTime>, String, Arc<Source>)>;
-static OPEN: Mutex<Opened> = Mutex::new(None);
-
-fn open(path: &Path, backend: &str) -> Result<Arc<Source>, NodeError> {
-    let meta = std::fs::metadata(path)
-        .map_err(|e| NodeError::msg(format!("cannot read {}: {e}", path.display())))?;
-    let (len, mtime) = (meta.len(), meta.modified().ok());
-    let mut guard = OPEN.lock().unwrap_or_else(|p| p.into_inner());
-    if let Some((p, l, m, b, v)) = guard.as_ref() {
-        if p == path && *l == len && *m == mtime && b == backend {
-            return Ok(v.clone());
-        }
-    }
-    let v = Arc::new(Source::open(path, backend)?);
-    *guard = Some((
-        path.to_path_buf(),
-        len,
-        mtime,
-        backend.to_string(),
-        v.clone(),
-    ));
-    Ok(v)
-}
-
 fn run_read_video(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let path = ctx.path("path");
-    let backend = ctx.params().str("backend").to_string();
-    let frame = ctx.frame().unwrap_or(0);
-    let video = open(&path, &backend)?;
+    let o: ReadVideoOptions = ctx.options()?;
+    let video =
+        open_shared(&ctx.path("path"), o.backend).map_err(|e| NodeError::msg(e.to_string()))?;
     let img = video
-        .frame(frame)
+        .frame(ctx.frame().unwrap_or(0))
         .map_err(|e| NodeError::msg(e.to_string()))?;
     ctx.output("sequence", ImageArt(img));
     Ok(())
 }
 
 fn run_write_video(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let p = ctx.params();
-    let op: Operator = p.str("tonemap").parse().map_err(NodeError::msg)?;
-    let (stops, fps) = (p.f64("exposure") as f32, p.f64("fps"));
-    let (qp, keys) = (p.i64("quality") as u8, p.i64("keyframe_interval") as u32);
-    let path = ctx.path("path");
+    let o: WriteVideoOptions = ctx.options()?;
     let frames = ctx.sequence::<ImageArt>("sequence")?;
-    if frames.is_empty() {
-        return Err(NodeError::msg(format!(
-            "write_video: no frames to write to {}",
-            path.display()
-        )));
-    }
-    let (w, h) = (frames[0].1 .0.width, frames[0].1 .0.height);
-    if let Some((f, img)) = frames
-        .iter()
-        .find(|(_, i)| (i.0.width, i.0.height) != (w, h))
-    {
-        return Err(NodeError::msg(format!(
-            "write_video: frame {f} is {}×{}, frame {} is {w}×{h}: a video has one size",
-            img.0.width, img.0.height, frames[0].0
-        )));
-    }
-    if w % 2 == 1 || h % 2 == 1 {
-        return Err(NodeError::msg(format!(
-            "write_video: frames are {w}×{h}; H.264 4:2:0 needs an even width and height \
-             (render or crop to an even size)"
-        )));
-    }
-    let mapped: Vec<Image> = frames
-        .iter()
-        .map(|(_, img)| tonemap(&img.0, op, stops))
-        .collect();
-    let path = crate::output_path(ctx, "path")?;
-    let color = ColorInfo {
-        matrix: Matrix::Bt709,
-        full_range: false,
-        matrix_from_stream: true,
-    };
-    write_mp4(&path, &mapped, fps, keys, qp, color).map_err(|e| NodeError::msg(e.to_string()))
+    let frames: Vec<(i64, &vfxgraph_imaging::Image)> =
+        frames.iter().map(|(f, img)| (*f, &img.0)).collect();
+    write_video(&ctx.path("path"), &frames, &o).map_err(|e| NodeError::msg(e.to_string()))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::testing::{params, spec};
-    use vfxgraph_engine::{InputValue, Value};
+    use std::path::Path;
+    use vfxgraph_engine::{InputValue, ParamValue, Value};
+    use vfxgraph_imaging::Image;
+    use vfxgraph_video::{write_mp4, ColorInfo, Matrix, Video};
     use vfxgraph_vision::klt::{track_sequence, GrayImage, TrackerParams};
 
     /// A smooth random-ish texture translated by `(dx, dy)` pixels (linear light, gray).

@@ -168,7 +168,9 @@ fn options(input: &DeriveInput) -> syn::Result<Tokens> {
         if a.skip {
             reads.push(quote!(#field: d.#field));
         } else if a.flatten {
-            descs.push(quote!(out.extend(<#ty as ::vfxgraph_params::Options>::params());));
+            descs.push(
+                quote!(out.extend(<#ty as ::vfxgraph_params::Options>::params_from(&d.#field));),
+            );
             reads.push(quote!(#field: <#ty as ::vfxgraph_params::Options>::read(src)?));
         } else if let Some(toggle) = &a.toggle {
             let inner = option_inner(ty)
@@ -214,8 +216,12 @@ fn options(input: &DeriveInput) -> syn::Result<Tokens> {
     Ok(quote! {
         impl #imp ::vfxgraph_params::Options for #ident #tyg #wh {
             fn params() -> ::std::vec::Vec<::vfxgraph_params::ParamDesc> {
-                #[allow(unused_variables)]
-                let d = <Self as ::core::default::Default>::default();
+                <Self as ::vfxgraph_params::Options>::params_from(
+                    &<Self as ::core::default::Default>::default(),
+                )
+            }
+            fn params_from(d: &Self) -> ::std::vec::Vec<::vfxgraph_params::ParamDesc> {
+                let _ = d;
                 let mut out = ::std::vec::Vec::new();
                 #(#descs)*
                 #(#toggled)*

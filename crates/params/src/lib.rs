@@ -13,7 +13,8 @@
 //! COLMAP's option manager binds command-line names to the fields of its option structs the same
 //! way; Meshroom's node descriptions list each parameter once.
 //!
-//! Field types: integers (`Option<usize>` is an int whose −1 is `None`), `f64`, `f32`, `bool`,
+//! Field types: integers (`Option<usize>` is an int whose −1 is `None`), `f64`, `f32`
+//! (`Option<f64>` and `Option<f32>` are floats whose 0 is `None`: off), `bool`,
 //! `String`, `Vec<f64>` and `[f64; N]` (float lists), and `#[derive(Choice)]` enums.
 //!
 //! Field attributes (`#[param(...)]`, comma-separated):
@@ -124,8 +125,13 @@ impl Source for std::collections::BTreeMap<String, Value> {
 
 /// An options struct whose fields are parameters (`#[derive(Options)]`).
 pub trait Options: Sized {
-    /// The parameters, in field order (a `toggle`'s parameters last).
+    /// The parameters, in field order (a `toggle`'s parameters last), with `Default`'s values
+    /// as their defaults.
     fn params() -> Vec<ParamDesc>;
+    /// The parameters with the values of `d` as their defaults: a `flatten`ed struct's
+    /// defaults are its field's value in the outer struct's `Default` (so an outer struct may
+    /// default an inner field differently, as the tracker's 0 = automatic feature count).
+    fn params_from(d: &Self) -> Vec<ParamDesc>;
     /// Reads every parameter from `src` and checks the result (`#[param(check)]`). An error
     /// names the parameter or says what is wrong with the combination.
     fn read(src: &dyn Source) -> Result<Self, String>;
@@ -207,8 +213,15 @@ impl Field for f32 {
     fn kind(min: Option<f64>, max: Option<f64>) -> Kind {
         f64::kind(min, max)
     }
+    /// The shortest decimal that reads back as `self` (`1e-5_f32` is shown and stored as
+    /// `1e-5`, not as its binary value 9.99999974737875e-6).
     fn to_value(&self) -> Value {
-        Value::Float(f64::from(*self))
+        let short: f64 = self.to_string().parse().unwrap_or(f64::from(*self));
+        Value::Float(if short as f32 == *self {
+            short
+        } else {
+            f64::from(*self)
+        })
     }
     fn from_value(v: Value) -> Option<Self> {
         f64::from_value(v).map(|x| x as f32)
@@ -295,6 +308,24 @@ impl Field for Option<usize> {
         }
     }
 }
+
+/// An optional length or threshold: `0` is `None` (off), any positive value `Some`.
+macro_rules! off_at_zero {
+    ($($t:ty),*) => {$(
+        impl Field for Option<$t> {
+            fn kind(min: Option<f64>, max: Option<f64>) -> Kind {
+                <$t>::kind(min, max)
+            }
+            fn to_value(&self) -> Value {
+                self.unwrap_or(0.0).to_value()
+            }
+            fn from_value(v: Value) -> Option<Self> {
+                <$t>::from_value(v).map(|x| (x > 0.0).then_some(x))
+            }
+        }
+    )*};
+}
+off_at_zero!(f32, f64);
 
 /// [`Field::from_value`] of a [`Choice`] (the derive's `Field` impl calls it).
 pub fn choice_from_value<C: Choice>(v: Value) -> Option<C> {

@@ -103,26 +103,40 @@ pub struct View<'a> {
     pub plate: &'a Image,
 }
 
-/// Settings of [`catcher_texture`].
-#[derive(Clone, Copy, Debug)]
+/// Settings of [`catcher_texture`] (the `catcher_texture` node's params, through
+/// [`crate::local_scene::LocalTextureOptions`]).
+#[derive(Clone, Copy, Debug, PartialEq, vfxgraph_params::Options)]
 pub struct TextureOptions {
-    /// Which catcher (0 = the scene's first shadow catcher).
+    /// which shadow catcher (0 = the scene's first), a planar one
     pub catcher: usize,
-    /// Texels along the catcher's longer side.
+    /// texels along the catcher's longer side
+    #[param(range = 1..=8192)]
     pub resolution: usize,
-    /// Irradiance grid spacing, in texels.
+    /// spacing of the irradiance grid, in texels (irradiance is smooth away from contact
+    /// shadows)
+    #[param(range = 1..=256)]
     pub irradiance_cell: usize,
-    /// Paths per irradiance grid point.
+    /// paths per irradiance grid point
+    #[param(range = 1..=1048576)]
     pub irradiance_samples: u32,
-    /// Maximum scattering vertices after the catcher.
+    /// maximum scattering vertices of the irradiance paths
+    ///
+    /// (Scattering vertices after the catcher.)
+    #[param(range = 1..=64)]
     pub max_depth: u32,
     /// Seed of the irradiance paths.
+    #[param(skip)]
     pub seed: u64,
-    /// A texel is estimated when seen in at least this many frames.
+    /// a texel is estimated when seen in at least this many frames (else it keeps the uniform
+    /// colour)
+    #[param(range = 1..=100000)]
     pub min_frames: usize,
-    /// Upper end of the physical albedo range.
+    /// the physical albedo range's upper end (estimates are clamped to [0, max_albedo])
+    #[param(range = 0.01..=1.0)]
     pub max_albedo: f64,
-    /// Estimates (each re-renders the irradiance with the previous texture).
+    /// estimates, each rendering the irradiance with the previous texture (catchers that see
+    /// one another)
+    #[param(range = 1..=10)]
     pub iterations: usize,
 }
 

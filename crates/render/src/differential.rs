@@ -198,6 +198,70 @@ impl DifferentialLayers {
             self.catcher_with.get(x, y, c) - self.catcher_without.get(x, y, c)
         })
     }
+
+    /// The composite over `plate` in `mode` ([`composite`]), or without a plate the CG render:
+    /// objects and catchers with their shadows.
+    pub fn composite_or_render(
+        &self,
+        plate: Option<&Image>,
+        mode: CompositeMode,
+    ) -> Result<Image, String> {
+        match plate {
+            Some(plate) => composite(self, plate, mode),
+            None => {
+                let (b, w) = (&self.beauty, &self.catcher_with);
+                Ok(Image::from_fn(b.width, b.height, 3, |x, y, c| {
+                    b.get(x, y, c) + w.get(x, y, c)
+                }))
+            }
+        }
+    }
+
+    /// The layers a compositor reads, by name, after `composite`: beauty, shadow (the matte),
+    /// shadow_difference, catcher_with, catcher_without, variance, samples.
+    pub fn named(&self, composite: &Image) -> Vec<(String, Image)> {
+        let named = [
+            ("composite", composite.clone()),
+            ("beauty", self.beauty.clone()),
+            ("shadow", self.shadow_ratio()),
+            ("shadow_difference", self.shadow_difference()),
+            ("catcher_with", self.catcher_with.clone()),
+            ("catcher_without", self.catcher_without.clone()),
+            ("variance", self.variance.clone()),
+            ("samples", self.samples.clone()),
+        ];
+        named.into_iter().map(|(n, i)| (n.to_string(), i)).collect()
+    }
+
+    /// The layers a composite needs (beauty, catcher_with, catcher_without) from [`Self::named`]
+    /// layers (variance and samples zero): an error names a missing one and lists what there is.
+    pub fn from_named(layers: &[(String, Image)]) -> Result<DifferentialLayers, String> {
+        let get = |name: &str| {
+            layers
+                .iter()
+                .find(|(n, _)| n == name)
+                .map(|(_, i)| i.clone())
+                .ok_or_else(|| {
+                    format!(
+                        "the layers have no `{name}` (they have: {}): connect \
+                         differential_render's `layers`",
+                        layers
+                            .iter()
+                            .map(|(n, _)| n.as_str())
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    )
+                })
+        };
+        let beauty = get("beauty")?;
+        Ok(DifferentialLayers {
+            catcher_with: get("catcher_with")?,
+            catcher_without: get("catcher_without")?,
+            variance: Image::new(beauty.width, beauty.height, 3),
+            samples: Image::new(beauty.width, beauty.height, 1),
+            beauty,
+        })
+    }
 }
 
 fn ratio(with: f32, without: f32) -> f32 {

@@ -22,6 +22,7 @@ use crate::environment::Environment;
 use crate::math::{Rgb, Vec3};
 use crate::scene::{Scene, Shape};
 use crate::texture::Texture;
+use vfxgraph_imaging::Image;
 
 /// What became of one of the other catchers.
 #[derive(Clone, Debug, PartialEq)]
@@ -62,6 +63,145 @@ pub struct OtherCatcher {
     pub normal: [f64; 3],
     /// What was done.
     pub texture: FaceTexture,
+}
+
+/// The designed CG objects put into the local scene: `local`'s camera, dome, lights and
+/// catchers with every non-catcher object and every light of `objects` added. An error when
+/// `objects` has no synthetic object.
+pub fn add_objects(local: &Scene, objects: &Scene) -> Result<Scene, String> {
+    let insert: Vec<_> = objects
+        .objects
+        .iter()
+        .filter(|o| !o.catcher)
+        .cloned()
+        .collect();
+    if insert.is_empty() {
+        return Err(format!(
+            "the `objects` scene has no synthetic objects (its {} objects are all shadow \
+             catchers)",
+            objects.objects.len()
+        ));
+    }
+    let mut scene = local.clone();
+    scene.objects.extend(insert);
+    scene.lights.extend(objects.lights.iter().cloned());
+    Ok(scene)
+}
+
+/// The `catcher_texture` node's params: the frames to estimate from, [`TextureOptions`]
+/// (its seed is the node's) and the other catchers' textures.
+#[derive(Debug, PartialEq, vfxgraph_params::Options)]
+#[param(check)]
+pub struct LocalTextureOptions {
+    /// the plate frames to estimate from, which must be clean (without the CG objects or their shadows); empty = every frame of the plate
+    pub frames: Vec<f64>,
+    /// The main catcher's estimate.
+    #[param(flatten)]
+    pub texture: TextureOptions,
+    /// also texture every other planar catcher the frames see (proxy faces), after `catcher`; a proxy's faces and texels no frame sees take the median albedo of its seen texels
+    pub others: bool,
+    /// texels along the longer side of each other catcher
+    #[param(range = 1..=8192)]
+    pub others_resolution: usize,
+}
+
+impl LocalTextureOptions {
+    fn check(&self) -> Result<(), String> {
+        if let Some(f) = self.frames.iter().find(|f| f.fract() != 0.0) {
+            return Err(format!("param `frames`: {f} is not a frame number"));
+        }
+        Ok(())
+    }
+}
+
+impl Default for LocalTextureOptions {
+    fn default() -> Self {
+        LocalTextureOptions {
+            frames: Vec::new(),
+            texture: TextureOptions {
+                irradiance_cell: 8,
+                irradiance_samples: 1024,
+                ..TextureOptions::default()
+            },
+            others: true,
+            others_resolution: 64,
+        }
+    }
+}
+
+/// What [`texture_local_scene_report`] makes: the textured scene, the main catcher's albedo
+/// and frames-seen count per texel (one channel), and a report.
+pub struct LocalTexture {
+    /// The scene with the textures.
+    pub scene: Scene,
+    /// The main catcher's estimated albedo, linear RGB.
+    pub albedo: Image,
+    /// Frames that saw each texel of the main catcher.
+    pub seen: Image,
+    /// The estimate: the map's corners, texels estimated, clamped fraction, each other face.
+    pub report: serde_json::Value,
+}
+
+/// [`texture_local_scene`] with the options of the `catcher_texture` node (`seed`: the irradiance
+/// paths'), its outputs as images and the report.
+pub fn texture_local_scene_report(
+    scene: &Scene,
+    env: &dyn Environment,
+    views: &[View<'_>],
+    o: &LocalTextureOptions,
+    seed: u64,
+    cancel: Option<&AtomicBool>,
+) -> Result<LocalTexture, TextureError> {
+    let options = TextureOptions { seed, ..o.texture };
+    let others_resolution = o.others.then_some(o.others_resolution);
+    let (scene, rep, others) =
+        texture_local_scene(scene, env, views, &options, others_resolution, cancel)?;
+    let others: Vec<serde_json::Value> = others.iter().map(other_report).collect();
+    let m = &rep.map;
+    let seen = Image::from_fn(m.width, m.height, 1, |x, y, _| {
+        rep.seen[y * m.width + x] as f32
+    });
+    let texels = m.width * m.height;
+    let frames: Vec<i64> = views.iter().map(|v| v.frame).collect();
+    let report = serde_json::json!({
+        "frames": frames,
+        "width": m.width,
+        "height": m.height,
+        "corner": [m.origin.x, m.origin.y, m.origin.z],
+        "u_edge": [m.u.x, m.u.y, m.u.z],
+        "v_edge": [m.v.x, m.v.y, m.v.z],
+        "uniform_colour": rep.uniform,
+        "texels_estimated": rep.estimated,
+        "fraction_estimated": rep.estimated as f64 / texels as f64,
+        "clamped_fraction": rep.clamped_fraction,
+        "pixels_per_frame": rep.pixels_per_frame,
+        "mean_irradiance": rep.mean_irradiance,
+        "others": others,
+    });
+    Ok(LocalTexture {
+        scene,
+        albedo: rep.albedo,
+        seen,
+        report,
+    })
+}
+
+/// One other catcher's line of the report.
+fn other_report(c: &OtherCatcher) -> serde_json::Value {
+    match &c.texture {
+        FaceTexture::Estimated {
+            texels_estimated,
+            clamped_fraction,
+            median_albedo,
+            mean_irradiance,
+        } => serde_json::json!({"catcher": c.catcher, "proxy": c.proxy,
+            "centre": c.centre, "normal": c.normal,
+            "texels_estimated": texels_estimated, "clamped_fraction": clamped_fraction,
+            "median_albedo": median_albedo, "mean_irradiance": mean_irradiance}),
+        FaceTexture::Unestimated { why, filled } => serde_json::json!({"catcher": c.catcher,
+            "proxy": c.proxy, "centre": c.centre, "normal": c.normal, "skipped": why,
+            "filled_with_proxy_median": filled}),
+    }
 }
 
 /// The textures of the main catcher (`o.catcher`) and, when `others_resolution` is given, of

@@ -8,7 +8,7 @@
 
 use crate::brdf::{Brdf, Lambert};
 use crate::math::{Rgb, Vec3};
-use crate::scene::{Object, Shape};
+use crate::scene::{Object, Scene, Shape};
 
 /// Why a proxy could not be built.
 #[derive(Debug, thiserror::Error, PartialEq)]
@@ -167,6 +167,132 @@ pub fn catchers(faces: Vec<Vec<[Vec3; 3]>>, albedo: Rgb) -> Vec<Object> {
             o
         })
         .collect()
+}
+
+/// The proxies of a set (the `proxy_from_points` node's params): groups of indices into the
+/// measured points.
+#[derive(Debug, PartialEq, vfxgraph_params::Options)]
+pub struct ProxyOptions {
+    /// boxes, 4 indices into `points3d` each: three base corners a, b, c (b adjacent to a and c) and the corner above a
+    pub boxes: Vec<f64>,
+    /// boxes standing on the first catcher's plane (the ground), 3 indices into `points3d` each: top corners a, b, c (b adjacent to a and c) — for a box whose base corners are hidden
+    pub tops: Vec<f64>,
+    /// plane patches, 4 indices into `points3d` each: the corners in order around the patch
+    pub planes: Vec<f64>,
+    /// the proxies' starting diffuse colour (catcher_texture then estimates it from the plate)
+    pub albedo: Vec<f64>,
+}
+
+impl Default for ProxyOptions {
+    fn default() -> Self {
+        ProxyOptions {
+            boxes: Vec::new(),
+            tops: Vec::new(),
+            planes: Vec::new(),
+            albedo: vec![0.18, 0.18, 0.18],
+        }
+    }
+}
+
+/// The measured points named by `indices` (groups of `size`).
+fn groups(
+    pts: &[Vec3],
+    indices: &[f64],
+    what: &str,
+    size: usize,
+) -> Result<Vec<Vec<Vec3>>, String> {
+    let one = if what == "planes" {
+        "plane patch"
+    } else {
+        "box"
+    };
+    indices
+        .chunks(size)
+        .enumerate()
+        .map(|(g, c)| {
+            if c.len() < size {
+                return Err(format!(
+                    "param `{what}`: {one} {g} has {} point indices, a {one} needs {size}",
+                    c.len(),
+                ));
+            }
+            c.iter()
+                .map(|&i| {
+                    if i.fract() != 0.0 || i < 0.0 || i as usize >= pts.len() {
+                        Err(format!(
+                            "param `{what}`: {i} is not the index of one of the {} measured \
+                             points (0-based)",
+                            pts.len()
+                        ))
+                    } else {
+                        Ok(pts[i as usize])
+                    }
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// A point on the scene's first catcher (the ground) and its normal, from its first triangle.
+fn ground_plane(scene: &Scene) -> Result<(Vec3, Vec3), String> {
+    let tri = scene
+        .catchers()
+        .find_map(|o| match &o.shape {
+            Shape::Triangles { triangles } => triangles.first().copied(),
+            _ => None,
+        })
+        .ok_or_else(|| {
+            "param `tops`: a box by its top stands on the first catcher's plane, but the scene \
+             has no triangle catcher"
+                .to_string()
+        })?;
+    Ok((tri[0], (tri[1] - tri[0]).cross(tri[2] - tri[0])))
+}
+
+/// `scene` with the proxies of `o` (built from the measured points `pts`) added, every face a
+/// planar shadow catcher; and a report (proxies made, catcher faces). An error names the
+/// param or the proxy that cannot be built.
+pub fn add_proxies(
+    scene: &Scene,
+    pts: &[Vec3],
+    o: &ProxyOptions,
+) -> Result<(Scene, serde_json::Value), String> {
+    if o.boxes.is_empty() && o.tops.is_empty() && o.planes.is_empty() {
+        return Err(
+            "no proxies: give `boxes`, `planes` (4 point indices each) and/or `tops` (3)".into(),
+        );
+    }
+    if o.albedo.len() != 3 || o.albedo.iter().any(|a| !(0.0..=1.0).contains(a)) {
+        return Err("param `albedo`: 3 values in [0, 1]".into());
+    }
+    let albedo = Rgb::new(o.albedo[0], o.albedo[1], o.albedo[2]);
+    let mut out = scene.clone();
+    let mut faces = 0;
+    for (g, q) in groups(pts, &o.boxes, "boxes", 4)?.iter().enumerate() {
+        let f = box_faces(q).map_err(|e| format!("box {g}: {e}"))?;
+        faces += f.len();
+        out.objects.extend(catchers(f, albedo));
+    }
+    let tops = groups(pts, &o.tops, "tops", 3)?;
+    if !tops.is_empty() {
+        let (origin, normal) = ground_plane(scene)?;
+        for (g, q) in tops.iter().enumerate() {
+            let f = box_on_plane(q, origin, normal).map_err(|e| format!("tops box {g}: {e}"))?;
+            faces += f.len();
+            out.objects.extend(catchers(f, albedo));
+        }
+    }
+    for (g, q) in groups(pts, &o.planes, "planes", 4)?.iter().enumerate() {
+        let f = plane_patch(q).map_err(|e| format!("plane {g}: {e}"))?;
+        faces += 1;
+        out.objects.extend(catchers(vec![f], albedo));
+    }
+    let report = serde_json::json!({
+        "boxes": o.boxes.len() / 4 + o.tops.len() / 3,
+        "planes": o.planes.len() / 4,
+        "catcher_faces": faces,
+    });
+    Ok((out, report))
 }
 
 #[cfg(test)]

@@ -15,7 +15,8 @@
 //! OpenCV's `VideoCapture` opens into the same frames.
 //!
 //! [`write_mp4`] encodes frames with OpenH264's encoder and muxes a minimal MP4 (used by the
-//! tests to make their own videos).
+//! tests to make their own videos); [`files`] holds what the nodes do: a reader kept open
+//! across a run's frames and [`write_video`], frames checked, tone-mapped and encoded.
 
 #![warn(missing_docs)]
 
@@ -28,10 +29,12 @@ use vfxgraph_imaging::Image;
 mod bounded;
 #[cfg(feature = "opencv")]
 pub mod capture;
+pub mod files;
 mod mux;
 pub mod sps;
 pub mod yuv;
 
+pub use files::{open_shared, write_video, Backend, ReadVideoOptions, Reader, WriteVideoOptions};
 pub use mux::write_mp4;
 pub use sps::{ColorInfo, Matrix};
 
@@ -81,6 +84,24 @@ pub enum VideoError {
         frame: i64,
         /// Number of frames.
         count: usize,
+    },
+    /// A backend this build does not have.
+    #[error(
+        "read_video: param `backend: opencv` needs a vfxgraph built with the `opencv` cargo \
+         feature, and this one was built without it: install OpenCV (`apt-get install \
+         libopencv-dev clang libclang-dev`) and rebuild with `cargo build --release --features \
+         opencv`, or use `backend: native` (H.264 MP4 only) for {}",
+        path.display()
+    )]
+    Unavailable {
+        /// The file.
+        path: PathBuf,
+    },
+    /// Frames that cannot be written as one video (none, sizes differ, odd sizes).
+    #[error("{message}")]
+    Invalid {
+        /// What is wrong.
+        message: String,
     },
     /// Encoding (writing) failed.
     #[error("{}: cannot encode: {message}", path.display())]

@@ -6,14 +6,16 @@
 //! [`orbit_path`] is a smooth dolly/orbit around a target point: the camera centre sweeps an arc
 //! of a circle about the vertical axis through the target while its distance changes linearly
 //! (a dolly) and its height follows a gentle sine (a crane), always looking at the target — the
-//! path a plate for tests is shot along. The world is y-up (the renderer's convention); camera
+//! path a plate for tests is shot along ([`synthetic_path`]: with its intrinsics); and
+//! [`project_marks`] simulates a user's clicks on known points along it. The world is y-up (the renderer's convention); camera
 //! x ~ K(RX + t) looking down +z with image y down.
 
-use nalgebra::{Matrix3, Point3, Vector3};
+use nalgebra::{Matrix3, Point2, Point3, Vector3};
 
-use crate::camera::{Intrinsics, Pose};
+use crate::camera::{Camera, Intrinsics, Pose};
 use crate::error::{Result, VisionError};
-use crate::formats::{CameraPath, FramePose};
+use crate::formats::{CameraPath, FramePose, MarkedFrame, MarkedPoints};
+use crate::points::Points2d;
 use crate::rotation::{nearest_rotation, rotation_angle_between};
 
 /// An orbit/dolly around a target (module docs). Angles in degrees.
@@ -91,6 +93,157 @@ pub fn orbit_path(o: &Orbit, k: &Intrinsics) -> Result<CameraPath> {
         frames,
         intrinsics: Some(k.clone()),
     })
+}
+
+/// A synthetic camera path with known truth (the `synthetic_camera_path` node's params): an
+/// [`Orbit`] and the intrinsics of its cameras.
+#[derive(Clone, Debug, PartialEq, vfxgraph_params::Options)]
+pub struct SyntheticPathOptions {
+    /// number of frames
+    #[param(range = 1..=100_000)]
+    pub frames: usize,
+    /// number of the first frame
+    #[param(range = 0..=1_099_511_627_776_u64)]
+    pub first_frame: usize,
+    /// the point looked at
+    pub target: [f64; 3],
+    /// horizontal distance to the target's axis at the first frame
+    #[param(range = 1e-6..=1e9)]
+    pub radius: f64,
+    /// …at the last frame (a dolly)
+    #[param(range = 1e-6..=1e9)]
+    pub radius_end: f64,
+    /// camera height above the target
+    #[param(range = -1e9..=1e9)]
+    pub height: f64,
+    /// extra height at mid-shot (sine over the shot)
+    #[param(range = -1e9..=1e9)]
+    pub crane: f64,
+    /// azimuth of the first camera, degrees (0: on +z of the target)
+    #[param(range = -1e4..=1e4)]
+    pub start: f64,
+    /// azimuth swept over the shot, degrees
+    #[param(range = -1e4..=1e4)]
+    pub sweep: f64,
+    /// focal length, pixels (f1 = f2)
+    #[param(range = 1e-3..=1e7)]
+    pub focal: f64,
+    /// image width, pixels
+    #[param(range = 1..=65536)]
+    pub width: u32,
+    /// image height, pixels
+    #[param(range = 1..=65536)]
+    pub height_px: u32,
+}
+
+impl Default for SyntheticPathOptions {
+    fn default() -> Self {
+        SyntheticPathOptions {
+            frames: 40,
+            first_frame: 1,
+            target: [0.0; 3],
+            radius: 4.0,
+            radius_end: 4.0,
+            height: 1.5,
+            crane: 0.0,
+            start: 0.0,
+            sweep: 30.0,
+            focal: 400.0,
+            width: 320,
+            height_px: 240,
+        }
+    }
+}
+
+/// The cameras of `o`'s orbit and their intrinsics (focal `focal` px, principal point at the
+/// image centre).
+pub fn synthetic_path(o: &SyntheticPathOptions) -> Result<(CameraPath, Intrinsics)> {
+    let (w, h, f) = (o.width, o.height_px, o.focal);
+    let k = Intrinsics::new(f, f, (w as f64 - 1.0) / 2.0, (h as f64 - 1.0) / 2.0).with_size(w, h);
+    let orbit = Orbit {
+        target: Vector3::from(o.target),
+        radius: o.radius,
+        radius_end: o.radius_end,
+        height: o.height,
+        crane: o.crane,
+        start: o.start,
+        sweep: o.sweep,
+        frames: o.frames,
+        first_frame: o.first_frame,
+    };
+    Ok((orbit_path(&orbit, &k)?, k))
+}
+
+/// The options of [`project_marks`] besides its points and frames.
+#[derive(Clone, Debug, PartialEq, vfxgraph_params::Options)]
+pub struct ProjectMarksOptions {
+    /// round to whole pixels, as a click is
+    pub round: bool,
+}
+
+impl Default for ProjectMarksOptions {
+    fn default() -> Self {
+        ProjectMarksOptions { round: true }
+    }
+}
+
+/// Simulated user clicks (book chapter 8's marked points): the scene points `coords` (x y z of
+/// each in turn) projected by `path`'s cameras (with its K) into each of `frames` (whole
+/// numbers), rounded to whole pixels with `o.round`. Every point must be in front of every
+/// chosen camera.
+pub fn project_marks(
+    path: &CameraPath,
+    coords: &[f64],
+    frames: &[f64],
+    o: &ProjectMarksOptions,
+) -> Result<MarkedPoints> {
+    let invalid = |m: String| VisionError::InvalidInput(m);
+    if coords.is_empty() || !coords.len().is_multiple_of(3) {
+        return Err(invalid(format!(
+            "`points` needs x y z per point: {} numbers is not a positive multiple of 3",
+            coords.len()
+        )));
+    }
+    let points: Vec<Point3<f64>> = coords
+        .chunks(3)
+        .map(|c| Point3::new(c[0], c[1], c[2]))
+        .collect();
+    let k = path
+        .intrinsics
+        .clone()
+        .ok_or_else(|| invalid("the camera path carries no intrinsics K".into()))?;
+    let mut marks = MarkedPoints::default();
+    for &f in frames {
+        if !(f >= 0.0 && f.fract() == 0.0) {
+            return Err(invalid(format!("`frames`: {f} is not a frame number")));
+        }
+        let f = f as usize;
+        let pose = path
+            .frames
+            .iter()
+            .find(|p| p.frame == f)
+            .ok_or_else(|| invalid(format!("the camera path has no frame {f}")))?;
+        let cam = Camera::new(k.clone(), pose.pose.r, pose.pose.t);
+        let mut px = Vec::with_capacity(points.len());
+        for (i, x) in points.iter().enumerate() {
+            if cam.depth(x) <= 0.0 {
+                return Err(invalid(format!(
+                    "point {i} is behind the camera of frame {f}"
+                )));
+            }
+            let q = cam.project(x)?;
+            px.push(if o.round {
+                Point2::new(q.x.round(), q.y.round())
+            } else {
+                q
+            });
+        }
+        marks.frames.push(MarkedFrame {
+            frame: f,
+            points: Points2d(px),
+        });
+    }
+    Ok(marks)
 }
 
 /// A similarity X ↦ s·R·X + t (from a solve's world to the truth's).

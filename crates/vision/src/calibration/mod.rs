@@ -29,7 +29,7 @@ use crate::optimize::{LmOptions, LmReport};
 use crate::ransac::{ransac, RansacParams};
 
 /// The calibration methods of chapter 4.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, vfxgraph_params::Choice)]
 #[serde(rename_all = "lowercase")]
 pub enum CalibrationMethod {
     /// Normalized DLT and factoring (§4.1–4.3): K may have skew.
@@ -61,6 +61,65 @@ impl Default for CalibrationOptions {
             ransac: None,
             lm: LmOptions::default(),
         }
+    }
+}
+
+/// The `calibrate_camera` node's params: [`CalibrationOptions`] as numbers a graph can hold,
+/// and the RANSAC seed.
+#[derive(Clone, Debug, PartialEq, vfxgraph_params::Options)]
+pub struct CalibrateParams {
+    /// calibration model
+    pub method: CalibrationMethod,
+    /// [u0, v0] for tsai (pixels)
+    pub principal_point: Vec<f64>,
+    /// RANSAC inlier threshold in pixels; 0 uses every match
+    #[param(range = 0.0..=1e6)]
+    pub ransac_threshold_px: Option<f64>,
+    /// RANSAC random seed
+    #[param(range = 0..=i64::MAX)]
+    pub seed: u64,
+}
+
+impl Default for CalibrateParams {
+    fn default() -> Self {
+        CalibrateParams {
+            method: CalibrationMethod::Restricted,
+            principal_point: Vec::new(),
+            ransac_threshold_px: None,
+            seed: 0,
+        }
+    }
+}
+
+impl CalibrateParams {
+    /// The options of [`calibrate_camera`]; an error when `principal_point` is not `[u0, v0]`
+    /// (or empty for a method that does not need it).
+    pub fn options(&self) -> Result<CalibrationOptions> {
+        let principal_point = match (self.method, self.principal_point.as_slice()) {
+            (_, [u, v]) => Some(Point2::new(*u, *v)),
+            (CalibrationMethod::Tsai, _) => {
+                return Err(VisionError::InvalidInput(
+                    "method tsai needs `principal_point: [u0, v0]` (pixels)".into(),
+                ))
+            }
+            (_, []) => None,
+            _ => {
+                return Err(VisionError::InvalidInput(
+                    "`principal_point` is [u0, v0]".into(),
+                ))
+            }
+        };
+        Ok(CalibrationOptions {
+            method: self.method,
+            principal_point,
+            ransac: self.ransac_threshold_px.map(RansacParams::with_threshold),
+            ..Default::default()
+        })
+    }
+
+    /// The RANSAC random numbers.
+    pub fn rng(&self) -> rand_pcg::Pcg64 {
+        rand::SeedableRng::seed_from_u64(self.seed)
     }
 }
 

@@ -18,15 +18,28 @@ use super::KltError;
 
 /// Parameters of [`good_features_to_track`] (book 6.4; Shi & Tomasi 1994). The defaults are
 /// the book's: 150 corners, quality level 1e-5, minimum distance 10, 3×3 blocks.
-#[derive(Clone, Debug, PartialEq)]
+///
+/// As the tracker's params (`klt_track`): `features` (the tracker's slots, 0 = from the frame
+/// size), `min_distance`, `quality`.
+#[derive(Clone, Debug, PartialEq, vfxgraph_params::Options)]
 pub struct CornerParams {
     /// Maximum number of corners returned.
+    #[param(
+        name = "features",
+        range = 0..=100_000,
+        doc = "feature slots per frame (the book's N: 150); 0 = from the frame size, one per 36 × 36 px block and at least 150 (400 at 960 × 540)"
+    )]
     pub max_corners: usize,
-    /// Minimum score relative to the best score of the image (OpenCV's `qualityLevel`).
-    pub quality: f32,
-    /// Minimum Euclidean distance between returned corners (and to `existing` points), pixels.
+    /// minimum distance between features, pixels
+    ///
+    /// Minimum Euclidean distance between returned corners (and to `existing` points).
+    #[param(range = 0.0..=10_000.0)]
     pub min_distance: f32,
+    /// corner score threshold relative to the best corner (OpenCV qualityLevel)
+    #[param(range = 0.0..=1.0)]
+    pub quality: f32,
     /// Side of the window over which the structure tensor is summed (OpenCV's `blockSize`).
+    #[param(skip)]
     pub block_size: usize,
 }
 

@@ -22,16 +22,25 @@ use super::KltError;
 /// Parameters of pyramidal Lucas–Kanade (book 6.3; Bouguet 2000). Defaults follow OpenCV's
 /// `calcOpticalFlowPyrLK`: a 21×21 window, 3 pyramid levels above the image, 30 iterations or
 /// a step below 0.01 px.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, vfxgraph_params::Options)]
 pub struct LkParams {
-    /// Side of the square window in pixels (odd; an even value is used as the next odd one).
+    /// LK window side, pixels (odd)
+    ///
+    /// Side of the square window in pixels (an even value is used as the next odd one).
+    #[param(range = 3..=255)]
     pub window: usize,
+    /// pyramid levels above the image
+    ///
     /// Number of pyramid levels above the image (0 = no pyramid).
+    #[param(range = 0..=12)]
     pub levels: usize,
-    /// Maximum number of refinement steps per level.
+    /// maximum LK iterations per level
+    #[param(name = "iterations", range = 1..=1000)]
     pub max_iterations: u32,
-    /// A level stops when the step is shorter than this (pixels).
+    /// LK stops when a step is shorter than this, pixels
+    #[param(range = 0.0..=10.0)]
     pub epsilon: f32,
+    #[param(skip)]
     /// Smallest accepted eigenvalue of `G` divided by the window area, in (brightness/px)²;
     /// 0.1 here equals OpenCV's default `minEigThreshold` 1e-4 (OpenCV scales by 1/1024).
     pub min_eigen: f32,

@@ -3,7 +3,7 @@
 //! model with the book's `f.txt` format ([`tracks`]) and the sequence tracker with disposal
 //! and replacement of windows ([`tracker`], 6.5), optionally drift-corrected against each
 //! feature's first window ([`drift`]), with the residual threshold raised to the footage's
-//! measured noise ([`noise`]).
+//! measured noise ([`noise`]); tracks drawn over their frames or written as text ([`overlay`]).
 //!
 //! Brightness is on a 0–255 perceptual scale ([`GrayImage::from_image`]); pixel centres are
 //! at integer coordinates, (0, 0) the top-left pixel's centre, x right, y down.
@@ -12,6 +12,7 @@ pub mod corners;
 pub mod drift;
 pub mod lucas_kanade;
 pub mod noise;
+pub mod overlay;
 pub mod pyramid;
 pub mod tracker;
 pub mod tracks;
@@ -19,6 +20,7 @@ pub mod tracks;
 pub use corners::{good_features_to_track, min_eigen_map, Corner, CornerParams};
 pub use lucas_kanade::{track_point, track_points, LkParams, LkResult};
 pub use noise::noise_sigma;
+pub use overlay::{draw_tracks, DrawTracksOptions, TracksFormat, WriteTracksOptions};
 pub use pyramid::{pyr_down, GrayImage, Level, Pyramid};
 pub use tracker::{track_sequence, Tracker, TrackerParams};
 pub use tracks::{Loss, LostReason, Track, Tracks};

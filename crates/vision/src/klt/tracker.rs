@@ -20,36 +20,56 @@ use rayon::prelude::*;
 /// levels RMS raised to 3 × the frame pair's measured noise, lost features replaced, and —
 /// not in the book, so that grainy footage tracks as well as clean — a 1 px forward–backward
 /// check and 1 px drift correction. [`TrackerParams::book`] is the book's tracker.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, vfxgraph_params::Options)]
 pub struct TrackerParams {
     /// Corner detection; `max_corners` is the number of feature slots (the book's N), 0 = from
     /// the frame size ([`TrackerParams::feature_slots`]).
+    #[param(flatten)]
     pub corners: CornerParams,
     /// Pyramidal Lucas–Kanade.
+    #[param(flatten)]
     pub lk: LkParams,
-    /// A feature whose window residual (RMS, 0–255 gray levels) exceeds this is lost (book
-    /// 6.5); infinity disables the test.
+    /// a feature whose window RMS residual (0–255 gray levels) exceeds this is lost
+    ///
+    /// Book 6.5; infinity disables the test.
+    #[param(range = 0.0..=1e9)]
     pub max_residual: f32,
+    /// …or this many times the frame pair's measured noise √(σa² + σb²) when larger (grainy
+    /// footage); 0 = max_residual only (the book)
+    ///
     /// The residual threshold of a step from frame a to frame b is at least this many times
     /// √(σa² + σb²), the frames' measured noise ([`super::noise::noise_sigma`]): the RMS
-    /// difference of two windows that match except for noise. 0 = the fixed `max_residual` only
-    /// (the book). On clean footage (σ ≈ 2) 3 × √2 σ stays below 12 and nothing changes.
+    /// difference of two windows that match except for noise. On clean footage (σ ≈ 2)
+    /// 3 × √2 σ stays below 12 and nothing changes.
+    #[param(range = 0.0..=1e6)]
     pub noise_factor: f32,
+    /// forward–backward check: lost if tracking back misses the start by more than this many
+    /// pixels; 0 = off
+    ///
     /// If set, each tracked feature is tracked back and lost when it does not come back
     /// within this many pixels of where it started.
+    #[param(range = 0.0..=1e9)]
     pub fb_threshold: Option<f32>,
-    /// Refill lost slots with new corners (book 6.5).
+    /// refill lost slots with new corners (book 6.5)
     pub replace_lost: bool,
+    /// no corners closer than this to the edge; features closer are lost
+    ///
     /// Margin in pixels: corners are not detected closer than this to the image edge, and a
     /// feature closer than that is lost as having left the image. Near the edge part of the
     /// window lies outside the image, where LK sees no gradient (as OpenCV), so the feature is
     /// followed on a partial window. With the default (10, the half window of the default LK
     /// window) every window lies wholly inside the image, the book's definition of a window
     /// (6.1).
+    #[param(range = 0.0..=10_000.0)]
     pub border: f32,
+    /// re-align each step to the feature's first window and keep that position when it moves
+    /// less than this many pixels (no drift along long tracks); 0 = off, the book's
+    /// frame-to-frame tracker
+    ///
     /// Drift correction ([`super::drift`]): each step's position is re-aligned to the
     /// feature's first window and moved when that moves it less than this many pixels
     /// (`None`: frame-to-frame only, the book's tracker).
+    #[param(range = 0.0..=1e3)]
     pub drift_correction: Option<f32>,
 }
 

@@ -94,7 +94,9 @@ pub fn sampson_distance(f: &Matrix3<f64>, xa: &Point2<f64>, xb: &Point2<f64>) ->
 }
 
 /// The residual [`FundamentalEstimator`] thresholds.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default, vfxgraph_params::Choice,
+)]
 #[serde(rename_all = "lowercase")]
 pub enum EpipolarResidual {
     /// Sampson distance in pixels (default).

@@ -30,6 +30,49 @@ use crate::points::Points3d;
 use crate::ransac::{ransac, RansacParams};
 use crate::rotation::{axis_angle_to_r, r_to_axis_angle};
 
+/// The `two_view` node's params: [`TwoViewOptions`]' RANSAC threshold and residual, and the
+/// RANSAC seed.
+#[derive(Clone, Debug, PartialEq, vfxgraph_params::Options)]
+pub struct TwoViewParams {
+    /// RANSAC inlier threshold (Sampson distance, pixels)
+    #[param(range = 0.0..=1e6)]
+    pub ransac_threshold_px: Option<f64>,
+    /// RANSAC residual
+    pub residual: EpipolarResidual,
+    /// RANSAC random seed
+    #[param(range = 0..=i64::MAX)]
+    pub seed: u64,
+}
+
+impl Default for TwoViewParams {
+    fn default() -> Self {
+        TwoViewParams {
+            ransac_threshold_px: Some(1.0),
+            residual: EpipolarResidual::Sampson,
+            seed: 0,
+        }
+    }
+}
+
+impl TwoViewParams {
+    /// The options of [`reconstruct_two_view`] (a threshold of 0: the default RANSAC).
+    pub fn options(&self) -> TwoViewOptions {
+        let d = TwoViewOptions::default();
+        TwoViewOptions {
+            ransac: self
+                .ransac_threshold_px
+                .map_or(d.ransac.clone(), RansacParams::with_threshold),
+            residual: self.residual,
+            ..d
+        }
+    }
+
+    /// The RANSAC random numbers.
+    pub fn rng(&self) -> rand_pcg::Pcg64 {
+        rand::SeedableRng::seed_from_u64(self.seed)
+    }
+}
+
 /// Options of [`reconstruct_two_view`].
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TwoViewOptions {

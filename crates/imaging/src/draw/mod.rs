@@ -1,5 +1,7 @@
 //! Plots and overlays drawn into images for a person to look at (no text: axes are implied by
-//! grid lines at round values).
+//! grid lines at round values), and plots of reports as SVG ([`svg`]).
+
+pub mod svg;
 
 use crate::hdr::{ResponseCurve, LEVELS};
 use crate::Image;
@@ -88,4 +90,55 @@ pub fn plot_response(curve: &ResponseCurve, o: &PlotOptions) -> Image {
         }
     }
     img
+}
+
+/// Sets pixel (`x`, `y`)'s colour channels to `c`; outside the image, nothing.
+pub fn plot(img: &mut Image, x: i64, y: i64, c: [f32; 3]) {
+    if x >= 0 && y >= 0 && (x as usize) < img.width && (y as usize) < img.height {
+        img.pixel_mut(x as usize, y as usize)[..3].copy_from_slice(&c);
+    }
+}
+
+/// A one-pixel line from `a` to `b` (pixel centres at integers), clipped to the image.
+pub fn line(img: &mut Image, a: [f64; 2], b: [f64; 2], c: [f32; 3]) {
+    let n = ((b[0] - a[0]).abs().max((b[1] - a[1]).abs()).ceil() as i64).clamp(1, 100_000);
+    for k in 0..=n {
+        let t = k as f64 / n as f64;
+        let x = a[0] + (b[0] - a[0]) * t;
+        let y = a[1] + (b[1] - a[1]) * t;
+        plot(img, x.round() as i64, y.round() as i64, c);
+    }
+}
+
+/// A cross of arms `r` pixels long centred on pixel (`x`, `y`).
+pub fn cross(img: &mut Image, x: i64, y: i64, r: i64, c: [f32; 3]) {
+    for d in -r..=r {
+        plot(img, x + d, y, c);
+        plot(img, x, y + d, c);
+    }
+}
+
+/// The outline of a square of half side `r` centred on pixel (`x`, `y`).
+pub fn square(img: &mut Image, x: i64, y: i64, r: i64, c: [f32; 3]) {
+    for d in -r..=r {
+        for (dx, dy) in [(d, -r), (d, r), (-r, d), (r, d)] {
+            plot(img, x + dx, y + dy, c);
+        }
+    }
+}
+
+/// A bright, fully saturated colour (linear RGB) from an id: the same id, the same colour.
+pub fn id_colour(id: u64) -> [f32; 3] {
+    let h = (id.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 40) as f32 / (1u64 << 24) as f32;
+    let h6 = h * 6.0;
+    let x = 1.0 - (h6 % 2.0 - 1.0).abs();
+    let (r, g, b) = match h6 as u32 {
+        0 => (1.0, x, 0.0),
+        1 => (x, 1.0, 0.0),
+        2 => (0.0, 1.0, x),
+        3 => (0.0, x, 1.0),
+        4 => (x, 0.0, 1.0),
+        _ => (1.0, 0.0, x),
+    };
+    [r, g, b]
 }
