@@ -1,7 +1,8 @@
 //! Real footage with the defaults (the real-cameras issue's "defaults survive real noise"):
 //! `graphs/dev_plate_solve.yaml` tracks and solves the Blender Cycles plate of
 //! `../shared/data/blender_plate_dev/pinhole` (48 frames, 960×540, render grain of σ ≈ 10 gray
-//! levels) with K known and **no parameter set**, and the cameras are checked against the
+//! levels) with K known and one parameter set (`track_weighting: true`, off by default), and
+//! the cameras are checked against the
 //! renderer's own (`cameras_gt.json`) after the similarity that aligns a solve with the truth.
 //!
 //! Measured (release, this commit; the default feature count from the frame size, 400): every
