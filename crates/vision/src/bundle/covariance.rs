@@ -48,7 +48,7 @@ pub fn intrinsics_covariance(problem: &Problem) -> Result<Covariances, BundleErr
     }
     let mut intr_index = vec![[usize::MAX; INTRINSICS]; problem.intrinsics.len()];
     for (k, b) in problem.intrinsics.iter().enumerate() {
-        for u in 0..b.len() {
+        for u in 0..b.num_params() {
             if !b.is_held(u) {
                 intr_index[k][u] = n;
                 n += 1;

@@ -71,7 +71,7 @@ impl CameraModel {
     }
 
     /// Number of parameters of a block of this model.
-    pub fn len(&self) -> usize {
+    pub fn num_params(&self) -> usize {
         match self {
             CameraModel::Pinhole { .. } | CameraModel::Bal => 3,
             CameraModel::Radial { .. } => INTRINSICS,
@@ -90,7 +90,7 @@ pub struct Intrinsics {
     /// Held constant during the solve.
     pub fixed: bool,
     /// Parameters held constant when the block is free (e.g. k2 of a k1-only lens solve);
-    /// those past the model's [`CameraModel::len`] are ignored.
+    /// those past the model's [`CameraModel::num_params`] are ignored.
     pub held: [bool; INTRINSICS],
 }
 
@@ -141,9 +141,9 @@ impl Intrinsics {
         }
     }
 
-    /// Number of parameters of the block ([`CameraModel::len`]).
-    pub fn len(&self) -> usize {
-        self.model.len()
+    /// Number of parameters of the block ([`CameraModel::num_params`]).
+    pub fn num_params(&self) -> usize {
+        self.model.num_params()
     }
 
     /// Whether parameter `u` stays constant in a solve (the block is fixed, or `u` is held).
@@ -153,7 +153,7 @@ impl Intrinsics {
 
     /// Number of parameters the solve changes (0 when fixed).
     pub fn num_free(&self) -> usize {
-        (0..self.len()).filter(|&u| !self.is_held(u)).count()
+        (0..self.num_params()).filter(|&u| !self.is_held(u)).count()
     }
 }
 
@@ -305,7 +305,8 @@ impl Problem {
                     what: format!("observation {i} (camera {}, point {})", o.camera, o.point),
                 });
             }
-            if !o.pixel.iter().all(|x| x.is_finite()) || !(o.weight > 0.0 && o.weight.is_finite()) {
+            let weight_ok = o.weight > 0.0 && o.weight.is_finite();
+            if !(o.pixel.iter().all(|x| x.is_finite()) && weight_ok) {
                 return Err(BundleError::NonFinite {
                     what: format!("observation {i} pixel"),
                 });

@@ -133,7 +133,7 @@ impl Structure {
             }
             let exclusive = intr_free && users[k] == 1;
             if exclusive {
-                for u in 0..problem.intrinsics[k].len() {
+                for u in 0..problem.intrinsics[k].num_params() {
                     cols[d] = (6 + u) as u8;
                     mask[d] = problem.intrinsics[k].held[u];
                     d += 1;
@@ -159,7 +159,7 @@ impl Structure {
                     camera: None,
                     intrinsics: Some(k),
                 });
-                let n = problem.intrinsics[k].len();
+                let n = problem.intrinsics[k].num_params();
                 let (mut cols, mut mask) = ([0u8; CC], [false; CC]);
                 for u in 0..n {
                     cols[u] = (6 + u) as u8;
@@ -240,7 +240,7 @@ impl Structure {
         let columns = 6 + problem
             .intrinsics
             .iter()
-            .map(|k| k.len())
+            .map(|k| k.num_params())
             .max()
             .unwrap_or(0);
         let mut st = Structure {
