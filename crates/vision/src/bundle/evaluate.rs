@@ -107,21 +107,22 @@ pub(crate) fn linearize(problem: &Problem, loss: &Loss, st: &Structure) -> Linea
                 let (rot, jl) = &rots[o.camera];
                 let (pred, j_cam, j_pt) =
                     project_with_jacobians_rj(intr, rot, jl, &cam.translation, x);
-                let (j_cam, j_pt) = (j_cam * o.weight, j_pt * o.weight);
-                let r = (pred - o.pixel) * o.weight;
+                // The weight scales the residual and, column by column below, its Jacobians.
+                let wt = o.weight;
+                let r = (pred - o.pixel) * wt;
                 let s = r.norm_squared();
                 let (rs, alpha_sq, js) = loss.corrector(s);
                 // J ← js·(J − α/s · r rᵀ J): apply to both Jacobians.
                 let mut c = [0.0; 2 * CC];
                 let mut p = [0.0; 6];
                 for col in 0..st.columns {
-                    let (a0, a1) = (j_cam[(0, col)], j_cam[(1, col)]);
+                    let (a0, a1) = (wt * j_cam[(0, col)], wt * j_cam[(1, col)]);
                     let dot = r.x * a0 + r.y * a1;
                     c[col] = js * (a0 - alpha_sq * r.x * dot);
                     c[w + col] = js * (a1 - alpha_sq * r.y * dot);
                 }
                 for col in 0..3 {
-                    let (a0, a1) = (j_pt[(0, col)], j_pt[(1, col)]);
+                    let (a0, a1) = (wt * j_pt[(0, col)], wt * j_pt[(1, col)]);
                     let dot = r.x * a0 + r.y * a1;
                     p[col] = js * (a0 - alpha_sq * r.x * dot);
                     p[3 + col] = js * (a1 - alpha_sq * r.y * dot);
@@ -177,7 +178,8 @@ pub(crate) fn linearize(problem: &Problem, loss: &Loss, st: &Structure) -> Linea
             let mut dg = vec![0.0; d];
             let cols = st.cols(b);
             for &a in st.row_observations(b) {
-                let (j, r) = (&jc[2 * w * a as usize..], &residuals[a as usize]);
+                let a = a as usize;
+                let (j, r) = (&jc[2 * w * a..2 * w * (a + 1)], &residuals[a]);
                 for u in 0..d {
                     let cu = cols[u] as usize;
                     let (j0, j1) = (j[cu], j[w + cu]);
