@@ -145,6 +145,7 @@ pub fn read_bal_str(text: &str) -> Result<Problem, BundleError> {
         points,
         observations,
         gauge: Gauge::Free,
+        priors: Vec::new(),
     })
 }
 

@@ -121,7 +121,20 @@ pub fn intrinsics_covariance(problem: &Problem) -> Result<Covariances, BundleErr
             }
         }
     }
-    let m = 2 * problem.observations.len();
+    // The priors: residuals like the observations' (their coefficients in the same units).
+    for p in &problem.priors {
+        sq += p.residual(&problem.intrinsics).powi(2);
+        for ta in &p.terms {
+            let a = intr_index[ta.intrinsics][ta.param];
+            for tb in &p.terms {
+                let b = intr_index[tb.intrinsics][tb.param];
+                if a != usize::MAX && b != usize::MAX {
+                    s[(a, b)] += ta.coefficient * tb.coefficient;
+                }
+            }
+        }
+    }
+    let m = 2 * problem.observations.len() + problem.priors.len();
     let dof = m as f64 - (n + point_params) as f64;
     if dof <= 0.0 {
         return Err(BundleError::InvalidProblem(format!(
@@ -223,6 +236,7 @@ mod tests {
                 .collect(),
             observations: Vec::new(),
             gauge: Gauge::FixFirstCameraAndScale,
+            priors: Vec::new(),
         };
         let sigma = 0.5;
         let draw = |seed: u64| {

@@ -33,6 +33,9 @@ pub(crate) struct Linearization {
     pub jtj_p: Vec<[f64; 9]>,
     /// Diagonal of JᵀJ on the reduced parameters (squared column norms).
     pub diag_f: Vec<f64>,
+    /// The priors' residuals ([`super::Prior`]; their Jacobians are the structure's constant
+    /// coefficients).
+    pub prior_residuals: Vec<f64>,
 }
 
 impl Linearization {
@@ -77,7 +80,7 @@ pub(crate) fn cost(problem: &Problem, loss: &Loss) -> f64 {
             s
         })
         .collect();
-    0.5 * partial.iter().sum::<f64>()
+    0.5 * partial.iter().sum::<f64>() + problem.prior_cost()
 }
 
 /// Residuals, Jacobians and gradients at the problem's current parameters.
@@ -196,6 +199,26 @@ pub(crate) fn linearize(problem: &Problem, loss: &Loss, st: &Structure) -> Linea
         g_f.extend(g);
         diag_f.extend(d);
     }
+    // The priors: residual Σ c·x − target, constant Jacobian c.
+    let prior_residuals: Vec<f64> = problem
+        .priors
+        .iter()
+        .map(|p| p.residual(&problem.intrinsics))
+        .collect();
+    for ((terms, coefs), r) in st
+        .prior_cols
+        .iter()
+        .zip(&st.prior_coefficients)
+        .zip(&prior_residuals)
+    {
+        for (t, c) in terms.iter().zip(coefs) {
+            if let Some((b, u)) = *t {
+                let i = st.fblock_offset[b] + u;
+                g_f[i] += c * r;
+                diag_f[i] += c * c;
+            }
+        }
+    }
     Linearization {
         residuals,
         jc,
@@ -205,5 +228,6 @@ pub(crate) fn linearize(problem: &Problem, loss: &Loss, st: &Structure) -> Linea
         g_p,
         jtj_p,
         diag_f,
+        prior_residuals,
     }
 }

@@ -238,7 +238,22 @@ fn model_decrease(st: &Structure, lin: &Linearization, df: &[f64], dp: &[[f64; 3
             s
         })
         .collect();
-    -partial.iter().sum::<f64>()
+    // The priors' terms: r·(cᵀδ) + ½(cᵀδ)².
+    let mut priors = 0.0;
+    for ((terms, coefs), r) in st
+        .prior_cols
+        .iter()
+        .zip(&st.prior_coefficients)
+        .zip(&lin.prior_residuals)
+    {
+        let jd: f64 = terms
+            .iter()
+            .zip(coefs)
+            .filter_map(|(t, c)| t.map(|(b, u)| c * df[st.fblock_offset[b] + u]))
+            .sum();
+        priors += r * jd + 0.5 * jd * jd;
+    }
+    -(partial.iter().sum::<f64>() + priors)
 }
 
 fn solve_inner(problem: &mut Problem, o: &SolverOptions) -> Result<SolverReport, BundleError> {

@@ -57,7 +57,9 @@ pub use error::BundleError;
 pub use linear_solver::LinearSolverKind;
 pub use lm::{solve, SolverOptions};
 pub use loss::Loss;
-pub use problem::{CameraModel, CameraPose, Gauge, Intrinsics, Observation, Point, Problem};
+pub use problem::{
+    CameraModel, CameraPose, Gauge, Intrinsics, Observation, Point, Prior, PriorTerm, Problem,
+};
 pub use report::{SolverReport, TerminationReason};
 pub use residual::INTRINSICS;
 pub use sequence::{adjust_sequence, AdjustedSequence};

@@ -218,6 +218,43 @@ pub struct Observation {
     pub weight: f64,
 }
 
+/// One term `coefficient · x` of a [`Prior`], x being parameter `param` of intrinsics block
+/// `intrinsics`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PriorTerm {
+    /// Index into [`Problem::intrinsics`].
+    pub intrinsics: usize,
+    /// Index into that block's [`Intrinsics::params`].
+    pub param: usize,
+    /// The term's coefficient.
+    pub coefficient: f64,
+}
+
+/// A linear prior on intrinsics parameters: the residual `Σ cᵢ·xᵢ − target`, added to the cost
+/// as `½·r²` beside the observations' (not robustified). Its coefficients carry its weight, in
+/// the observations' units: a residual of 1 costs what an observation 1 px off does. A zooming
+/// lens's smoothness is such a prior, `(f₍ᵢ₋₁₎ − 2fᵢ + f₍ᵢ₊₁₎)/σ` between the focal lengths of
+/// neighbouring frames (Triggs et al. 2000, section 3.4: priors as extra residuals). Terms on
+/// held parameters or fixed blocks add to the residual, not to the solve.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Prior {
+    /// The terms.
+    pub terms: Vec<PriorTerm>,
+    /// The value the combination should have.
+    pub target: f64,
+}
+
+impl Prior {
+    /// The residual at the problem's current parameters.
+    pub fn residual(&self, intrinsics: &[Intrinsics]) -> f64 {
+        self.terms
+            .iter()
+            .map(|t| t.coefficient * intrinsics[t.intrinsics].params[t.param])
+            .sum::<f64>()
+            - self.target
+    }
+}
+
 /// How the similarity gauge (3 rotation, 3 translation, 1 scale) is fixed
 /// (Triggs et al. 2000, section 9; Hartley & Zisserman 18.1).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -251,6 +288,8 @@ pub struct Problem {
     pub observations: Vec<Observation>,
     /// Gauge fixing.
     pub gauge: Gauge,
+    /// Linear priors on intrinsics parameters (a zoom's smoothness); usually none.
+    pub priors: Vec<Prior>,
 }
 
 fn finite3(v: &Vector3<f64>) -> bool {
@@ -309,6 +348,35 @@ impl Problem {
             if !(o.pixel.iter().all(|x| x.is_finite()) && weight_ok) {
                 return Err(BundleError::NonFinite {
                     what: format!("observation {i} pixel"),
+                });
+            }
+        }
+        for (i, p) in self.priors.iter().enumerate() {
+            for t in &p.terms {
+                let Some(k) = self.intrinsics.get(t.intrinsics) else {
+                    return Err(BundleError::IndexOutOfRange {
+                        what: format!(
+                            "prior {i} uses intrinsics {} of {}",
+                            t.intrinsics,
+                            self.intrinsics.len()
+                        ),
+                    });
+                };
+                if t.param >= k.num_params() {
+                    return Err(BundleError::IndexOutOfRange {
+                        what: format!(
+                            "prior {i} uses parameter {} of intrinsics {} ({} parameters)",
+                            t.param,
+                            t.intrinsics,
+                            k.num_params()
+                        ),
+                    });
+                }
+            }
+            let finite = p.target.is_finite() && p.terms.iter().all(|t| t.coefficient.is_finite());
+            if !finite {
+                return Err(BundleError::NonFinite {
+                    what: format!("prior {i}"),
                 });
             }
         }
@@ -372,13 +440,24 @@ impl Problem {
         )
     }
 
-    /// ½·Σ‖w·(predicted − observed)‖² without a robust loss (Ceres' cost with a trivial loss).
+    /// ½·Σ‖w·(predicted − observed)‖² + ½·Σ r²(priors) without a robust loss (Ceres' cost
+    /// with a trivial loss).
     pub fn cost(&self) -> f64 {
         0.5 * (0..self.observations.len())
             .map(|i| {
                 let o = &self.observations[i];
                 ((self.predict(i) - o.pixel) * o.weight).norm_squared()
             })
+            .sum::<f64>()
+            + self.prior_cost()
+    }
+
+    /// ½·Σ r² over the priors.
+    pub fn prior_cost(&self) -> f64 {
+        0.5 * self
+            .priors
+            .iter()
+            .map(|p| p.residual(&self.intrinsics).powi(2))
             .sum::<f64>()
     }
 }

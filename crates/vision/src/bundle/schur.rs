@@ -102,6 +102,11 @@ pub(crate) struct Structure {
     /// Start of each row's values in the flat value array, and its total length.
     pub row_start: Vec<usize>,
     pub n_values: usize,
+    /// Per prior of the problem ([`super::Prior`]), per term: the f-block and local column it
+    /// moves, `None` for a held parameter or a fixed block (the term is constant).
+    pub prior_cols: Vec<Vec<Option<(usize, usize)>>>,
+    /// Per prior, its terms' coefficients (the constant Jacobian).
+    pub prior_coefficients: Vec<Vec<f64>>,
 }
 
 impl Structure {
@@ -243,7 +248,36 @@ impl Structure {
             .map(|k| k.num_params())
             .max()
             .unwrap_or(0);
+        // Where every free intrinsics parameter sits: (f-block, local column).
+        let mut intr_col = vec![[None; INTRINSICS]; problem.intrinsics.len()];
+        for (b, fb) in fblocks.iter().enumerate() {
+            if let Some(k) = fb.intrinsics {
+                for d in 0..fblock_dim[b] {
+                    let c = fblock_cols[b][d] as usize;
+                    if c >= 6 && !fblock_mask[b][d] {
+                        intr_col[k][c - 6] = Some((b, d));
+                    }
+                }
+            }
+        }
+        let prior_cols = problem
+            .priors
+            .iter()
+            .map(|p| {
+                p.terms
+                    .iter()
+                    .map(|t| intr_col[t.intrinsics][t.param])
+                    .collect()
+            })
+            .collect();
+        let prior_coefficients = problem
+            .priors
+            .iter()
+            .map(|p| p.terms.iter().map(|t| t.coefficient).collect())
+            .collect();
         let mut st = Structure {
+            prior_cols,
+            prior_coefficients,
             columns,
             fblocks,
             fblock_dim,
@@ -313,6 +347,17 @@ impl Structure {
 
     fn build_pattern(&mut self) {
         let nf = self.fblocks.len();
+        // The blocks a prior couples (its terms' f-blocks, pairwise).
+        let mut prior_partners: Vec<Vec<u32>> = vec![Vec::new(); nf];
+        for terms in &self.prior_cols {
+            for &(a, _) in terms.iter().flatten() {
+                for &(b, _) in terms.iter().flatten() {
+                    if b >= a {
+                        prior_partners[a].push(b as u32);
+                    }
+                }
+            }
+        }
         let this = &*self;
         let row_cols: Vec<Vec<u32>> = (0..nf)
             .into_par_iter()
@@ -334,6 +379,12 @@ impl Structure {
                                     cols.push(c);
                                 }
                             }
+                        }
+                    }
+                    for &c in &prior_partners[r] {
+                        if !mark[c as usize] {
+                            mark[c as usize] = true;
+                            cols.push(c);
                         }
                     }
                     if !mark[r] {
@@ -529,6 +580,7 @@ impl Structure {
         #[cfg(test)]
         if self.rowwise {
             self.assemble_rowwise(&mut values, &mut rhs, &ctx, lambda);
+            self.add_priors(&mut values);
             return ReducedSystem { values, rhs, c_inv };
         }
         // Split the flat arrays into per-group slices (groups are consecutive rows).
@@ -560,7 +612,31 @@ impl Structure {
             .par_iter()
             .zip(slices)
             .for_each(|(g, (vals, b))| self.assemble_group(g, vals, b, &ctx, lambda));
+        self.add_priors(&mut values);
         ReducedSystem { values, rhs, c_inv }
+    }
+
+    /// Adds the priors' `JᵀJ` (constant: their coefficients) to S; their gradient and diagonal
+    /// are in the linearization's `g_f` and `diag_f` already (the rhs and the damping).
+    fn add_priors(&self, values: &mut [f64]) {
+        for (terms, prior) in self.prior_cols.iter().zip(&self.prior_coefficients) {
+            for (ta, &ca) in terms.iter().zip(prior) {
+                let Some((a, ua)) = *ta else { continue };
+                for (tb, &cb) in terms.iter().zip(prior) {
+                    let Some((b, ub)) = *tb else { continue };
+                    if b < a {
+                        continue;
+                    }
+                    let k = self.row_cols[a]
+                        .binary_search(&(b as u32))
+                        .unwrap_or_else(|_| {
+                            unreachable!("prior block ({a}, {b}) is in the pattern")
+                        });
+                    let at = self.row_start[a] + self.row_val_offset[a][k];
+                    values[at + ua * self.fblock_dim[b] + ub] += ca * cb;
+                }
+            }
+        }
     }
 
     /// Per point, `G_p = Σ_b Jpᵦᵀ Jcᵦ[k]` (row-major 3×[`INTRINSICS`]: point coordinate × the

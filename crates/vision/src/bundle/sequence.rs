@@ -112,6 +112,7 @@ pub fn adjust_sequence(
         } else {
             Gauge::Free
         },
+        priors: Vec::new(),
     };
     let report = solve(&mut problem, options)?;
     let [f, u0, v0, ..] = problem.intrinsics[0].params;

@@ -220,6 +220,7 @@ pub fn video_like(cfg: &VideoConfig) -> SyntheticProblem {
             .collect(),
         observations,
         gauge,
+        priors: Vec::new(),
     };
     let mut problem = truth.clone();
     let (sr, st, sp) = cfg.perturbation;

@@ -745,6 +745,7 @@ pub(crate) fn adjust_with_block(
         points: pts,
         observations,
         gauge,
+        priors: Vec::new(),
     };
     let options = crate::bundle::SolverOptions {
         max_iterations,
