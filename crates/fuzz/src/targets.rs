@@ -540,10 +540,12 @@ fn sample_camera_path() -> CameraPath {
             FramePose {
                 frame: 0,
                 pose: Pose::identity(),
+                focal: None,
             },
             FramePose {
                 frame: 7,
                 pose: Pose::new(r, Vector3::new(0.5, -2.0, 10.0)),
+                focal: None,
             },
         ],
         intrinsics: None,

@@ -192,6 +192,7 @@ mod tests {
                 .map(|(i, p)| FramePose {
                     frame: i,
                     pose: p.clone(),
+                    focal: None,
                 })
                 .collect(),
             intrinsics: None,

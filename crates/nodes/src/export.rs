@@ -245,6 +245,7 @@ mod tests {
                             axis_angle_to_r(&Vector3::new(0.01 * a, 0.1 - 0.03 * a, 0.2)),
                             Vector3::new(0.1 * a, -0.2, 4.0 + 0.01 * a),
                         ),
+                        focal: None,
                     }
                 })
                 .collect(),

@@ -493,7 +493,11 @@ mod tests {
             -Vector3::new(cam_centre.x, cam_centre.y, cam_centre.z),
         );
         let path = CameraPath {
-            frames: vec![FramePose { frame: 0, pose }],
+            frames: vec![FramePose {
+                frame: 0,
+                pose,
+                focal: None,
+            }],
             intrinsics: None,
         };
         // Designed: a sphere of radius 0.1 |AB| floating at y = 0.7; `rest` drops it.

@@ -544,10 +544,12 @@ mod tests {
                 FramePose {
                     frame: 3,
                     pose: pose_of(0.0),
+                    focal: None,
                 },
                 FramePose {
                     frame: 4,
                     pose: pose_of(0.5),
+                    focal: None,
                 },
             ],
             intrinsics: None,
@@ -597,6 +599,7 @@ mod tests {
                     r: nalgebra::Matrix3::from_fn(|i, j| c.r[i][j]),
                     t: Vector3::from(c.t),
                 },
+                focal: None,
             }],
             intrinsics: k,
         };

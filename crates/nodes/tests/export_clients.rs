@@ -87,6 +87,7 @@ fn shot(k: Intrinsics) -> Shot {
             FramePose {
                 frame: 5 + i,
                 pose: Pose::new(r, -(r * c)),
+                focal: None,
             }
         })
         .collect();

@@ -87,6 +87,7 @@ pub fn orbit_path(o: &Orbit, k: &Intrinsics) -> Result<CameraPath> {
         frames.push(FramePose {
             frame: o.first_frame + i,
             pose: look_at(&centre, &o.target)?,
+            focal: None,
         });
     }
     Ok(CameraPath {

@@ -132,6 +132,7 @@ pub fn adjust_sequence(
                     r: c.rotation_matrix(),
                     t: c.translation,
                 },
+                focal: None,
             })
             .collect(),
         intrinsics: Some(k_out.clone()),
@@ -226,6 +227,7 @@ mod tests {
                             t: p.t + Vector3::new(0.02, -0.01, 0.01),
                         }
                     },
+                    focal: None,
                 })
                 .collect(),
             intrinsics: None,

@@ -486,7 +486,11 @@ pub fn parse(cameras: (&str, &str), images: (&str, &str), points3d: (&str, &str)
                 format!("image {id} ({name}) has frame number {frame}, which another image has"),
             ));
         }
-        frames.push(FramePose { frame, pose });
+        frames.push(FramePose {
+            frame,
+            pose,
+            focal: None,
+        });
         names.push(name);
     }
 

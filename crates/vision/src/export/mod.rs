@@ -528,6 +528,7 @@ pub(crate) mod test_shot {
                 FramePose {
                     frame: 10 + i,
                     pose: Pose::new(r, -(r * c)),
+                    focal: None,
                 }
             })
             .collect();

@@ -19,6 +19,10 @@ pub struct FramePose {
     /// [R|t] of that frame (JSON: `"R"`, `"t"` flattened into the frame object).
     #[serde(flatten)]
     pub pose: Pose,
+    /// This frame's focal length (px, the x one; y keeps the intrinsics' aspect) when the lens
+    /// zooms; `None`: the path's intrinsics'. JSON: `"focal"`, omitted when `None`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub focal: Option<f64>,
 }
 
 /// The extrinsics of a sequence of frames (JSON: `{"frames": [{"frame": i, "R": …, "t": …}, …]}`).
@@ -30,6 +34,24 @@ pub struct CameraPath {
     /// them: it is paired with a `g7cam.txt`). JSON: `"intrinsics"`, omitted when unknown.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub intrinsics: Option<crate::camera::Intrinsics>,
+}
+
+impl CameraPath {
+    /// The intrinsics of the `i`-th frame of the path: the path's, with the frame's own focal
+    /// length when it has one (a zoom); `None` without intrinsics.
+    pub fn intrinsics_at(&self, i: usize) -> Option<crate::camera::Intrinsics> {
+        let mut k = self.intrinsics.clone()?;
+        if let Some(f) = self.frames.get(i).and_then(|f| f.focal) {
+            k.f2 *= f / k.f1;
+            k.f1 = f;
+        }
+        Some(k)
+    }
+
+    /// Whether the focal length changes along the path (frames carry their own).
+    pub fn zooms(&self) -> bool {
+        self.frames.iter().any(|f| f.focal.is_some())
+    }
 }
 
 /// Parse a cameras file.
@@ -68,6 +90,7 @@ pub fn parse_cameras(text: &str, file: &str) -> Result<CameraPath> {
         frames.push(FramePose {
             frame,
             pose: Pose::new(r, t),
+            focal: None,
         });
         i += 14;
     }
@@ -123,6 +146,7 @@ mod tests {
                         axis_angle_to_r(&Vector3::new(0.1 * i as f64, 0.2, -0.3)),
                         Vector3::new(1.0, i as f64, 3.5),
                     ),
+                    focal: None,
                 })
                 .collect(),
             intrinsics: None,

@@ -147,6 +147,7 @@ mod tests {
             frames: vec![FramePose {
                 frame: 3,
                 pose: Pose::identity(),
+                focal: None,
             }],
             intrinsics: None,
         };

@@ -164,7 +164,7 @@ pub(crate) fn triangulate_track(
 }
 
 /// Triangulates every track robustly in parallel (deterministic: each track on its own).
-fn triangulate_all(
+pub(crate) fn triangulate_all(
     tracks: &Tracks,
     k: &Intrinsics,
     poses: &[Option<Pose>],
@@ -342,7 +342,7 @@ const MAX_TRACK_WEIGHT: f64 = 4.0;
 /// slides by one — and giving them the weight of their accuracy, rather than one each, is what
 /// keeps the many mediocre tracks of grainy footage from bending the path (module docs).
 /// Weights are at most [`MAX_TRACK_WEIGHT`]; tracks without a point get 0.
-fn track_weights(
+pub(crate) fn track_weights(
     tracks: &Tracks,
     k: &Intrinsics,
     poses: &[Option<Pose>],

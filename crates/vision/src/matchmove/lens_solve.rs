@@ -85,6 +85,17 @@ pub struct LensOptions {
     /// rounds of undistort → pinhole solve → lens adjustment, when the lens is solved
     #[param(range = 1..=5)]
     pub lens_rounds: usize,
+    /// a focal length per frame (a zooming lens), smoothed by `zoom_smoothness`
+    ///
+    /// Needs `focal: refine` (the intrinsics' focal length is the first frame's) or
+    /// `unknown`, and `distortion: none` (the intrinsics' own lens is held).
+    pub zoom: bool,
+    /// the zoom's smoothness: σ of the focal length's second difference, px per frame²
+    ///
+    /// A frame whose focal length leaves the line through its neighbours' by σ costs what
+    /// one observation 1 px off does; a steady zoom (a linear ramp) costs nothing.
+    #[param(range = 1e-3..=1e4)]
+    pub zoom_smoothness: f64,
     /// image width, px (0: the intrinsics'); needed for an unknown focal length without K
     #[param(range = 0..=100_000)]
     pub width: usize,
@@ -100,6 +111,8 @@ impl Default for LensOptions {
             distortion: DistortionMode::None,
             principal_point: PrincipalPoint::Centre,
             lens_rounds: 1,
+            zoom: false,
+            zoom_smoothness: 1.0,
             width: 0,
             height: 0,
         }
@@ -346,6 +359,9 @@ pub fn matchmove_with_lens(
         }
     }
     let unknown = lens.focal == FocalMode::Unknown;
+    if lens.zoom {
+        return solve_zoom_with_lens(tracks, &k, lens, held, options, progress);
+    }
     let t0 = std::time::Instant::now();
     let (tripod, focal, note) = super::tripod::decide(tracks, &k, unknown, options)?;
     if let Some(parallax) = tripod {
@@ -373,6 +389,55 @@ pub fn matchmove_with_lens(
         solve.report.stages.insert(0, motion);
         solve.report.notes.push(note);
     }
+    Ok(solve)
+}
+
+/// [`matchmove_with_lens`] of a zooming lens ([`super::zoom`]), on the tracks undistorted by
+/// the intrinsics' own lens (held).
+fn solve_zoom_with_lens(
+    tracks: &Tracks,
+    k: &Intrinsics,
+    lens: &LensOptions,
+    held: super::Held,
+    options: &MatchmoveOptions,
+    progress: &(dyn Fn(&str, usize, usize) + Sync),
+) -> Result<Solve> {
+    if lens.focal == FocalMode::Known {
+        return Err(VisionError::InvalidInput(
+            "zoom: true solves the focal length of every frame: set focal: refine (the \
+             intrinsics' focal length is the first frame's) or focal: unknown"
+                .into(),
+        ));
+    }
+    if held[1..].iter().any(|h| !h) {
+        return Err(VisionError::InvalidInput(format!(
+            "zoom: true solves the focal length only: set distortion: none and principal_point: \
+             centre (the intrinsics' lens is held; distortion: {}, principal_point: {} are not \
+             solved with a zoom yet)",
+            lens.distortion.choice(),
+            lens.principal_point.choice()
+        )));
+    }
+    let und = undistort_tracks(tracks, k)?;
+    let unknown = lens.focal == FocalMode::Unknown;
+    let (mut solve, focals) = super::zoom::solve_zoom(
+        &und,
+        &k.pinhole(),
+        unknown,
+        lens.zoom_smoothness,
+        lens.lens_rounds,
+        options,
+        progress,
+    )?;
+    if let Some(out) = &mut solve.path.intrinsics {
+        out.distortion = k.distortion;
+    }
+    solve.report.intrinsics = vec![super::report::SolvedIntrinsic {
+        name: "focal_px".into(),
+        value: focals[0],
+        held: false,
+        sd: None,
+    }];
     Ok(solve)
 }
 

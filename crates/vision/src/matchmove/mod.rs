@@ -31,6 +31,7 @@ pub mod report;
 pub mod score;
 pub mod synthetic;
 pub mod tripod;
+pub mod zoom;
 
 use std::time::Instant;
 
@@ -445,6 +446,7 @@ pub(crate) fn path_from_poses(
         frames.push(FramePose {
             frame,
             pose: p.clone(),
+            focal: None,
         });
     }
     Ok(CameraPath {
@@ -687,6 +689,57 @@ pub(crate) fn adjust_with_block(
     crate::bundle::Intrinsics,
     Option<BlockCovariance>,
 )> {
+    let (report, blocks, cov) = adjust_with_blocks(
+        tracks,
+        vec![block],
+        Vec::new(),
+        gauge,
+        poses,
+        points,
+        weight,
+        loss,
+        max_iterations,
+        covariance,
+    )?;
+    Ok((report, blocks[0], cov))
+}
+
+/// The bundle adjustment of [`bundle_adjust_indexed`] with intrinsics `blocks` — one shared by
+/// every camera, or one per frame index (a zoom; blocks of frames without a camera are left
+/// as they are) — and `priors` on them ([`crate::bundle::Prior`], indices into `blocks`).
+/// Returns the solver's report, the adjusted blocks and, when `covariance`, the first block's
+/// covariance at the solution.
+#[allow(clippy::too_many_arguments, clippy::type_complexity)]
+pub(crate) fn adjust_with_blocks(
+    tracks: &Tracks,
+    mut blocks: Vec<crate::bundle::Intrinsics>,
+    priors: Vec<crate::bundle::Prior>,
+    gauge: crate::bundle::Gauge,
+    poses: &mut [Option<Pose>],
+    points: &mut [Option<Vector3<f64>>],
+    weight: &ObservationWeight<'_>,
+    loss: crate::bundle::Loss,
+    max_iterations: usize,
+    covariance: bool,
+) -> Result<(
+    crate::bundle::SolverReport,
+    Vec<crate::bundle::Intrinsics>,
+    Option<BlockCovariance>,
+)> {
+    let per_frame = blocks.len() > 1;
+    if per_frame && blocks.len() != poses.len() {
+        return Err(VisionError::InvalidInput(format!(
+            "{} intrinsics blocks for {} frames",
+            blocks.len(),
+            poses.len()
+        )));
+    }
+    if per_frame {
+        // A block no camera uses is not determined: held.
+        for (b, p) in blocks.iter_mut().zip(poses.iter()) {
+            b.fixed |= p.is_none();
+        }
+    }
     use crate::bundle::{CameraPose, Observation, Point, Problem};
     let mut cam_index = vec![usize::MAX; poses.len()];
     let mut cameras = Vec::new();
@@ -695,7 +748,11 @@ pub(crate) fn adjust_with_block(
         if let Some(p) = p {
             cam_index[f] = cameras.len();
             cam_frame.push(f);
-            cameras.push(CameraPose::from_rt(&p.r, &p.t, 0));
+            cameras.push(CameraPose::from_rt(
+                &p.r,
+                &p.t,
+                if per_frame { f } else { 0 },
+            ));
         }
     }
     let mut pts = Vec::new();
@@ -741,11 +798,11 @@ pub(crate) fn adjust_with_block(
     let problem_cameras = cameras.len();
     let mut problem = Problem {
         cameras,
-        intrinsics: vec![block],
+        intrinsics: blocks,
         points: pts,
         observations,
         gauge,
-        priors: Vec::new(),
+        priors,
     };
     let options = crate::bundle::SolverOptions {
         max_iterations,
@@ -774,7 +831,7 @@ pub(crate) fn adjust_with_block(
             .ok_or_else(|| "the lens is held".to_string()),
         Err(e) => Err(e.to_string()),
     });
-    Ok((report, problem.intrinsics[0], cov))
+    Ok((report, problem.intrinsics, cov))
 }
 
 #[cfg(test)]

@@ -42,6 +42,9 @@ pub struct FrameReport {
     pub inliers: usize,
     /// RMS reprojection error of the inliers, pixels.
     pub rms: f64,
+    /// The frame's solved focal length, px, when the lens zooms.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub focal_px: Option<f64>,
 }
 
 /// One track's figures.
@@ -119,6 +122,7 @@ pub fn solve_report(
             observations: 0,
             inliers: 0,
             rms: 0.0,
+            focal_px: None,
         })
         .collect();
     let mut sq = vec![0.0; n];

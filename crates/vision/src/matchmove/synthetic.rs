@@ -36,6 +36,12 @@ pub struct ShotOptions {
     pub pan: f64,
     /// Amplitude of the camera's vertical bob, scene units (0 with `travel: 0`: a nodal pan).
     pub bob: f64,
+    /// Focal length (px) of the first and the last frame, linear in between (equal: no zoom).
+    pub focal: (f64, f64),
+    /// Amplitude of a curve of the camera's path (scene units: up and down, and towards the
+    /// scene), 0 for the straight track. A zoom needs it: along a straight track, or on an orbit,
+    /// focal lengths that vary are not determined (Kahl, Triggs & Åström 2000).
+    pub arc: f64,
     /// Seed.
     pub seed: u64,
 }
@@ -52,6 +58,8 @@ impl Default for ShotOptions {
             travel: 3.0,
             pan: 0.25,
             bob: 0.15,
+            focal: (1100.0, 1100.0),
+            arc: 0.0,
             seed: 1,
         }
     }
@@ -62,8 +70,10 @@ impl Default for ShotOptions {
 pub struct SyntheticShot {
     /// The tracks.
     pub tracks: Tracks,
-    /// Intrinsics (1280×720).
+    /// Intrinsics (1280×720) of the first frame.
     pub k: Intrinsics,
+    /// The focal length of every frame, px.
+    pub focals: Vec<f64>,
     /// True pose of every frame.
     pub truth: Vec<Pose>,
     /// Ids of the outlier tracks.
@@ -73,15 +83,28 @@ pub struct SyntheticShot {
 /// The true camera of frame `i` of `n`.
 fn pose_at(i: usize, n: usize, o: &ShotOptions) -> Pose {
     let s = i as f64 / (n.max(2) - 1) as f64;
-    let centre = Vector3::new(o.travel * s, o.bob * (3.0 * s).sin(), 0.4 * o.travel * s);
-    let r = axis_angle_to_r(&Vector3::new(0.03 * (2.0 * s).sin(), -o.pan * s, 0.01 * s));
+    let tau = std::f64::consts::TAU;
+    let centre = Vector3::new(
+        o.travel * s,
+        o.bob * (3.0 * s).sin() + o.arc * (tau * s).sin(),
+        0.4 * o.travel * s + o.arc * (0.5 * tau * s).sin(),
+    );
+    let tilt = 0.03 * (2.0 * s).sin() + 0.1 * o.arc * (tau * s).cos();
+    let r = axis_angle_to_r(&Vector3::new(tilt, -o.pan * s, 0.01 * s));
     Pose::new(r, -(r * centre))
 }
 
 /// Generates a shot (module docs).
 pub fn synthetic_shot(o: &ShotOptions) -> SyntheticShot {
     let mut rng = Pcg64::seed_from_u64(o.seed);
-    let k = Intrinsics::new(1100.0, 1100.0, 639.5, 359.5).with_size(1280, 720);
+    let focals: Vec<f64> = (0..o.frames)
+        .map(|i| o.focal.0 + (o.focal.1 - o.focal.0) * i as f64 / (o.frames.max(2) - 1) as f64)
+        .collect();
+    let ks: Vec<Intrinsics> = focals
+        .iter()
+        .map(|&f| Intrinsics::new(f, f, 639.5, 359.5).with_size(1280, 720))
+        .collect();
+    let k = ks[0].clone();
     let (w, h) = (1280.0, 720.0);
     let truth: Vec<Pose> = (0..o.frames).map(|i| pose_at(i, o.frames, o)).collect();
     let scene: Vec<Vector3<f64>> = (0..6000)
@@ -93,7 +116,7 @@ pub fn synthetic_shot(o: &ShotOptions) -> SyntheticShot {
             )
         })
         .collect();
-    let project = |p: &Pose, x: &Vector3<f64>| super::project(&k, p, x);
+    let project = |f: usize, x: &Vector3<f64>| super::project(&ks[f], &truth[f], x);
     let inside = |q: [f64; 2]| q[0] >= 8.0 && q[0] < w - 8.0 && q[1] >= 8.0 && q[1] < h - 8.0;
     // Live features: (track index, point index, drift, remaining life).
     type Live = (usize, usize, [f64; 2], usize);
@@ -101,13 +124,12 @@ pub fn synthetic_shot(o: &ShotOptions) -> SyntheticShot {
     let mut tracks: Vec<Track> = Vec::new();
     let mut outliers = Vec::new();
     for f in 0..o.frames {
-        let pose = &truth[f];
         // Advance or lose live features.
         for slot in 0..o.slots {
             let Some((ti, pi, mut drift, life)) = live[slot] else {
                 continue;
             };
-            let q = project(pose, &scene[pi]);
+            let q = project(f, &scene[pi]);
             let lost = match q {
                 Some(q) if inside(q) && life > 0 => {
                     if tracks[ti].points.len() > 1 && outliers.contains(&tracks[ti].id) {
@@ -145,7 +167,7 @@ pub fn synthetic_shot(o: &ShotOptions) -> SyntheticShot {
             }
             for _ in 0..50 {
                 let pi = rng.random_range(0..scene.len());
-                let Some(q) = project(pose, &scene[pi]) else {
+                let Some(q) = project(f, &scene[pi]) else {
                     continue;
                 };
                 if !inside(q)
@@ -185,6 +207,7 @@ pub fn synthetic_shot(o: &ShotOptions) -> SyntheticShot {
             tracks,
         },
         k,
+        focals,
         truth,
         outliers,
     }

@@ -702,3 +702,92 @@ fn distortion_from_too_few_tracks_is_a_clear_error() {
     .to_string();
     assert!(err.contains("needs at least 30 tracks"), "{err}");
 }
+
+/// A zoom (the issue of real cameras): 60 frames whose focal length runs 900 → 1400 px, the
+/// camera on a curved path (a zoom along a straight track or an orbit is not determined,
+/// [`super::zoom`]), 0.5 px noise and 5 % drifting tracks, solved with `zoom: true` and the
+/// focal length unknown (only the image size given). Measured: every frame's focal length
+/// within 0.19 % (the issue asks 1 %), rotation max 0.038°, centre max 0.21 % of the path.
+#[test]
+fn a_zoom_is_solved_frame_by_frame() {
+    let shot = synthetic_shot(&ShotOptions {
+        frames: 60,
+        outlier_fraction: 0.05,
+        focal: (900.0, 1400.0),
+        arc: 1.0,
+        ..ShotOptions::default()
+    });
+    let start = Intrinsics::new(1000.0, 1000.0, 639.5, 359.5).with_size(1280, 720);
+    let lens = LensOptions {
+        focal: FocalMode::Unknown,
+        zoom: true,
+        ..LensOptions::default()
+    };
+    let solve = matchmove_with_lens(
+        &shot.tracks,
+        &start,
+        &lens,
+        &MatchmoveOptions::default(),
+        &|_, _, _| {},
+    )
+    .unwrap();
+    let focal_err: Vec<f64> = solve
+        .path
+        .frames
+        .iter()
+        .zip(&shot.focals)
+        .map(|(f, t)| f.focal.unwrap() / t - 1.0)
+        .collect();
+    let worst = focal_err.iter().map(|e| e.abs()).fold(0.0, f64::max);
+    let est: Vec<Pose> = solve.path.frames.iter().map(|f| f.pose.clone()).collect();
+    let (rot, cen) = aligned_errors(&est, &shot.truth);
+    let max_rot = rot.iter().cloned().fold(0.0, f64::max);
+    let max_c = cen.iter().cloned().fold(0.0, f64::max) / path_length(&shot.truth);
+    eprintln!(
+        "zoom: worst focal error {:.3} % (first {:.3} %, last {:.3} %), rotation max \
+         {max_rot:.4}°, centre max {:.3} %; {:?}",
+        100.0 * worst,
+        100.0 * focal_err[0],
+        100.0 * focal_err[59],
+        100.0 * max_c,
+        solve.report.notes
+    );
+    assert!(worst < 0.004, "focal error {worst}");
+    assert!(max_rot < 0.08, "rotation error {max_rot}°");
+    assert!(max_c < 0.004, "centre error {max_c}");
+    assert_eq!(
+        solve.report.frames[30].focal_px,
+        solve.path.frames[30].focal
+    );
+    assert!(solve.path.zooms());
+}
+
+/// A zoom with the focal length held, or with a lens to solve, is a clear error.
+#[test]
+fn a_zoom_with_a_held_focal_or_a_lens_to_solve_is_refused() {
+    let shot = synthetic_shot(&ShotOptions {
+        frames: 20,
+        ..ShotOptions::default()
+    });
+    for (focal, distortion, expect) in [
+        (FocalMode::Known, DistortionMode::None, "focal: refine"),
+        (FocalMode::Refine, DistortionMode::K1, "distortion: none"),
+    ] {
+        let lens = LensOptions {
+            focal,
+            distortion,
+            zoom: true,
+            ..LensOptions::default()
+        };
+        let e = matchmove_with_lens(
+            &shot.tracks,
+            &shot.k,
+            &lens,
+            &MatchmoveOptions::default(),
+            &|_, _, _| {},
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains(expect), "{e}");
+    }
+}

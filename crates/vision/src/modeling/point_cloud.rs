@@ -177,7 +177,11 @@ mod tests {
                     Point2::new(q.x / q.z + jitter, q.y / q.z - jitter)
                 })
                 .collect();
-            frames.push(FramePose { frame: *f, pose });
+            frames.push(FramePose {
+                frame: *f,
+                pose,
+                focal: None,
+            });
             marks.push(MarkedFrame {
                 frame: *f,
                 points: Points2d(pts),
