@@ -292,6 +292,12 @@ pub(crate) fn camera_for_frame(
                 frames.len()
             ))
         })?;
+        if let Some(focal) = pose.focal {
+            // A zoom: the frame's own focal length (the aspect kept).
+            let aspect = camera.k[1][1] / camera.k[0][0];
+            camera.k[0][0] = focal;
+            camera.k[1][1] = focal * aspect;
+        }
         let (r, t) = (&pose.pose.r, &pose.pose.t);
         camera.r = [
             [r[(0, 0)], r[(0, 1)], r[(0, 2)]],

@@ -116,10 +116,18 @@ pub fn solve_error_svg(report: &serde_json::Value) -> Result<String, String> {
     let x0 = rms.iter().map(|p| p.0).fold(f64::INFINITY, f64::min);
     let x1 = rms.iter().map(|p| p.0).fold(f64::NEG_INFINITY, f64::max);
     let overall = report["overall_rms"].as_f64().unwrap_or(f64::NAN);
+    // A zoom's report carries every frame's focal length: a third panel.
+    let focal: Vec<(f64, f64)> = frames
+        .iter()
+        .filter(|f| f["focal_px"].is_number())
+        .map(|f| (get(f, "frame"), get(f, "focal_px")))
+        .collect();
+    let extra = if focal.is_empty() { 0.0 } else { 280.0 };
     let mut svg = String::new();
     let _ = writeln!(
         svg,
-        r##"<svg xmlns="http://www.w3.org/2000/svg" width="960" height="600" font-family="sans-serif"><rect width="960" height="600" fill="white"/>"##
+        r##"<svg xmlns="http://www.w3.org/2000/svg" width="960" height="{h}" font-family="sans-serif"><rect width="960" height="{h}" fill="white"/>"##,
+        h = 600.0 + extra
     );
     let title = format!("Reprojection error per frame (inliers; overall RMS {overall:.3} px)");
     panel(
@@ -144,23 +152,39 @@ pub fn solve_error_svg(report: &serde_json::Value) -> Result<String, String> {
         320.0,
         (x0, x1),
     );
+    if !focal.is_empty() {
+        panel(
+            &mut svg,
+            &Panel {
+                title: "Focal length per frame (zoom)",
+                unit: "focal length (px)",
+                colour: "#1e8449",
+                points: focal,
+            },
+            600.0,
+            (x0, x1),
+        );
+    }
     for i in 0..=10 {
         let x = x0 + (x1 - x0) * i as f64 / 10.0;
         let px = 70.0 + 860.0 * i as f64 / 10.0;
         let _ = writeln!(
             svg,
-            r##"<text x="{px:.1}" y="540" font-size="11" text-anchor="middle">{}</text>"##,
-            x.round()
+            r##"<text x="{px:.1}" y="{y}" font-size="11" text-anchor="middle">{}</text>"##,
+            x.round(),
+            y = 540.0 + extra
         );
     }
     let _ = writeln!(
         svg,
-        r##"<text x="500" y="565" font-size="12" text-anchor="middle">frame</text>"##
+        r##"<text x="500" y="{}" font-size="12" text-anchor="middle">frame</text>"##,
+        565.0 + extra
     );
     if let Some(line) = solved_camera_line(report) {
         let _ = writeln!(
             svg,
-            r##"<text x="480" y="590" font-size="12" text-anchor="middle">{line}</text>"##
+            r##"<text x="480" y="{}" font-size="12" text-anchor="middle">{line}</text>"##,
+            590.0 + extra
         );
     }
     svg.push_str("</svg>\n");
@@ -226,5 +250,21 @@ mod tests {
             "{svg}"
         );
         assert!(svg.trim_end().ends_with("</svg>"));
+    }
+
+    /// A zoom's report (a focal length per frame) gets a third panel of the focal lengths.
+    #[test]
+    fn plots_a_zoom_frame_by_frame() {
+        let frames: Vec<serde_json::Value> = (0..20)
+            .map(|i| serde_json::json!({"frame": i, "rms": 0.4, "inliers": 90, "focal_px": 900.0 + 25.0 * i as f64}))
+            .collect();
+        let report = serde_json::json!({"overall_rms": 0.4, "frames": frames});
+        let svg = solve_error_svg(&report).unwrap();
+        assert!(svg.contains("Focal length per frame (zoom)"));
+        assert!(svg.contains("height=\"880\""));
+        // Three polylines of 20 points each.
+        assert_eq!(svg.matches(" L").count() + svg.matches("\"L").count(), 57);
+        let plain = serde_json::json!({"overall_rms": 0.4, "frames": [{"frame": 0, "rms": 0.4, "inliers": 9}]});
+        assert!(!solve_error_svg(&plain).unwrap().contains("Focal length"));
     }
 }

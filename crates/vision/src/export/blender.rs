@@ -125,6 +125,7 @@ pub fn tracking_camera(shot: &Shot) -> Result<Option<TrackingCamera>> {
 pub fn script(shot: &Shot, o: &SceneOptions) -> Result<String> {
     shot.validate()?;
     o.validate()?;
+    shot.require_fixed_focal("Blender")?;
     let cam = camera(shot)?;
     let lens = tracking_camera(shot)?;
     let (w, h) = shot.size()?;

@@ -120,6 +120,7 @@ pub fn camera_model(k: &Intrinsics) -> Result<CameraModel> {
 /// Formats the text model of a shot.
 pub fn format(shot: &Shot) -> Result<TextModel> {
     shot.validate()?;
+    shot.require_fixed_focal("COLMAP")?;
     shot.require_no_skew("COLMAP")?;
     let (w, h) = shot.size()?;
     let cam = camera_model(&shot.intrinsics)?;

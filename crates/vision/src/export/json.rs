@@ -20,8 +20,10 @@ const CONVENTION: &str = "x ~ K (R X + t); pixel origin at the centre of the top
 /// The export as a JSON value.
 pub fn to_value(shot: &Shot, fps: f64) -> Result<Value> {
     shot.validate()?;
-    let k = shot.intrinsics.k();
-    let k_rows: Vec<[f64; 3]> = (0..3).map(|r| [k[(r, 0)], k[(r, 1)], k[(r, 2)]]).collect();
+    let k_rows = |i: usize| -> Vec<[f64; 3]> {
+        let k = shot.intrinsics_at(i).k();
+        (0..3).map(|r| [k[(r, 0)], k[(r, 1)], k[(r, 2)]]).collect()
+    };
     let errors = shot.frame_errors();
     let frames: Vec<Value> = shot
         .path
@@ -34,7 +36,7 @@ pub fn to_value(shot: &Shot, fps: f64) -> Result<Value> {
             let e = errors.as_ref().map(|e| e[i]);
             let mut o = json!({
                 "frame": f.frame,
-                "K": k_rows,
+                "K": k_rows(i),
                 "R": (0..3).map(|row| [r[(row, 0)], r[(row, 1)], r[(row, 2)]]).collect::<Vec<_>>(),
                 "t": [f.pose.t.x, f.pose.t.y, f.pose.t.z],
                 "center": [c.x, c.y, c.z],

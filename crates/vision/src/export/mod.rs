@@ -272,6 +272,29 @@ impl Shot {
         }
     }
 
+    /// The intrinsics of the path's `i`-th frame: the shot's, with the frame's own focal length
+    /// when the path zooms ([`CameraPath::intrinsics_at`]).
+    pub fn intrinsics_at(&self, i: usize) -> Intrinsics {
+        let mut k = self.intrinsics.clone();
+        if let Some(f) = self.path.frames.get(i).and_then(|f| f.focal) {
+            k.f2 *= f / k.f1;
+            k.f1 = f;
+        }
+        k
+    }
+
+    /// A fixed focal length, for the formats whose export of a zoom (a focal length per frame)
+    /// is not written yet: an error naming the formats that carry it.
+    pub fn require_fixed_focal(&self, target: &str) -> Result<()> {
+        if self.path.zooms() {
+            return Err(VisionError::InvalidInput(format!(
+                "the camera path zooms (a focal length per frame): the {target} export of a zoom \
+                 is not written yet; export json or usd, which carry every frame's focal length"
+            )));
+        }
+        Ok(())
+    }
+
     /// Zero skew, required by every render camera (§2.8) and by COLMAP's pinhole models.
     pub fn require_no_skew(&self, target: &str) -> Result<()> {
         if self.intrinsics.s.abs() > 1e-9 * self.intrinsics.f1.abs() {
@@ -371,9 +394,10 @@ impl Shot {
                 .frames
                 .iter()
                 .zip(self.observations())
-                .map(|(f, obs)| {
+                .enumerate()
+                .map(|(i, (f, obs))| {
                     let c = crate::Camera {
-                        intrinsics: self.intrinsics.clone(),
+                        intrinsics: self.intrinsics_at(i),
                         pose: f.pose.clone(),
                     };
                     let (mut sum, mut inliers) = (0.0, 0usize);

@@ -50,6 +50,7 @@ pub fn matrix_zxy(a: [f64; 3]) -> Matrix3<f64> {
 pub fn chan(shot: &Shot, o: &SceneOptions) -> Result<String> {
     shot.validate()?;
     o.validate()?;
+    shot.require_fixed_focal("Nuke")?;
     shot.require_no_skew("Nuke")?;
     let (_, h) = shot.size()?;
     let vfov = 2.0 * (h as f64 / (2.0 * shot.intrinsics.f2)).atan().to_degrees();

@@ -66,6 +66,22 @@ pub fn lens(shot: &Shot) -> Result<UsdLens> {
     })
 }
 
+/// The camera's `focalLength` line(s): one value, or for a zoom (the path carries per-frame focal lengths) one
+/// time sample per frame (the film back is fixed, so the apertures stay).
+fn focal_attribute(shot: &Shot, o: &SceneOptions, l: &UsdLens) -> Result<String> {
+    if !shot.path.zooms() {
+        return Ok(format!("        float focalLength = {}\n", l.focal_length));
+    }
+    let (w, _) = shot.size()?;
+    let mut s = String::from("        float focalLength.timeSamples = {\n");
+    for (i, f) in shot.path.frames.iter().enumerate() {
+        let mm = shot.intrinsics_at(i).f1 * FILM_BACK_MM / w as f64;
+        let _ = writeln!(s, "            {}: {mm},", o.target_frame(f.frame));
+    }
+    s.push_str("        }\n");
+    Ok(s)
+}
+
 /// The stage text.
 pub fn stage(shot: &Shot, o: &SceneOptions) -> Result<String> {
     shot.validate()?;
@@ -96,8 +112,7 @@ def Xform "World"
     def Camera "camera"
     {{
         float2 clippingRange = ({}, {})
-        float focalLength = {}
-        float horizontalAperture = {}
+{}        float horizontalAperture = {}
         float horizontalApertureOffset = {}
         token projection = "perspective"
         float verticalAperture = {}
@@ -106,7 +121,7 @@ def Xform "World"
 "#,
         near * o.scale,
         far * o.scale,
-        l.focal_length,
+        focal_attribute(shot, o, &l)?,
         l.horizontal_aperture,
         l.horizontal_aperture_offset,
         l.vertical_aperture,
@@ -252,5 +267,29 @@ mod tests {
                 .count(),
             12
         );
+    }
+
+    /// A zoom's stage animates the focal length: one time sample per frame, each frame's
+    /// focal length in millimetres of the fixed film back; the formats that do not carry a
+    /// zoom yet refuse it by name.
+    #[test]
+    fn a_zoom_is_a_time_sampled_focal_length() {
+        let mut s = shot();
+        for (i, f) in s.path.frames.iter_mut().enumerate() {
+            f.focal = Some(1000.0 + 25.0 * i as f64);
+        }
+        let o = SceneOptions::default();
+        let text = stage(&s, &o).unwrap();
+        assert!(text.contains("float focalLength.timeSamples = {"), "{text}");
+        assert!(!text.contains("float focalLength = "));
+        for (i, f) in s.path.frames.iter().enumerate() {
+            let mm = (1000.0 + 25.0 * i as f64) * FILM_BACK_MM / 1280.0;
+            let line = format!("{}: {mm},", o.target_frame(f.frame));
+            assert!(text.contains(&line), "{line}");
+        }
+        let e = super::super::blender::script(&s, &o)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("zooms") && e.contains("Blender"), "{e}");
     }
 }
