@@ -72,12 +72,13 @@ def main():
     if data.sensor_fit != "HORIZONTAL":
         fail("sensor fit %s" % data.sensor_fit)
     ycor = asp_y / asp_x
-    f1 = data.lens / data.sensor_width * W
-    f2 = f1 / ycor
     cx = W / 2 - data.shift_x * W
     cy = H / 2 + data.shift_y * W / ycor
     for fr in truth["frames"]:
         scene.frame_set(fr["target_frame"])
+        # The lens at this frame (a zoom keyframes it).
+        f1 = data.lens / data.sensor_width * W
+        f2 = f1 / ycor
         depsgraph = bpy.context.evaluated_depsgraph_get()
         m = cam.matrix_world.copy()
         view = m.inverted()

@@ -79,6 +79,11 @@ fn check(script: &str, export: &Path, truth: &Path, extra: &[&str]) {
 
 /// A 40-frame shot with known truth: the camera dollies and pans around 60 points, K as given.
 fn shot(k: Intrinsics) -> Shot {
+    shot_zooming(k, None)
+}
+
+/// [`shot`] with frame i's focal length `zoom(i)` when given.
+fn shot_zooming(k: Intrinsics, zoom: Option<&dyn Fn(usize) -> f64>) -> Shot {
     let frames = (0..40)
         .map(|i| {
             let a = i as f64 / 39.0;
@@ -87,7 +92,7 @@ fn shot(k: Intrinsics) -> Shot {
             FramePose {
                 frame: 5 + i,
                 pose: Pose::new(r, -(r * c)),
-                focal: None,
+                focal: zoom.map(|z| z(i)),
             }
         })
         .collect();
@@ -118,7 +123,7 @@ fn shot(k: Intrinsics) -> Shot {
         let mut first = None;
         for (fi, f) in s.path.frames.iter().enumerate() {
             let cam = Camera {
-                intrinsics: s.intrinsics.clone(),
+                intrinsics: s.intrinsics_at(fi),
                 pose: f.pose.clone(),
             };
             let inside = cam.depth(&p) > 0.0
@@ -184,8 +189,14 @@ fn write_truth(shot: &Shot, o: &SceneOptions, path: &Path, through: Through) {
         .frames
         .iter()
         .map(|f| {
+            // A zoom: the frame's own focal length.
+            let mut intrinsics = k_proj.clone();
+            if let Some(focal) = f.focal {
+                intrinsics.f2 *= focal / intrinsics.f1;
+                intrinsics.f1 = focal;
+            }
             let cam = Camera {
-                intrinsics: k_proj.clone(),
+                intrinsics,
                 pose: f.pose.clone(),
             };
             let pixels: Vec<_> = shot
@@ -549,5 +560,44 @@ fn ply_cloud_imports_in_blender() {
     let doc = json!({"points": s.cloud.as_ref().unwrap().points, "colors": s.colors});
     std::fs::write(&t, serde_json::to_string(&doc).unwrap()).unwrap();
     check("ply_check.py", &ply, &t, &[]);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A zoom (a focal length per frame, 900 → 1290 px) in every client that carries one: COLMAP
+/// as a camera per image (read back, and pycolmap projecting through each image's camera),
+/// Blender as the keyframed lens, USD as `focalLength` time samples — each client's
+/// projection of every point in every frame equal to ours.
+#[test]
+fn a_zoom_exports_to_colmap_blender_and_usd() {
+    let s = shot_zooming(square_k(), Some(&|i| 900.0 + 10.0 * i as f64));
+    let o = SceneOptions::default();
+    let dir = tmp("zoom");
+    let t = dir.join("truth.json");
+    std::fs::create_dir_all(&dir).unwrap();
+    truth(&s, &o, &t);
+    let cams = dir.join("sparse/cameras.txt");
+    export("colmap", &cams, &s, &o).unwrap();
+    let m = colmap::read(&cams).unwrap();
+    for (a, b) in s.path.frames.iter().zip(&m.path.frames) {
+        assert_eq!(a.focal, b.focal);
+    }
+    if have("pycolmap") {
+        check(
+            "colmap_check.py",
+            &dir.join("sparse"),
+            &t,
+            &["--obs-tol", "0.01105"],
+        );
+    }
+    if have("bpy") {
+        let script = dir.join("camera.py");
+        export("blender", &script, &s, &o).unwrap();
+        check("blender_check.py", &script, &t, &[]);
+    }
+    if have("pxr.Usd") {
+        let usda = dir.join("camera.usda");
+        export("usd", &usda, &s, &o).unwrap();
+        check("usd_check.py", &usda, &t, &[]);
+    }
     std::fs::remove_dir_all(&dir).unwrap();
 }

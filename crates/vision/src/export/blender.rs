@@ -125,7 +125,13 @@ pub fn tracking_camera(shot: &Shot) -> Result<Option<TrackingCamera>> {
 pub fn script(shot: &Shot, o: &SceneOptions) -> Result<String> {
     shot.validate()?;
     o.validate()?;
-    shot.require_fixed_focal("Blender")?;
+    if shot.path.zooms() && !shot.intrinsics.is_pinhole() {
+        return Err(crate::error::VisionError::InvalidInput(
+            "the camera path zooms through a lens: Blender's movie-clip tracking camera holds one \
+             focal length, so a zoom with distortion is not exported to Blender"
+                .into(),
+        ));
+    }
     let cam = camera(shot)?;
     let lens = tracking_camera(shot)?;
     let (w, h) = shot.size()?;
@@ -213,6 +219,17 @@ DISTORTION = {}
             N(q[3])
         );
     }
+    s.push_str(
+        "]\n# A zoom: (frame, lens mm) keyframed on the camera (empty: LENS throughout)\n\
+         LENS_KEYS = [\n",
+    );
+    if shot.path.zooms() {
+        let (w, _) = shot.size()?;
+        for (i, f) in shot.path.frames.iter().enumerate() {
+            let mm = shot.intrinsics_at(i).f1 * FILM_BACK_MM / w as f64;
+            let _ = writeln!(s, "    ({}, {}),", o.target_frame(f.frame), N(mm));
+        }
+    }
     s.push_str("]\nPOINTS = [\n");
     for p in shot.points() {
         let x = o.point(TargetUp::Z, &p);
@@ -294,8 +311,12 @@ def build():
         cam.rotation_quaternion = quat
         cam.keyframe_insert("location", frame=frame)
         cam.keyframe_insert("rotation_quaternion", frame=frame)
-    anim = cam.animation_data
-    if anim is not None and anim.action is not None:
+    for frame, lens in LENS_KEYS:
+        data.lens = lens
+        data.keyframe_insert("lens", frame=frame)
+    for anim in (cam.animation_data, data.animation_data):
+        if anim is None or anim.action is None:
+            continue
         fcurves = getattr(anim.action, "fcurves", None)
         if fcurves is None:  # Blender 4.4+ layered actions
             fcurves = [fc for layer in anim.action.layers for strip in layer.strips

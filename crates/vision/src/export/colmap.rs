@@ -120,13 +120,15 @@ pub fn camera_model(k: &Intrinsics) -> Result<CameraModel> {
 /// Formats the text model of a shot.
 pub fn format(shot: &Shot) -> Result<TextModel> {
     shot.validate()?;
-    shot.require_fixed_focal("COLMAP")?;
     shot.require_no_skew("COLMAP")?;
     let (w, h) = shot.size()?;
     let cam = camera_model(&shot.intrinsics)?;
-    let mut cameras = String::from(
+    // A zoom: one camera per image (its own focal length), else one for the shot.
+    let zoom = shot.path.zooms();
+    let n_cameras = if zoom { shot.path.frames.len() } else { 1 };
+    let mut cameras = format!(
         "# Camera list with one line of data per camera:\n\
-         #   CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[]\n# Number of cameras: 1\n",
+         #   CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[]\n# Number of cameras: {n_cameras}\n",
     );
     if let Some(e) = cam.fit_error_px {
         let _ = writeln!(
@@ -137,8 +139,21 @@ pub fn format(shot: &Shot) -> Result<TextModel> {
             cam.model
         );
     }
-    let params: Vec<String> = cam.params.iter().map(|v| v.to_string()).collect();
-    let _ = writeln!(cameras, "1 {} {w} {h} {}", cam.model, params.join(" "));
+    for id in 0..n_cameras {
+        let cam = if zoom {
+            camera_model(&shot.intrinsics_at(id))?
+        } else {
+            cam.clone()
+        };
+        let params: Vec<String> = cam.params.iter().map(|v| v.to_string()).collect();
+        let _ = writeln!(
+            cameras,
+            "{} {} {w} {h} {}",
+            id + 1,
+            cam.model,
+            params.join(" ")
+        );
+    }
 
     // The tracks' observations of the cloud's points, per image: the solve's inliers are
     // linked to their point (and listed in its track), the outliers stay unassigned 2-D
@@ -184,7 +199,7 @@ pub fn format(shot: &Shot) -> Result<TextModel> {
         }
         let _ = writeln!(
             images,
-            "{} {} {} {} {} {} {} {} 1 {name}",
+            "{} {} {} {} {} {} {} {} {} {name}",
             img + 1,
             N(q[0]),
             N(q[1]),
@@ -192,7 +207,8 @@ pub fn format(shot: &Shot) -> Result<TextModel> {
             N(q[3]),
             N(t.x),
             N(t.y),
-            N(t.z)
+            N(t.z),
+            if zoom { img + 1 } else { 1 }
         );
         let obs: Vec<String> = per_image[img]
             .iter()
@@ -247,6 +263,15 @@ pub fn format(shot: &Shot) -> Result<TextModel> {
         images,
         points3d,
     })
+}
+
+/// Whether two cameras differ in their focal length only (a zoom's), with the same aspect.
+fn same_but_focal(a: &Intrinsics, b: &Intrinsics) -> bool {
+    let (ra, rb) = (a.f2 / a.f1, b.f2 / b.f1);
+    let mut c = b.clone();
+    c.f1 = a.f1;
+    c.f2 = a.f2;
+    (ra - rb).abs() <= 1e-9 * ra.abs() && &c == a
 }
 
 /// The three file paths of a model whose `cameras.txt` is `cameras`.
@@ -425,7 +450,7 @@ pub fn parse(cameras: (&str, &str), images: (&str, &str), points3d: (&str, &str)
         expect_header = !expect_header;
     }
     let mut k_shot: Option<Intrinsics> = None;
-    let mut entries: Vec<(u64, String, Pose)> = Vec::new();
+    let mut entries: Vec<(u64, String, Pose, f64)> = Vec::new();
     for (line, t) in rows {
         if t.len() != 10 {
             return Err(parse_error(
@@ -450,11 +475,12 @@ pub fn parse(cameras: (&str, &str), images: (&str, &str), points3d: (&str, &str)
             .ok_or_else(|| parse_error(ifile, line, format!("unknown camera id {cam}")))?;
         match &k_shot {
             None => k_shot = Some(k.clone()),
-            Some(k0) if k0 != k => {
+            // A zoom: cameras that differ in their focal length only (the aspect kept).
+            Some(k0) if k0 != k && !same_but_focal(k0, k) => {
                 return Err(parse_error(
                     ifile,
                     line,
-                    format!("image {id} uses camera {cam} whose intrinsics differ from the first image's: one K per shot"),
+                    format!("image {id} uses camera {cam} whose intrinsics differ from the first image's in more than the focal length: one lens per shot"),
                 ))
             }
             _ => {}
@@ -463,6 +489,7 @@ pub fn parse(cameras: (&str, &str), images: (&str, &str), points3d: (&str, &str)
             id,
             t[9].to_string(),
             Pose::new(r, Vector3::new(v[4], v[5], v[6])),
+            k.f1,
         ));
     }
     entries.sort_by_key(|e| e.0);
@@ -477,7 +504,8 @@ pub fn parse(cameras: (&str, &str), images: (&str, &str), points3d: (&str, &str)
     let mut names = Vec::with_capacity(entries.len());
     let mut seen = std::collections::BTreeSet::new();
     let mut frame_of_image: HashMap<u64, i64> = HashMap::new();
-    for (pos, (id, name, pose)) in entries.into_iter().enumerate() {
+    let zooms = entries.iter().any(|e| e.3 != intrinsics.f1);
+    for (pos, (id, name, pose, f)) in entries.into_iter().enumerate() {
         let frame = frame_number(&name).unwrap_or(pos);
         frame_of_image.insert(id, frame as i64);
         if !seen.insert(frame) {
@@ -490,7 +518,7 @@ pub fn parse(cameras: (&str, &str), images: (&str, &str), points3d: (&str, &str)
         frames.push(FramePose {
             frame,
             pose,
-            focal: None,
+            focal: zooms.then_some(f),
         });
         names.push(name);
     }
@@ -595,6 +623,41 @@ mod tests {
         assert_eq!(back.cloud.points, c.points);
         assert_eq!(back.names[0], "plate/frame.0010.png");
         assert!(back.cloud.errors[0] == 0.0 && (back.cloud.errors[5] - 0.05).abs() < 1e-15);
+    }
+
+    /// A zoom is one COLMAP camera per image, read back as every frame's focal length (the
+    /// first image's camera the shot's K); cameras that differ in more than their focal length
+    /// stay an error.
+    #[test]
+    fn a_zoom_round_trips_as_a_camera_per_image() {
+        let mut s = shot();
+        for (i, f) in s.path.frames.iter_mut().enumerate() {
+            f.focal = Some(1100.0 + 20.0 * i as f64);
+        }
+        let m = format(&s).unwrap();
+        assert!(m.cameras.contains("# Number of cameras: 12"));
+        let back = parse(
+            (&m.cameras, "cameras.txt"),
+            (&m.images, "images.txt"),
+            (&m.points3d, "points3D.txt"),
+        )
+        .unwrap();
+        for (i, (a, b)) in s.path.frames.iter().zip(&back.path.frames).enumerate() {
+            assert_eq!(b.focal, a.focal, "frame {i}");
+            let (ka, kb) = (s.intrinsics_at(i), back.path.intrinsics_at(i).unwrap());
+            assert!((ka.f2 - kb.f2).abs() < 1e-9 && ka.u0 == kb.u0, "frame {i}");
+        }
+        // The second camera with another principal point: not a zoom.
+        let cams = m.cameras.replacen(" 651.75 ", " 660 ", 2);
+        assert_ne!(cams, m.cameras);
+        let e = parse(
+            (&cams, "cameras.txt"),
+            (&m.images, "images.txt"),
+            (&m.points3d, "points3D.txt"),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("more than the focal length"), "{e}");
     }
 
     /// Each lens is written in the smallest COLMAP model that holds it and reads back exactly

@@ -288,8 +288,9 @@ impl Shot {
     pub fn require_fixed_focal(&self, target: &str) -> Result<()> {
         if self.path.zooms() {
             return Err(VisionError::InvalidInput(format!(
-                "the camera path zooms (a focal length per frame): the {target} export of a zoom \
-                 is not written yet; export json or usd, which carry every frame's focal length"
+                "the camera path zooms (a focal length per frame): the {target} export of it is \
+                 not written; json, usd and colmap carry every frame's focal length (blender and \
+                 nuke that of a pinhole zoom)"
             )));
         }
         Ok(())

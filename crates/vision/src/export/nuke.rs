@@ -50,13 +50,20 @@ pub fn matrix_zxy(a: [f64; 3]) -> Matrix3<f64> {
 pub fn chan(shot: &Shot, o: &SceneOptions) -> Result<String> {
     shot.validate()?;
     o.validate()?;
-    shot.require_fixed_focal("Nuke")?;
     shot.require_no_skew("Nuke")?;
+    if shot.path.zooms() && !shot.intrinsics.is_pinhole() {
+        shot.require_fixed_focal("Nuke (a zoom through a lens)")?;
+    }
     let (_, h) = shot.size()?;
-    let vfov = 2.0 * (h as f64 / (2.0 * shot.intrinsics.f2)).atan().to_degrees();
+    // A zoom's focal length is the vfov column, frame by frame.
+    let vfov_at = |i: usize| {
+        2.0 * (h as f64 / (2.0 * shot.intrinsics_at(i).f2))
+            .atan()
+            .to_degrees()
+    };
     let mut s = String::new();
     let mut prev: Option<[f64; 3]> = None;
-    for f in &shot.path.frames {
+    for (i, f) in shot.path.frames.iter().enumerate() {
         let m = o.camera_to_world(TargetUp::Y, &f.pose);
         let r = m.fixed_view::<3, 3>(0, 0).into_owned();
         let mut a = euler_zxy(&r).map(f64::to_degrees);
@@ -76,7 +83,7 @@ pub fn chan(shot: &Shot, o: &SceneOptions) -> Result<String> {
             N(a[0]),
             N(a[1]),
             N(a[2]),
-            N(vfov)
+            N(vfov_at(i))
         );
     }
     Ok(s)
@@ -100,13 +107,18 @@ pub fn filmback_note(shot: &Shot, o: &SceneOptions) -> Result<String> {
          image size            {w} x {h} (pixel aspect {pa})\n\
          haperture (mm)        {FILM_BACK_MM}\n\
          vaperture (mm)        {vap}\n\
-         focal (mm)            {focal}   (= vaperture / (2 tan(vfov/2)))\n\
+         focal (mm)            {focal}   (= vaperture / (2 tan(vfov/2))){zoom}\n\
          principal point (px)  {cx}, {cy}   (origin at the top-left corner, y down)\n\
          win_translate         {wu}, {wv}   (principal point offset in half-apertures; 0, 0 when centred)\n\
          \n\
          World: Y up; 1 solve unit = {scale} scene units; frame = {start} + solve frame; {fps} fps.\n\
          {lens}",
         lens = lens_note(shot)?,
+        zoom = if shot.path.zooms() {
+            "; the first frame's: the lens zooms, the .chan's vfov column animates it"
+        } else {
+            ""
+        },
         pa = k.f2 / k.f1,
         wu = 2.0 * (cx - wf / 2.0) / wf,
         wv = -2.0 * (cy - hf / 2.0) / hf + 0.0,
