@@ -2,7 +2,8 @@
 //!
 //! A node never computes its own cache key: it declares its inputs, parameters (with
 //! `affects_output`), version and whether it is seeded, and the engine derives the key
-//! (the Gaffer pattern, see STYLE.md).
+//! (Gaffer's pattern: a hash of exactly what the computation reads; ARCHITECTURE.md, "Cache
+//! keys").
 
 use std::collections::BTreeMap;
 use std::fmt;
