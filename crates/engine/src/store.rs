@@ -77,6 +77,11 @@ pub struct ActionEntry {
     /// digests when read; the entry is valid only while each still has its digest.
     #[serde(default)]
     pub read_files: Vec<WrittenFile>,
+    /// Further files the node wrote through `Context::write_file` (beside those its output
+    /// path params name), with their digests; the entry is valid only while each still has
+    /// its digest. Left out of the JSON when empty, so entries of other nodes are unchanged.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub node_files: Vec<WrittenFile>,
     /// Compute time in seconds.
     pub seconds: f64,
 }
@@ -499,6 +504,7 @@ mod tests {
                 }],
                 files: vec![],
                 read_files: vec![],
+                node_files: vec![],
                 seconds: 0.0,
             },
         )

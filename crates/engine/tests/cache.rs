@@ -289,6 +289,41 @@ nodes:
     assert_eq!(fs::read_to_string(s.path("out/v.txt")).unwrap(), "4\n");
 }
 
+/// A file written through `Context::write_file` beside the path param's is an output too: the
+/// entry is stale when it is deleted or edited.
+#[test]
+fn files_written_through_the_context_are_outputs() {
+    let s = Scratch::new();
+    let g = "version: 1
+nodes:
+  a: {type: num, params: {value: 4}}
+  w: {type: write_num_note, inputs: {a: a.out}, params: {path: out/v.txt}}
+";
+    assert_eq!(s.run(g).count("w", Status::Ran), 1);
+    assert_eq!(
+        fs::read_to_string(s.path("out/v.note")).unwrap(),
+        "a note\n"
+    );
+    assert_eq!(s.run(g).count("w", Status::Cached), 1);
+    fs::remove_file(s.path("out/v.note")).unwrap();
+    let p = exec::plan(&s.graph(g), &s.opts()).unwrap();
+    let w = p.nodes.iter().find(|n| n.id == "w").unwrap();
+    assert_eq!(w.status, PlanStatus::Run);
+    assert!(
+        w.reason.contains("v.note") && w.reason.contains("missing"),
+        "{}",
+        w.reason
+    );
+    assert_eq!(s.run(g).count("w", Status::Ran), 1);
+    s.write("out/v.note", "edited\n");
+    assert_eq!(s.run(g).count("w", Status::Ran), 1);
+    assert_eq!(
+        fs::read_to_string(s.path("out/v.note")).unwrap(),
+        "a note\n"
+    );
+    assert_eq!(s.run(g).count("w", Status::Cached), 1);
+}
+
 #[test]
 fn corrupt_or_lost_objects_are_recomputed() {
     let s = Scratch::new();

@@ -150,6 +150,21 @@ impl Node for WriteNum {
     }
 }
 
+/// `write_num` that also writes a note beside its file through `Context::write_file`.
+pub struct WriteNumNote(NodeSpec);
+impl Node for WriteNumNote {
+    fn spec(&self) -> &NodeSpec {
+        &self.0
+    }
+    fn run(&self, ctx: &mut Context<'_>) -> Result<(), NodeError> {
+        let v = *ctx.input::<f64>("a")?;
+        let path = ctx.path("path");
+        ctx.write_file(&path.with_extension("note"), b"a note\n")?;
+        ctx.write_file(&path, format!("{v}\n").as_bytes())?;
+        Ok(())
+    }
+}
+
 pub struct Fail(NodeSpec);
 impl Node for Fail {
     fn spec(&self) -> &NodeSpec {
@@ -290,6 +305,18 @@ pub fn registry() -> Registry {
                 "",
             ))
             .input(PortSpec::one("a", "float", "")),
+    ));
+    r.register_node(WriteNumNote(
+        NodeSpec::new(
+            "write_num_note",
+            "a number to a text file, and a note beside it",
+        )
+        .param(ParamSpec::required(
+            "path",
+            ParamType::Path(PathRole::Output),
+            "",
+        ))
+        .input(PortSpec::one("a", "float", "")),
     ));
     r.register_node(Fail(
         NodeSpec::new("fail", "always fails")
