@@ -43,7 +43,7 @@ pub enum BenchCommand {
         json: bool,
     },
     /// Matchmove (book chapter 7) of a tracks file, then the book's relaxation: stage timings, the
-    /// score over all tracks, and the speed-up over the book's programs (issue 6: `calib` used
+    /// score over all tracks, and the speed-up over the book's programs (the book's `calib` used
     /// more than 24 CPU-minutes on f.txt without finishing, `relax` 386 CPU-seconds).
     Matchmove {
         /// Tracks file (the book's f.txt format or native JSON).
@@ -56,7 +56,7 @@ pub enum BenchCommand {
         #[arg(long)]
         json: bool,
     },
-    /// Differential rendering of the book's shot (§10.10; issue 9): time per 1280×720 frame
+    /// Differential rendering of the book's shot (§10.10): time per 1280×720 frame
     /// and noise against a high-spp reference on three views, beside the book's estimator
     /// (hemisphere sampling only, 1000 spp, 2 bounces; its noise extrapolated from
     /// `--book-spp` by the 1/N law of Monte Carlo variance), and the spp and time per frame at
@@ -288,7 +288,7 @@ fn bench_matchmove(tracks: &Path, intrinsics: &Path, json: bool) -> Result<u8, S
     show("score, matchmove", &solve.report.score);
     show("score, relaxed", &relaxed.report.score);
     println!(
-        "vs the book      calib > {BOOK_CALIB_CPU_S:.0} CPU-s → ≥ {:.0}× less CPU; relax {BOOK_RELAX_CPU_S:.0} CPU-s → {:.0}× less CPU (the book's figures: issue 6, same machine)",
+        "vs the book      calib > {BOOK_CALIB_CPU_S:.0} CPU-s → ≥ {:.0}× less CPU; relax {BOOK_RELAX_CPU_S:.0} CPU-s → {:.0}× less CPU (the book's programs, measured on this machine)",
         BOOK_CALIB_CPU_S / mm_cpu,
         BOOK_RELAX_CPU_S / relax_cpu
     );

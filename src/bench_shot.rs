@@ -1,13 +1,12 @@
-//! `vfxgraph bench shot`: the differential rendering of the book's shot (book §10.10–10.14,
-//! issue 9) — time per frame and noise against a high-spp reference, beside the book's own
-//! estimator at its 1000 samples per pixel.
+//! `vfxgraph bench shot`: the differential rendering of the book's shot (book §10.10–10.14) —
+//! time per frame and noise against a high-spp reference, beside the book's own estimator at its 1000 samples per pixel.
 //!
 //! Noise is measured on what the composite adds to the plate, B + (W − Wo) (beauty plus the
 //! catcher's change; the plate itself is not rendered), over the pixels the reference traced:
 //! MSE against the reference minus the reference's own error (half the MSE between two
 //! references rendered with different seeds), so the figure is the estimate's error, not the
 //! reference's. The book's program
-//! sampled the hemisphere only (GAPS.md, ch. 9): its noise at 1000 spp is that of our
+//! sampled the hemisphere only (book ch. 9): its noise at 1000 spp is that of our
 //! `brdf_only` strategy at `book_spp`, scaled by book_spp / 1000 (Monte Carlo variance ∝ 1/N).
 
 use std::path::Path;

@@ -1,4 +1,5 @@
-//! File helpers: atomic writes, and content hashing of files with a (path, size, mtime) memo.
+//! File helpers: atomic writes (the project's one writer, `vfxgraph-fsutil`, re-exported), and
+//! content hashing of files with a (path, size, mtime) memo.
 //!
 //! Both are safe for many processes on many hosts sharing one folder (NFS semantics: a rename
 //! within a folder is atomic, there are no locks across hosts): temporaries have names unique
@@ -7,76 +8,16 @@
 
 use std::collections::HashMap;
 use std::fs;
-use std::io::{self, Write};
+use std::io;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Mutex, OnceLock};
+use std::sync::Mutex;
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use serde::{Deserialize, Serialize};
 
 use crate::artifact::Digest;
 
-static TMP_COUNTER: AtomicU64 = AtomicU64::new(0);
-
-/// A name unique to this host, process and call: `host-pid-n`. Process ids repeat across the
-/// hosts of a farm writing into one shared folder; host names do not.
-pub fn unique_token() -> String {
-    static HOST: OnceLock<String> = OnceLock::new();
-    let host = HOST.get_or_init(|| {
-        let raw = fs::read_to_string("/proc/sys/kernel/hostname").unwrap_or_default();
-        let clean: String = raw
-            .trim()
-            .chars()
-            .map(|c| {
-                if c.is_ascii_alphanumeric() || c == '.' {
-                    c
-                } else {
-                    '_'
-                }
-            })
-            .collect();
-        if clean.is_empty() {
-            "host".into()
-        } else {
-            clean
-        }
-    });
-    let n = TMP_COUNTER.fetch_add(1, Ordering::Relaxed);
-    format!("{host}-{}-{n}", std::process::id())
-}
-
-/// A temporary name beside `path`, unique to this host, process and call.
-fn temp_beside(path: &Path) -> PathBuf {
-    let name = path
-        .file_name()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    path.with_file_name(format!(".{name}.tmp-{}", unique_token()))
-}
-
-/// Writes `bytes` to `path` atomically: a temporary file in the same folder, then a rename.
-/// Readers see the old file or the whole new one, never a part; a crash leaves at most a
-/// stray temporary. Parent folders are created.
-pub fn atomic_write(path: &Path, bytes: &[u8]) -> io::Result<()> {
-    if let Some(parent) = path.parent() {
-        if !parent.as_os_str().is_empty() {
-            fs::create_dir_all(parent)?;
-        }
-    }
-    let tmp = temp_beside(path);
-    let result = (|| {
-        let mut f = fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.flush()?;
-        drop(f);
-        fs::rename(&tmp, path)
-    })();
-    if result.is_err() {
-        let _ = fs::remove_file(&tmp);
-    }
-    result
-}
+pub use vfxgraph_fsutil::{atomic_write, atomic_write_parts, unique_token};
 
 /// Digest of a file's content (blake3 of the bytes, with a prefix so it differs from artifact
 /// digests).
@@ -204,20 +145,6 @@ impl FileHasher {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn atomic_write_replaces_whole_file() {
-        let dir = tempfile::tempdir().unwrap();
-        let p = dir.path().join("sub/a.txt");
-        atomic_write(&p, b"one").unwrap();
-        atomic_write(&p, b"two!").unwrap();
-        assert_eq!(fs::read(&p).unwrap(), b"two!");
-        let stray: Vec<_> = fs::read_dir(dir.path().join("sub"))
-            .unwrap()
-            .map(|e| e.unwrap().file_name())
-            .collect();
-        assert_eq!(stray.len(), 1, "no temporaries left: {stray:?}");
-    }
 
     #[test]
     fn hasher_sees_content_not_mtime() {

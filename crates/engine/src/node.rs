@@ -2,7 +2,8 @@
 //!
 //! A node never computes its own cache key: it declares its inputs, parameters (with
 //! `affects_output`), version and whether it is seeded, and the engine derives the key
-//! (the Gaffer pattern, see STYLE.md).
+//! (Gaffer's pattern: a hash of exactly what the computation reads; ARCHITECTURE.md, "Cache
+//! keys").
 
 use std::collections::BTreeMap;
 use std::fmt;
@@ -306,6 +307,7 @@ pub struct Context<'a> {
     pub(crate) cancel: &'a AtomicBool,
     pub(crate) outputs: BTreeMap<&'static str, (Value, Vec<u8>)>,
     pub(crate) read_files: Vec<(PathBuf, Digest)>,
+    pub(crate) written_files: Vec<PathBuf>,
 }
 
 impl<'a> Context<'a> {
@@ -329,6 +331,7 @@ impl<'a> Context<'a> {
             cancel: &NEVER_CANCELLED,
             outputs: BTreeMap::new(),
             read_files: Vec::new(),
+            written_files: Vec::new(),
         }
     }
 
@@ -405,6 +408,25 @@ impl<'a> Context<'a> {
     /// The files declared by [`Context::declare_input_file`] so far, with their digests.
     pub fn declared_input_files(&self) -> &[(PathBuf, Digest)] {
         &self.read_files
+    }
+
+    /// Writes `bytes` to `path` with the project's one atomic writer (`fsutil::atomic_write`)
+    /// and records the file as an output of this run, like the file of an output path param:
+    /// its digest is stored with the cached result, which counts as cached only while the file
+    /// still has it. For the files a writer makes beside the one its path param names
+    /// (COLMAP's `images.txt`, Nuke's film-back note). Errors name the file.
+    pub fn write_file(&mut self, path: &Path, bytes: &[u8]) -> Result<(), NodeError> {
+        crate::fsutil::atomic_write(path, bytes)
+            .map_err(|e| NodeError::msg(format!("cannot write {}: {e}", path.display())))?;
+        if !self.written_files.iter().any(|p| p == path) {
+            self.written_files.push(path.to_path_buf());
+        }
+        Ok(())
+    }
+
+    /// The files written by [`Context::write_file`] so far.
+    pub fn written_files(&self) -> &[PathBuf] {
+        &self.written_files
     }
 
     /// The name of the node's `i`-th declared input port (for nodes shared by several types).

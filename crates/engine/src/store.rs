@@ -23,14 +23,14 @@
 
 use std::collections::{BTreeMap, HashSet};
 use std::fs;
-use std::io::{self, Write};
+use std::io;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, SystemTime};
 
 use serde::{Deserialize, Serialize};
 
 use crate::artifact::{content_digest, Digest};
-use crate::fsutil::unique_token;
+use crate::fsutil::atomic_write_parts;
 
 /// An object whose payload is stored as is.
 const OBJECT_MAGIC: &[u8; 5] = b"VFXO1";
@@ -77,6 +77,11 @@ pub struct ActionEntry {
     /// digests when read; the entry is valid only while each still has its digest.
     #[serde(default)]
     pub read_files: Vec<WrittenFile>,
+    /// Further files the node wrote through `Context::write_file` (beside those its output
+    /// path params name), with their digests; the entry is valid only while each still has
+    /// its digest. Left out of the JSON when empty, so entries of other nodes are unchanged.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub node_files: Vec<WrittenFile>,
     /// Compute time in seconds.
     pub seconds: f64,
 }
@@ -154,25 +159,12 @@ impl Store {
         self.root.join("files")
     }
 
-    /// Writes `bytes` to `dest` through a temporary in `tmp/`, renamed into place when complete;
-    /// on any failure (a full disk) the temporary is removed and the error names `dest`.
+    /// Writes `bytes` to `dest` with the one atomic writer, its temporary in `tmp/` (swept by
+    /// [`Store::open`], never seen by the listings); on any failure (a full disk) the temporary
+    /// is removed and the error names `dest`.
     fn write_atomic(&self, dest: &Path, bytes: &[&[u8]]) -> io::Result<()> {
-        let tmp = self.root.join("tmp").join(unique_token());
-        let r = (|| {
-            let mut f = fs::File::create(&tmp)?;
-            for b in bytes {
-                f.write_all(b)?;
-            }
-            drop(f);
-            if let Some(p) = dest.parent() {
-                fs::create_dir_all(p)?;
-            }
-            fs::rename(&tmp, dest)
-        })();
-        r.map_err(|e| {
-            let _ = fs::remove_file(&tmp);
-            io::Error::new(e.kind(), format!("cannot write {}: {e}", dest.display()))
-        })
+        atomic_write_parts(dest, bytes, Some(&self.root.join("tmp")))
+            .map_err(|e| io::Error::new(e.kind(), format!("cannot write {}: {e}", dest.display())))
     }
 
     fn object_path(&self, d: &Digest) -> PathBuf {
@@ -512,6 +504,7 @@ mod tests {
                 }],
                 files: vec![],
                 read_files: vec![],
+                node_files: vec![],
                 seconds: 0.0,
             },
         )

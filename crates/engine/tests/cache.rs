@@ -289,6 +289,33 @@ nodes:
     assert_eq!(fs::read_to_string(s.path("out/v.txt")).unwrap(), "4\n");
 }
 
+/// A file written through `Context::write_file` beside the path param's is an output too: the
+/// entry is stale when it is deleted or edited, and the run writes it again.
+#[test]
+fn files_written_through_the_context_are_outputs() {
+    let s = Scratch::new();
+    let w = "w: {type: write_num_note, inputs: {a: a.out}, params: {path: out/v.txt}}";
+    let g = &format!("version: 1\nnodes:\n  a: {{type: num, params: {{value: 4}}}}\n  {w}\n");
+    let note = s.path("out/v.note");
+    assert_eq!(s.run(g).count("w", Status::Ran), 1);
+    for edit in [None, Some("edited\n")] {
+        assert_eq!(s.run(g).count("w", Status::Cached), 1);
+        match edit {
+            None => fs::remove_file(&note).unwrap(),
+            Some(text) => fs::write(&note, text).unwrap(),
+        }
+        let plan = exec::plan(&s.graph(g), &s.opts()).unwrap();
+        let w = plan.nodes.iter().find(|n| n.id == "w").unwrap();
+        let why = &w.reason;
+        assert!(
+            w.status == PlanStatus::Run && why.contains("v.note"),
+            "{why}"
+        );
+        assert_eq!(s.run(g).count("w", Status::Ran), 1);
+        assert_eq!(fs::read_to_string(&note).unwrap(), "a note\n");
+    }
+}
+
 #[test]
 fn corrupt_or_lost_objects_are_recomputed() {
     let s = Scratch::new();

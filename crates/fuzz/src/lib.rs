@@ -1,4 +1,4 @@
-//! Fuzzing of every reader of a user file (issue 20, point 6) on the stable toolchain.
+//! Fuzzing of every reader of a user file on the stable toolchain (ARCHITECTURE.md, "Fuzzing").
 //!
 //! `cargo fuzz` (libFuzzer) needs a nightly compiler, which cannot be installed here; `afl`
 //! needs its own compiler wrapper and a fork server outside `cargo test`; `bolero` on stable

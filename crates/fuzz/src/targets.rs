@@ -16,7 +16,7 @@ use vfxgraph_imaging::io::{encode_exr, ExrCompression, ExrOptions, ExrPrecision}
 use vfxgraph_imaging::{Format, Image};
 use vfxgraph_vision::camera::{Intrinsics, Pose};
 use vfxgraph_vision::formats::{self, CameraPath, FramePose, MarkedFrame, MarkedPoints};
-use vfxgraph_vision::klt::tracks::{Loss, LostReason, Track, Tracks};
+use vfxgraph_vision::klt::tracks::{LostReason, Track, TrackEnd, Tracks};
 use vfxgraph_vision::{Points2d, Points3d};
 
 use crate::mutate::Kind;
@@ -497,7 +497,7 @@ fn sample_tracks() -> Tracks {
                 0,
                 0,
                 vec![[1.5, 2.0], [1.75, 2.5]],
-                Some(Loss {
+                Some(TrackEnd {
                     frame: 2,
                     at: [1.9, 2.7],
                     reason: LostReason::Residual,

@@ -1,7 +1,7 @@
 //! Colour transfer functions: the sRGB curves of IEC 61966-2-1:1999 and Rec. 709 luminance.
 //!
 //! Everything inside vfxgraph is linear light; sRGB appears only when 8/16-bit files are read or
-//! written (the book's convention, DESIGN.md §3).
+//! written (the book's convention; ARCHITECTURE.md, "Conventions").
 
 use std::sync::OnceLock;
 

@@ -17,7 +17,7 @@ const PARALLEL_THRESHOLD: usize = 1 << 15;
 ///
 /// Channel layouts: 1 = gray, 2 = gray + alpha, 3 = RGB, 4 = RGBA (the decoders of [`crate::io`]
 /// produce only 1, 3 or 4). Sample `(x, y, c)` is at `data[(y * width + x) * channels + c]`; pixel
-/// `(0, 0)` is the top-left one, x grows to the right and y downwards (DESIGN.md §3). Colour
+/// `(0, 0)` is the top-left one, x grows to the right and y downwards (ARCHITECTURE.md, "Conventions"). Colour
 /// channels are linear light (scene-referred, may exceed 1 or be negative); alpha is straight
 /// (not premultiplied) coverage.
 #[derive(Clone, Debug, PartialEq)]

@@ -168,7 +168,12 @@ fn run_export(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     if !plate.is_empty() && shot.cloud.is_some() {
         shot.colors = Some(colors::sample_point_colors(&shot, &plate));
     }
-    let out = write(format, &ctx.path("path"), &shot, &o.scene)?;
+    // Through the context: every file is recorded as an output (COLMAP's images.txt and
+    // points3D.txt, Nuke's film-back note), so deleting one makes the entry stale.
+    let path = ctx.path("path");
+    let out = write_with(format, &path, &shot, &o.scene, |p, bytes| {
+        ctx.write_file(p, bytes)
+    })?;
     let report = json!({
         "format": format.choice(),
         "files": out.iter().map(|f| f.display().to_string()).collect::<Vec<_>>(),
@@ -191,10 +196,23 @@ pub fn write(
     shot: &Shot,
     options: &SceneOptions,
 ) -> Result<Vec<PathBuf>, NodeError> {
+    write_with(format, path, shot, options, |p, bytes| {
+        atomic_write(p, bytes)
+            .map_err(|e| NodeError::msg(format!("cannot write {}: {e}", p.display())))
+    })
+}
+
+/// [`write`] with each file's bytes handed to `put` (the node's `Context::write_file`).
+fn write_with(
+    format: ExportFormat,
+    path: &Path,
+    shot: &Shot,
+    options: &SceneOptions,
+    mut put: impl FnMut(&Path, &[u8]) -> Result<(), NodeError>,
+) -> Result<Vec<PathBuf>, NodeError> {
     let out = files(format, path, shot, options)?;
     for (p, text) in out.iter().skip(1).chain(out.first()) {
-        atomic_write(p, text.as_bytes())
-            .map_err(|e| NodeError::msg(format!("cannot write {}: {e}", p.display())))?;
+        put(p, text.as_bytes())?;
     }
     Ok(out.into_iter().map(|(p, _)| p).collect())
 }

@@ -1,8 +1,8 @@
-//! The local scene from the plate (issue 17; Debevec 1998 §4, book §10.10.1): `catcher_texture`
-//! estimates a shadow catcher's diffuse albedo per texel from clean plate frames (the algorithm:
-//! [`vfxgraph_render::catcher_texture`]); `proxy_from_points` adds boxes and plane patches of
-//! the real set, built from measured points, as catchers ([`vfxgraph_render::proxy`]);
-//! `add_objects` puts the designed CG objects into that local scene last, so the local scene's
+//! The local scene from the plate (README, "The local scene from the plate"; Debevec 1998 §4,
+//! book §10.10.1): `catcher_texture` estimates a shadow catcher's diffuse albedo per texel from
+//! clean plate frames (the algorithm: [`vfxgraph_render::catcher_texture`]); `proxy_from_points`
+//! adds boxes and plane patches of the real set, built from measured points, as catchers
+//! ([`vfxgraph_render::proxy`]); `add_objects` puts the designed CG objects into that local scene last, so the local scene's
 //! nodes never see them and a change of an object reruns only what renders it.
 
 use vfxgraph_engine::{ArtifactType, Context, NodeError, NodeSpec, PortSpec, Registry};

@@ -1,4 +1,4 @@
-//! Nodes for making a synthetic plate with ground truth (book ch. 10 and issue 9's plate test):
+//! Nodes for making a synthetic plate with ground truth (book ch. 10 and `tests/plate_shot.rs`):
 //! `synthetic_camera_path` (a smooth orbit/dolly around a target: the true cameras a plate is
 //! rendered along) and `project_marks` (the marks a user would click on a few frames, simulated
 //! by projecting known 3-D points with the true cameras and rounding to whole pixels, in the

@@ -25,7 +25,7 @@
 //!   when it misses the start by more than the threshold — what `klt_track` does.
 //! - `border`, `replace_lost`: the sequence logic above.
 //!
-//! Loss reasons: OpenCV's status 0 is `left_image` when its last position lies outside the
+//! End reasons: OpenCV's status 0 is `left_image` when its last position lies outside the
 //! image and `singular` otherwise (it does not say which); `residual`, `forward_backward` and
 //! the `border` margin as in `klt_track`. OpenCV works per feature, so the result does not
 //! depend on its thread count.
@@ -37,7 +37,7 @@ use opencv::imgproc;
 use opencv::prelude::*;
 use opencv::video;
 use vfxgraph_engine::{Context, NodeError, Registry};
-use vfxgraph_vision::klt::{GrayImage, Loss, LostReason, Track, TrackerParams, Tracks};
+use vfxgraph_vision::klt::{GrayImage, LostReason, Track, TrackEnd, TrackerParams, Tracks};
 
 use crate::tracking::{gray_frames, klt_spec, TracksArt};
 use crate::FnNode;
@@ -323,7 +323,7 @@ impl CvTracker {
                         } else {
                             t.points.last().copied().unwrap_or_default()
                         };
-                        t.lost = Some(Loss {
+                        t.lost = Some(TrackEnd {
                             frame: fi,
                             at,
                             reason,

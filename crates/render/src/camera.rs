@@ -5,7 +5,7 @@
 //! *undistorted* normalized point of K⁻¹x, and a world point X projects to K·distort(X.xy/X.z).
 //! Without a lens (the default) both are the pinhole's, computed exactly as before.
 //!
-//! Convention of the project (DESIGN.md §3): a world point X projects to x ~ K(RX + t); the
+//! Convention of the project (ARCHITECTURE.md, "Conventions"): a world point X projects to x ~ K(RX + t); the
 //! camera looks down +z of its frame, x right, y down; pixel coordinates have their origin at
 //! the centre of the top-left pixel, so pixel (i, j) covers [i − ½, i + ½] × [j − ½, j + ½].
 

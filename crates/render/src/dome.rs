@@ -33,6 +33,7 @@ use vfxgraph_imaging::Image;
 
 use crate::environment::{ConstantEnvironment, Environment, EnvironmentSample};
 use crate::math::{Rgb, Vec3};
+use crate::sampling::Distribution1D;
 use crate::scene::Scene;
 
 /// What can be wrong with a dome's image or orientation.
@@ -44,110 +45,6 @@ pub enum DomeError {
     /// `orig`/`south` (or the rotation) do not define a basis: zero, non-finite or parallel.
     #[error("invalid dome orientation: {0}")]
     Orientation(String),
-}
-
-/// A piecewise-constant 1-D distribution on `[0, 1)` with `n` equal pieces (PBRT §13.6.7's
-/// `Distribution1D`): the cumulative sum is tabulated and inverted by a search narrowed by a
-/// guide table (Chen & Asau's "cutpoint" method: for each of `n` equal slices of `[0, 1]`, the
-/// first cdf entry above it), so a sample reads a few neighbouring entries instead of
-/// bisecting the whole table — the same inversion, in expected constant time.
-#[derive(Clone, Debug)]
-pub struct Distribution1D {
-    func: Vec<f64>,
-    cdf: Vec<f64>,
-    /// `guide[k]` = the number of cdf entries ≤ k/n, for k in 0..=n.
-    guide: Vec<u32>,
-    integral: f64,
-}
-
-impl Distribution1D {
-    /// From non-negative piece values (NaN and negatives count as 0). An all-zero function becomes
-    /// uniform, so sampling never fails.
-    pub fn new(func: &[f64]) -> Distribution1D {
-        let n = func.len().max(1);
-        let mut f: Vec<f64> = func
-            .iter()
-            .map(|&v| if v.is_finite() && v > 0.0 { v } else { 0.0 })
-            .collect();
-        f.resize(n, 0.0);
-        let mut cdf = vec![0.0; n + 1];
-        for i in 0..n {
-            cdf[i + 1] = cdf[i] + f[i] / n as f64;
-        }
-        let mut integral = cdf[n];
-        if integral <= 0.0 {
-            f.iter_mut().for_each(|v| *v = 1.0);
-            for (i, c) in cdf.iter_mut().enumerate() {
-                *c = i as f64 / n as f64;
-            }
-            integral = 1.0;
-        } else {
-            for c in &mut cdf {
-                *c /= integral;
-            }
-        }
-        let guide = (0..=n)
-            .map(|k| {
-                let b = k as f64 / n as f64;
-                cdf.partition_point(|&c| c <= b) as u32
-            })
-            .collect();
-        Distribution1D {
-            func: f,
-            cdf,
-            guide,
-            integral,
-        }
-    }
-
-    /// The number of cdf entries ≤ `u` (`u` in [0, 1]): a binary search of the guide table's
-    /// bracket (one slice wider on each side, so the rounding of `u · n` cannot matter).
-    #[inline]
-    fn count_at_most(&self, u: f64) -> usize {
-        let n = self.func.len();
-        let k = ((u * n as f64) as usize).min(n);
-        let lo = self.guide[k.saturating_sub(1)] as usize;
-        let hi = (self.guide[(k + 2).min(n)] as usize).min(self.cdf.len());
-        lo + self.cdf[lo..hi].partition_point(|&c| c <= u)
-    }
-
-    /// Number of pieces.
-    pub fn len(&self) -> usize {
-        self.func.len()
-    }
-
-    /// Always false (at least one piece).
-    pub fn is_empty(&self) -> bool {
-        self.func.is_empty()
-    }
-
-    /// `∫₀¹ f`.
-    pub fn integral(&self) -> f64 {
-        self.integral
-    }
-
-    /// Maps `u ∈ [0, 1)` to `(x ∈ [0, 1), density at x, piece index)`.
-    pub fn sample(&self, u: f64) -> (f64, f64, usize) {
-        let n = self.func.len();
-        let u = u.clamp(0.0, 1.0);
-        // Last i with cdf[i] <= u, among pieces of positive mass.
-        let i = (self.count_at_most(u).max(1) - 1).min(n - 1);
-        let width = self.cdf[i + 1] - self.cdf[i];
-        let du = if width > 0.0 {
-            (u - self.cdf[i]) / width
-        } else {
-            0.0
-        };
-        let x = ((i as f64 + du.clamp(0.0, 1.0)) / n as f64).min(1.0 - f64::EPSILON);
-        (x, self.func[i] / self.integral, i)
-    }
-
-    /// Density at `x ∈ [0, 1)`.
-    pub fn pdf(&self, x: f64) -> f64 {
-        let n = self.func.len();
-        let i = ((x * n as f64) as usize).min(n - 1);
-        self.func[i] / self.integral
-    }
 }
 
 /// A piecewise-constant 2-D distribution on `[0, 1)²` over a `w × h` grid: a marginal over rows
@@ -185,12 +82,12 @@ impl Distribution2D {
         let j = ((t * h as f64) as usize).min(h - 1);
         let row = &self.rows[j];
         let i = ((s * row.len() as f64) as usize).min(row.len() - 1);
-        row.func[i] / self.marginal.integral
+        row.value(i) / self.marginal.integral()
     }
 }
 
-/// One importance sample of a dome (the pbrt-style light sample, STYLE.md): a unit direction
-/// towards the dome, the radiance arriving from it, and the pdf in solid angle.
+/// One importance sample of a dome (pbrt-v4's `LightLiSample`, ch. 12: the value with its
+/// pdf): a unit direction towards the dome, the radiance arriving from it, and the pdf in solid angle.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DomeSample {
     /// Unit world direction the light comes from.
@@ -586,39 +483,6 @@ mod tests {
 
     fn ramp(w: usize, h: usize) -> Image {
         Image::from_fn(w, h, 3, |x, y, c| (x + 3 * y + c) as f32 * 0.01)
-    }
-
-    /// The guide table changes how the cdf is searched, not the inversion: every sample is the
-    /// one a plain binary search of the whole table gives — on smooth, spiky, sparse and
-    /// all-zero pieces, at piece boundaries and at the ends of [0, 1].
-    #[test]
-    fn guided_search_equals_binary_search() {
-        let mut rng = Pcg64::seed_from_u64(5);
-        let spiky: Vec<f64> = (0..1000)
-            .map(|i| {
-                if i % 97 == 3 {
-                    1e6
-                } else {
-                    1e-3 * (i % 7) as f64
-                }
-            })
-            .collect();
-        let sparse: Vec<f64> = (0..333).map(|i| if i == 200 { 1.0 } else { 0.0 }).collect();
-        let smooth: Vec<f64> = (0..1024).map(|i| (i as f64 * 0.01).sin().abs()).collect();
-        for func in [spiky, sparse, smooth, vec![0.0; 17], vec![2.0]] {
-            let d = Distribution1D::new(&func);
-            let n = d.len();
-            let plain = |u: f64| {
-                let u = u.clamp(0.0, 1.0);
-                (d.cdf.partition_point(|&c| c <= u).max(1) - 1).min(n - 1)
-            };
-            let mut us: Vec<f64> = (0..20000).map(|_| rng.random::<f64>()).collect();
-            us.extend(d.cdf.iter().flat_map(|&c| [c, c.next_down(), c.next_up()]));
-            us.extend([0.0, 1.0, 1.0f64.next_down(), 0.5]);
-            for u in us {
-                assert_eq!(d.sample(u).2, plain(u), "u = {u}");
-            }
-        }
     }
 
     #[test]

@@ -23,7 +23,7 @@ pub enum LightSampling {
 const MIN_SPHERICAL: f64 = 3e-4;
 const MAX_SPHERICAL: f64 = 6.22;
 
-/// A light sample seen from a shading point (STYLE.md: pbrt's `LightSample`).
+/// A light sample seen from a shading point (pbrt-v4's `LightLiSample`, ch. 12).
 #[derive(Clone, Copy, Debug)]
 pub struct LightSample {
     /// Emitted radiance towards the shading point.
@@ -53,7 +53,7 @@ impl LightSet {
             .iter()
             .map(|(t, l)| t.area * l.luminance().max(l.max_component() * 1e-3))
             .collect();
-        let dist = Distribution1D::new(&weights);
+        let dist = Distribution1D::from_weights(&weights);
         let (tris, radiance) = items.into_iter().unzip();
         LightSet {
             tris,
@@ -107,7 +107,7 @@ impl LightSet {
     #[inline]
     pub fn sample(&self, p: Vec3, uc: f64, u: [f64; 2]) -> Option<LightSample> {
         let dist = self.dist.as_ref()?;
-        let (i, pmf) = dist.sample(uc);
+        let (i, pmf) = dist.sample_discrete(uc);
         let tri = &self.tris[i];
         if let Some((_, v)) = self.spherical(i, p) {
             let (wi, pdf) = spherical_triangle::sample(p, v, u)?;

@@ -2,7 +2,8 @@
 //!
 //! The render crate uses its own 3-vector rather than nalgebra: the hot loops (ray–triangle,
 //! BVH traversal, BRDF evaluation) need nothing but component arithmetic, and a plain `Copy`
-//! struct keeps the code readable and compiles fast. Geometry is f64 throughout (DESIGN.md §3).
+//! struct keeps the code readable and compiles fast. Geometry is f64 throughout (ARCHITECTURE.md,
+//! "Conventions").
 
 use std::ops::{Add, AddAssign, Div, Index, Mul, MulAssign, Neg, Sub};
 

@@ -1,4 +1,4 @@
-//! Proxy geometry of the real set from measured points (issue 17; Debevec 1998 §4's local scene
+//! Proxy geometry of the real set from measured points (Debevec 1998 §4's local scene
 //! "approximated by simple geometry"; book ch. 8's point-cloud calibration measures the points):
 //! a plane patch from its 4 corners, a box from 3 corners of its base and the corner above the
 //! first, or from 3 corners of its top standing on a known plane (the ground catcher's: for a box

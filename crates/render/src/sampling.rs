@@ -80,53 +80,159 @@ pub fn power_heuristic(f_pdf: f64, g_pdf: f64) -> f64 {
     }
 }
 
-/// A piecewise-constant 1D distribution over `n` items (a discrete CDF), for choosing a light
-/// in proportion to its power (pbrt-v4 `PiecewiseConstant1D`, discrete use).
-#[derive(Clone, Debug, Default)]
+/// A piecewise-constant 1-D distribution with `n` equal pieces (pbrt's `Distribution1D`,
+/// *Physically Based Rendering* 3rd ed. §13.6.7; `PiecewiseConstant1D` in pbrt-v4 §A.5.4): the
+/// one distribution of the renderer, sampled continuously on `[0, 1)` (the dome's rows and
+/// marginal, [`Distribution1D::sample`]) or discretely over its `n` items (a light triangle in
+/// proportion to its power, [`Distribution1D::sample_discrete`]).
+///
+/// The cumulative sum is tabulated and inverted by a search narrowed by a guide table (Chen &
+/// Asau's "cutpoint" method: for each of `n` equal slices of `[0, 1]`, the first cdf entry above
+/// it), so a sample reads a few neighbouring entries instead of bisecting the whole table — the
+/// same inversion, in expected constant time.
+///
+/// Both uses pick the piece whose cdf interval holds `u` (zero-mass pieces are never picked).
+/// A discrete pick's probability is the piece's value over the plain sum of the values
+/// (`w / Σw`, exactly what a light's weights give), not `(cdf[i+1] − cdf[i])`, which differs from
+/// it in the last bits.
+#[derive(Clone, Debug)]
 pub struct Distribution1D {
+    func: Vec<f64>,
     cdf: Vec<f64>,
-    pmf: Vec<f64>,
+    /// `guide[k]` = the number of cdf entries ≤ k/n, for k in 0..=n.
+    guide: Vec<u32>,
+    integral: f64,
+    /// `Σ func`, summed in order: the discrete pmf's denominator.
+    sum: f64,
 }
 
 impl Distribution1D {
-    /// From non-negative weights. Returns `None` if there are none or they sum to zero (or are
-    /// not finite).
-    pub fn new(weights: &[f64]) -> Option<Self> {
+    /// From non-negative piece values (NaN, infinities and negatives count as 0). An all-zero
+    /// function becomes uniform, so sampling never fails.
+    pub fn new(func: &[f64]) -> Distribution1D {
+        let n = func.len().max(1);
+        let mut f: Vec<f64> = func
+            .iter()
+            .map(|&v| if v.is_finite() && v > 0.0 { v } else { 0.0 })
+            .collect();
+        f.resize(n, 0.0);
+        let mut cdf = vec![0.0; n + 1];
+        for i in 0..n {
+            cdf[i + 1] = cdf[i] + f[i] / n as f64;
+        }
+        let mut integral = cdf[n];
+        if integral <= 0.0 {
+            f.iter_mut().for_each(|v| *v = 1.0);
+            for (i, c) in cdf.iter_mut().enumerate() {
+                *c = i as f64 / n as f64;
+            }
+            integral = 1.0;
+        } else {
+            for c in &mut cdf {
+                *c /= integral;
+            }
+        }
+        let guide = (0..=n)
+            .map(|k| {
+                let b = k as f64 / n as f64;
+                cdf.partition_point(|&c| c <= b) as u32
+            })
+            .collect();
+        let sum = f.iter().sum();
+        Distribution1D {
+            func: f,
+            cdf,
+            guide,
+            integral,
+            sum,
+        }
+    }
+
+    /// A distribution over `n` items in proportion to non-negative `weights` (negatives and NaN
+    /// count as 0), for discrete sampling; `None` when there are none, or their sum is zero or
+    /// not finite (nothing to pick from).
+    pub fn from_weights(weights: &[f64]) -> Option<Distribution1D> {
         let total: f64 = weights.iter().map(|w| w.max(0.0)).sum();
         if weights.is_empty() || !(total > 0.0 && total.is_finite()) {
             return None;
         }
-        let pmf: Vec<f64> = weights.iter().map(|w| w.max(0.0) / total).collect();
-        let mut cdf = Vec::with_capacity(pmf.len());
-        let mut acc = 0.0;
-        for p in &pmf {
-            acc += p;
-            cdf.push(acc);
-        }
-        *cdf.last_mut().expect("non-empty") = 1.0;
-        Some(Distribution1D { cdf, pmf })
+        Some(Distribution1D::new(weights))
     }
-    /// Number of items.
-    pub fn len(&self) -> usize {
-        self.pmf.len()
-    }
-    /// True when there are no items.
-    pub fn is_empty(&self) -> bool {
-        self.pmf.is_empty()
-    }
-    /// Picks an item for `u` in [0, 1): (index, probability).
+
+    /// The number of cdf entries ≤ `u` (`u` in [0, 1]): a binary search of the guide table's
+    /// bracket (one slice wider on each side, so the rounding of `u · n` cannot matter).
     #[inline]
-    pub fn sample(&self, u: f64) -> (usize, f64) {
-        let i = self
-            .cdf
-            .partition_point(|&c| c <= u)
-            .min(self.pmf.len() - 1);
-        (i, self.pmf[i])
+    fn count_at_most(&self, u: f64) -> usize {
+        let n = self.func.len();
+        let k = ((u * n as f64) as usize).min(n);
+        let lo = self.guide[k.saturating_sub(1)] as usize;
+        let hi = (self.guide[(k + 2).min(n)] as usize).min(self.cdf.len());
+        lo + self.cdf[lo..hi].partition_point(|&c| c <= u)
     }
-    /// The probability of item `i`.
+
+    /// The piece whose cdf interval holds `u` (clamped to [0, 1]): the last `i` with
+    /// `cdf[i] <= u`, which has positive mass.
+    #[inline]
+    fn piece_at(&self, u: f64) -> usize {
+        (self.count_at_most(u).max(1) - 1).min(self.func.len() - 1)
+    }
+
+    /// Number of pieces.
+    pub fn len(&self) -> usize {
+        self.func.len()
+    }
+
+    /// Always false (at least one piece).
+    pub fn is_empty(&self) -> bool {
+        self.func.is_empty()
+    }
+
+    /// `∫₀¹ f`.
+    pub fn integral(&self) -> f64 {
+        self.integral
+    }
+
+    /// The value of piece `i` (0 for pieces given as NaN or negative).
+    #[inline]
+    pub fn value(&self, i: usize) -> f64 {
+        self.func[i]
+    }
+
+    /// Maps `u ∈ [0, 1)` to `(x ∈ [0, 1), density at x, piece index)` (pbrt's
+    /// `SampleContinuous`).
+    pub fn sample(&self, u: f64) -> (f64, f64, usize) {
+        let n = self.func.len();
+        let u = u.clamp(0.0, 1.0);
+        let i = self.piece_at(u);
+        let width = self.cdf[i + 1] - self.cdf[i];
+        let du = if width > 0.0 {
+            (u - self.cdf[i]) / width
+        } else {
+            0.0
+        };
+        let x = ((i as f64 + du.clamp(0.0, 1.0)) / n as f64).min(1.0 - f64::EPSILON);
+        (x, self.func[i] / self.integral, i)
+    }
+
+    /// Density at `x ∈ [0, 1)`.
+    pub fn pdf(&self, x: f64) -> f64 {
+        let n = self.func.len();
+        let i = ((x * n as f64) as usize).min(n - 1);
+        self.func[i] / self.integral
+    }
+
+    /// Picks an item for `u` in [0, 1): (index, probability) (pbrt's `SampleDiscrete`).
+    #[inline]
+    pub fn sample_discrete(&self, u: f64) -> (usize, f64) {
+        let i = self.piece_at(u.clamp(0.0, 1.0));
+        (i, self.pmf(i))
+    }
+
+    /// The probability of item `i` in discrete sampling: its value over the sum of the values
+    /// (pbrt's `DiscretePDF`).
     #[inline]
     pub fn pmf(&self, i: usize) -> f64 {
-        self.pmf[i]
+        self.func[i] / self.sum
     }
 }
 
@@ -189,15 +295,85 @@ mod tests {
 
     #[test]
     fn distribution_picks_in_proportion() {
-        let d = Distribution1D::new(&[1.0, 0.0, 3.0]).unwrap();
-        assert_eq!(d.sample(0.0), (0, 0.25));
-        assert_eq!(d.sample(0.2499).0, 0);
-        assert_eq!(d.sample(0.25).0, 2);
-        assert_eq!(d.sample(0.999999).0, 2);
+        let d = Distribution1D::from_weights(&[1.0, 0.0, 3.0]).unwrap();
+        assert_eq!(d.sample_discrete(0.0), (0, 0.25));
+        assert_eq!(d.sample_discrete(0.2499).0, 0);
+        assert_eq!(d.sample_discrete(0.25).0, 2);
+        assert_eq!(d.sample_discrete(0.999999).0, 2);
         assert_eq!(d.pmf(1), 0.0);
-        assert!(Distribution1D::new(&[0.0, 0.0]).is_none());
-        assert!(Distribution1D::new(&[f64::NAN]).is_none());
-        assert!(Distribution1D::new(&[]).is_none());
+        assert!(Distribution1D::from_weights(&[0.0, 0.0]).is_none());
+        assert!(Distribution1D::from_weights(&[f64::NAN]).is_none());
+        assert!(Distribution1D::from_weights(&[]).is_none());
+    }
+
+    /// The guide table changes how the cdf is searched, not the inversion: every sample is the
+    /// one a plain binary search of the whole table gives — on smooth, spiky, sparse and
+    /// all-zero pieces, at piece boundaries and at the ends of [0, 1].
+    #[test]
+    fn guided_search_equals_binary_search() {
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(5);
+        let spiky: Vec<f64> = (0..1000)
+            .map(|i| {
+                if i % 97 == 3 {
+                    1e6
+                } else {
+                    1e-3 * (i % 7) as f64
+                }
+            })
+            .collect();
+        let sparse: Vec<f64> = (0..333).map(|i| if i == 200 { 1.0 } else { 0.0 }).collect();
+        let smooth: Vec<f64> = (0..1024).map(|i| (i as f64 * 0.01).sin().abs()).collect();
+        for func in [spiky, sparse, smooth, vec![0.0; 17], vec![2.0]] {
+            let d = Distribution1D::new(&func);
+            let n = d.len();
+            let plain = |u: f64| {
+                let u = u.clamp(0.0, 1.0);
+                (d.cdf.partition_point(|&c| c <= u).max(1) - 1).min(n - 1)
+            };
+            let mut us: Vec<f64> = (0..20000)
+                .map(|_| rand::Rng::random::<f64>(&mut rng))
+                .collect();
+            us.extend(d.cdf.iter().flat_map(|&c| [c, c.next_down(), c.next_up()]));
+            us.extend([0.0, 1.0, 1.0f64.next_down(), 0.5]);
+            for u in us {
+                assert_eq!(d.sample(u).2, plain(u), "u = {u}");
+            }
+        }
+    }
+
+    /// Discrete sampling through the one distribution picks what the lights' former discrete
+    /// table (`cdf` = running sum of `w / Σw`, first entry above `u`) picked, with the same
+    /// probability bit for bit, on random, sparse and power-of-two-free weights.
+    #[test]
+    fn discrete_sampling_matches_a_plain_pmf_table() {
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(9);
+        let mut r = || rand::Rng::random::<f64>(&mut rng);
+        for n in [1usize, 2, 3, 7, 100, 1000] {
+            let w: Vec<f64> = (0..n)
+                .map(|i| if i % 5 == 1 { 0.0 } else { r() * 10.0 })
+                .collect();
+            let Some(d) = Distribution1D::from_weights(&w) else {
+                continue;
+            };
+            let total: f64 = w.iter().map(|w| w.max(0.0)).sum();
+            let pmf: Vec<f64> = w.iter().map(|w| w.max(0.0) / total).collect();
+            let mut cdf: Vec<f64> = pmf
+                .iter()
+                .scan(0.0, |acc, p| {
+                    *acc += p;
+                    Some(*acc)
+                })
+                .collect();
+            *cdf.last_mut().unwrap() = 1.0;
+            for (i, p) in pmf.iter().enumerate() {
+                assert_eq!(d.pmf(i).to_bits(), p.to_bits(), "n {n} item {i}");
+            }
+            for _ in 0..20000 {
+                let u = r();
+                let i = cdf.partition_point(|&c| c <= u).min(n - 1);
+                assert_eq!(d.sample_discrete(u), (i, pmf[i]), "n {n} u {u}");
+            }
+        }
     }
 
     #[test]

@@ -1,4 +1,4 @@
-//! The book's scene language (S3D `.scn`, book §9.13 and GAPS.md): a reader into [`Scene`] with
+//! The book's scene language (S3D `.scn`, book §9.13): a reader into [`Scene`] with
 //! errors at line:column.
 //!
 //! Grammar (as the book's files use it): `scene{ items }` or `hdrscene{ items }`, optionally

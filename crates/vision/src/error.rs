@@ -1,7 +1,7 @@
 //! Errors of the vision library.
 //!
 //! Every estimator checks its input and reports a typed error instead of returning NaN or
-//! panicking (DESIGN.md §3).
+//! panicking (ARCHITECTURE.md, "Conventions").
 
 use std::path::PathBuf;
 

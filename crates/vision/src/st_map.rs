@@ -4,8 +4,8 @@
 //! (x, y)'s red and green channels hold the position to sample the source at, normalized to
 //! 0–1 over the *source's* size, with the origin at the bottom-left corner: s = 0 at the source's
 //! left edge and 1 at its right edge, t = 0 at its bottom edge and 1 at its top. In this
-//! project's pixel-centre convention (y down, pixel (0, 0) the top-left pixel's centre; DESIGN.md
-//! §3) a source position (sx, sy) is therefore
+//! project's pixel-centre convention (y down, pixel (0, 0) the top-left pixel's centre;
+//! ARCHITECTURE.md, "Conventions") a source position (sx, sy) is therefore
 //!
 //!   s = (sx + ½) / W_src,   t = 1 − (sy + ½) / H_src,
 //!

@@ -11,7 +11,7 @@
 //! and the plate's size exactly. Without overscan K′ = K and the size is the plate's (a crop).
 //!
 //! The two warps are coordinate maps followed by a bilinear lookup (pixel-centre convention,
-//! DESIGN.md §3):
+//! ARCHITECTURE.md, "Conventions"):
 //! - undistort: output pixel x′ of the pinhole image samples the plate at K·distort(K′⁻¹x′);
 //! - redistort: output pixel x of the plate samples the pinhole image at K′·undistort(K⁻¹x)
 //!   (Newton's method, converged to 1e-12 normalized units).

@@ -4,7 +4,7 @@
 
 use std::collections::BTreeMap;
 use std::panic::{catch_unwind, AssertUnwindSafe};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use super::instances::DepKind;
 use super::schedule::Runner;
@@ -19,6 +19,8 @@ pub(super) struct Computed {
     pub(super) outputs: BTreeMap<&'static str, (Value, Vec<u8>)>,
     /// Files declared by the node while running, with their digests.
     pub(super) read_files: Vec<(PathBuf, Digest)>,
+    /// Files the node wrote through `Context::write_file`.
+    pub(super) written_files: Vec<PathBuf>,
 }
 
 impl Runner<'_> {
@@ -42,6 +44,7 @@ impl Runner<'_> {
             cancel: &self.cancel,
             outputs: BTreeMap::new(),
             read_files: Vec::new(),
+            written_files: Vec::new(),
         };
         run_node(gn, &mut ctx)?;
         collect_outputs(gn.spec(), &mut ctx)
@@ -91,6 +94,12 @@ impl Runner<'_> {
             });
         }
         let files = self.written_files(i)?;
+        let node_files = computed
+            .written_files
+            .iter()
+            .filter(|p| !files.iter().any(|f| &f.path == *p))
+            .map(|p| self.hashed(p))
+            .collect::<std::io::Result<_>>()?;
         store.put_action(
             key,
             &ActionEntry {
@@ -107,24 +116,30 @@ impl Runner<'_> {
                         digest: d.to_hex(),
                     })
                     .collect(),
+                node_files,
                 seconds,
             },
         )
     }
 
-    /// The files instance `i` wrote, with their digests.
+    /// The files of instance `i`'s output path params, with their digests.
     fn written_files(&self, i: usize) -> std::io::Result<Vec<WrittenFile>> {
-        let mut files = Vec::new();
-        for path in self.c.output_files(i) {
-            let d = self.c.hasher.hash(&path).map_err(|e| {
-                std::io::Error::new(e.kind(), format!("cannot hash {}: {e}", path.display()))
-            })?;
-            files.push(WrittenFile {
-                path,
-                digest: d.to_hex(),
-            });
-        }
-        Ok(files)
+        self.c
+            .output_files(i)
+            .iter()
+            .map(|p| self.hashed(p))
+            .collect()
+    }
+
+    /// File `path` with its digest; the error names the file.
+    fn hashed(&self, path: &Path) -> std::io::Result<WrittenFile> {
+        let d = self.c.hasher.hash(path).map_err(|e| {
+            std::io::Error::new(e.kind(), format!("cannot hash {}: {e}", path.display()))
+        })?;
+        Ok(WrittenFile {
+            path: path.to_path_buf(),
+            digest: d.to_hex(),
+        })
     }
 }
 
@@ -149,6 +164,7 @@ fn collect_outputs(spec: &NodeSpec, ctx: &mut Context) -> Result<Computed, Strin
     let mut out = Computed {
         outputs: BTreeMap::new(),
         read_files: std::mem::take(&mut ctx.read_files),
+        written_files: std::mem::take(&mut ctx.written_files),
     };
     for p in &spec.outputs {
         let Some(encoded) = ctx.outputs.remove(p.name) else {

@@ -117,6 +117,9 @@ impl Common<'_> {
         if expected.len() != entry.files.len() {
             return Err("output files differ from the cached entry".into());
         }
+        for f in &entry.node_files {
+            self.check_file(&f.path, &f.digest, "output file", "was modified")?;
+        }
         for f in &entry.read_files {
             self.check_file(&f.path, &f.digest, "input file", "changed")?;
         }

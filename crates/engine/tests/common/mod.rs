@@ -138,14 +138,22 @@ impl Node for SumPaths {
     }
 }
 
-pub struct WriteNum(NodeSpec);
+/// `write_num`; with `true` (`write_num_note`) it also writes a note beside its file, both
+/// through `Context::write_file`.
+pub struct WriteNum(NodeSpec, bool);
 impl Node for WriteNum {
     fn spec(&self) -> &NodeSpec {
         &self.0
     }
     fn run(&self, ctx: &mut Context<'_>) -> Result<(), NodeError> {
         let v = *ctx.input::<f64>("a")?;
-        vfxgraph_engine::fsutil::atomic_write(&ctx.path("path"), format!("{v}\n").as_bytes())?;
+        let (path, text) = (ctx.path("path"), format!("{v}\n"));
+        if self.1 {
+            ctx.write_file(&path.with_extension("note"), b"a note\n")?;
+            ctx.write_file(&path, text.as_bytes())?;
+        } else {
+            vfxgraph_engine::fsutil::atomic_write(&path, text.as_bytes())?;
+        }
         Ok(())
     }
 }
@@ -282,15 +290,18 @@ pub fn registry() -> Registry {
             ))
             .output(PortSpec::one("out", "float", "")),
     ));
-    r.register_node(WriteNum(
-        NodeSpec::new("write_num", "a number to a text file")
-            .param(ParamSpec::required(
-                "path",
-                ParamType::Path(PathRole::Output),
-                "",
-            ))
-            .input(PortSpec::one("a", "float", "")),
-    ));
+    for (name, note) in [("write_num", false), ("write_num_note", true)] {
+        r.register_node(WriteNum(
+            NodeSpec::new(name, "a number to a text file (and a note beside it)")
+                .param(ParamSpec::required(
+                    "path",
+                    ParamType::Path(PathRole::Output),
+                    "",
+                ))
+                .input(PortSpec::one("a", "float", "")),
+            note,
+        ));
+    }
     r.register_node(Fail(
         NodeSpec::new("fail", "always fails")
             .input(PortSpec::one("a", "float", "").optional())

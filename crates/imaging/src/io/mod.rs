@@ -16,7 +16,6 @@ pub mod hdr;
 pub mod pfm;
 pub mod png_jpeg;
 
-use std::io::Write;
 use std::path::Path;
 
 pub use crate::error::ImageError;
@@ -172,9 +171,9 @@ pub fn read_image(path: &Path) -> Result<Image, ImageError> {
 
 /// Write an image file in the format named by the extension of `path` (see [`encode`]).
 ///
-/// The write is atomic: the bytes go to a temporary file in the same directory, are flushed to
-/// disk, and the temporary file is renamed over `path`. A reader never sees a partial file, and a
-/// crash leaves either the old file or the new one. Errors name `path`.
+/// The write is atomic ([`write_atomic`]): a reader never sees a partial file, and a crash leaves
+/// either the old file or the new one. The folder must exist (a mistyped output folder is an
+/// error, not a new folder; the nodes create their output folders). Errors name `path`.
 pub fn write_image(path: &Path, img: &Image) -> Result<(), ImageError> {
     let format = Format::from_path(path).ok_or_else(|| {
         ImageError::UnsupportedFormat(format!(
@@ -184,35 +183,25 @@ pub fn write_image(path: &Path, img: &Image) -> Result<(), ImageError> {
         .at_path(path)
     })?;
     let bytes = encode(img, format).map_err(|e| e.at_path(path))?;
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        if !dir.is_dir() {
+            return Err(ImageError::Io {
+                path: dir.to_path_buf(),
+                source: std::io::Error::new(std::io::ErrorKind::NotFound, "no such folder"),
+            });
+        }
+    }
     write_atomic(path, &bytes)
 }
 
-/// Write `bytes` to `path` atomically (temporary file in the same directory, fsync, rename).
+/// Write `bytes` to `path` atomically with the project's one writer
+/// ([`vfxgraph_fsutil::atomic_write`]: folders created, temporary in the same folder, fsync,
+/// rename, folder fsync). Errors name `path`.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), ImageError> {
-    let io_err = |p: &Path| {
-        let p = p.to_path_buf();
-        move |source| ImageError::Io { path: p, source }
-    };
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let mut builder = tempfile::Builder::new();
-    builder.prefix(".vfxgraph-tmp-");
-    // Temporary files are private (0600); the image is an ordinary file (0644).
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        builder.permissions(std::fs::Permissions::from_mode(0o644));
-    }
-    let mut tmp = builder.tempfile_in(dir).map_err(io_err(dir))?;
-    tmp.write_all(bytes).map_err(io_err(path))?;
-    tmp.as_file().sync_all().map_err(io_err(path))?;
-    tmp.persist(path).map_err(|e| ImageError::Io {
+    vfxgraph_fsutil::atomic_write(path, bytes).map_err(|source| ImageError::Io {
         path: path.to_path_buf(),
-        source: e.error,
-    })?;
-    Ok(())
+        source,
+    })
 }
 
 /// Reject images no encoder can take (channel counts outside 1–4, data length mismatch).

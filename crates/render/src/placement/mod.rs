@@ -1,5 +1,5 @@
-//! Placing the local scene from measured points (book chapter 8 and §10.10, as GAPS.md restates
-//! them): the point-cloud calibration measures a few real points (the ground under the virtual
+//! Placing the local scene from measured points (book chapter 8 and
+//! §10.10): the point-cloud calibration measures a few real points (the ground under the virtual
 //! objects); the local scene — the shadow catcher and the objects on it — is built or moved so
 //! that it stands on those points.
 //!

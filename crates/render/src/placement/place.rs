@@ -40,7 +40,7 @@ pub struct PlaceOptions {
     #[param(range = 0.0..=1e6)]
     pub max_residual: f64,
     /// negate the dome's `south` after placing: the book's `south` is the HDR camera's
-    /// image-down axis (GAPS ch. 10), which points at the ground in modeling.scn, so an image
+    /// image-down axis (book §10.8), which points at the ground in modeling.scn, so an image
     /// with the sky on its top row (Poly Haven's) needs it negated to keep the sky up
     pub flip_dome: bool,
 }

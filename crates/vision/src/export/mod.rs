@@ -12,7 +12,7 @@
 //! | [`json`] | our JSON | ours: x ~ K(RX + t), pixel origin at the top-left pixel's centre, y down |
 //! | [`ply`] | point cloud | the solve's world, sRGB colours |
 //!
-//! Our conventions (DESIGN.md §3): a world point X maps to x ~ K(RX + t); the camera looks down
+//! Our conventions (ARCHITECTURE.md, "Conventions"): a world point X maps to x ~ K(RX + t); the camera looks down
 //! +z with +y down in the image; pixel coordinates have their origin at the *centre* of the
 //! top-left pixel. COLMAP, JSON and PLY stay in the solve's world and units (they carry
 //! K, R, t for computation); the scene formats (Blender, USD, Nuke) apply the scene transform

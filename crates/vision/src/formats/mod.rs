@@ -1,4 +1,4 @@
-//! Readers and writers of the book's text formats (see `book/GAPS.md`) and their JSON forms:
+//! Readers and writers of the book's text formats (its programs' files, chapters 4–8) and their JSON forms:
 //! intrinsics (`g7cam.txt`), cameras files (`Frame i` / R / t), marked points (`Frame f` /
 //! `Npoints n` / `u v`…), plain point lists, the Oxford VGG files used by the tests and
 //! Middlebury `.flo` ground-truth flow.
@@ -47,24 +47,13 @@ pub fn read_text(path: &Path) -> Result<String> {
     })
 }
 
-/// Write a whole text file.
-///
-/// The write is atomic: a temporary file beside `path`, then a rename, so readers never see a
-/// partial file.
+/// Write a whole text file, atomically: the project's one writer
+/// ([`vfxgraph_fsutil::atomic_write`]: folders created, temporary in the same folder, fsync,
+/// rename), so readers never see a partial file.
 pub fn write_text(path: &Path, text: &str) -> Result<()> {
-    let io = |source| VisionError::Io {
+    vfxgraph_fsutil::atomic_write(path, text.as_bytes()).map_err(|source| VisionError::Io {
         path: path.to_path_buf(),
         source,
-    };
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let tmp = path.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
-    std::fs::write(&tmp, text).map_err(io)?;
-    std::fs::rename(&tmp, path).map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        io(e)
     })
 }
 

@@ -23,7 +23,11 @@ pub use noise::noise_sigma;
 pub use overlay::{draw_tracks, DrawTracksOptions, TracksFormat, WriteTracksOptions};
 pub use pyramid::{pyr_down, GrayImage, Level, Pyramid};
 pub use tracker::{track_sequence, Tracker, TrackerParams};
-pub use tracks::{Loss, LostReason, Track, Tracks};
+pub use tracks::{LostReason, Track, TrackEnd, Tracks};
+
+/// The former name of [`TrackEnd`] ("how a track ended"; it was easily read as a robust
+/// loss). Kept only while `matchmove::synthetic` still spells it; use [`TrackEnd`].
+pub type Loss = TrackEnd;
 
 /// Errors of the KLT module (book chapter 6).
 #[derive(Debug, thiserror::Error)]

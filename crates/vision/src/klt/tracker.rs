@@ -11,7 +11,7 @@ use super::corners::{good_features_to_track, CornerParams};
 use super::drift::Template;
 use super::lucas_kanade::{track_points, LkParams};
 use super::pyramid::{GrayImage, Pyramid};
-use super::tracks::{Loss, LostReason, Track, Tracks};
+use super::tracks::{LostReason, Track, TrackEnd, Tracks};
 use super::KltError;
 use rayon::prelude::*;
 
@@ -366,7 +366,7 @@ impl Tracker {
                         } else {
                             t.points.last().copied().unwrap_or_default()
                         };
-                        t.lost = Some(Loss {
+                        t.lost = Some(TrackEnd {
                             frame: fi,
                             at,
                             reason,

@@ -47,9 +47,10 @@ impl LostReason {
 }
 
 /// Where and why a track ended: the frame in which tracking failed (one after its last
-/// observation), the position the tracker reached there, and the reason (book 6.5).
+/// observation), the position the tracker reached there, and the reason (book 6.5). Serialized
+/// as the `lost` field of a [`Track`] (`{"frame", "at", "reason"}`), whatever the type's name.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-pub struct Loss {
+pub struct TrackEnd {
     /// Index (into [`Tracks::frames`]) of the frame where tracking failed.
     pub frame: usize,
     /// Position reached in that frame when it failed.
@@ -71,7 +72,7 @@ pub struct Track {
     /// Positions in frames `first, first + 1, …` (pixel centres at integers, y down).
     pub points: Vec<[f64; 2]>,
     /// How it ended, if it was lost before the sequence ended.
-    pub lost: Option<Loss>,
+    pub lost: Option<TrackEnd>,
 }
 
 impl Track {
@@ -305,7 +306,7 @@ impl Tracks {
                     points.push(cells[g * slots + s].0);
                     g += 1;
                 }
-                let lost = (g < n).then(|| Loss {
+                let lost = (g < n).then(|| TrackEnd {
                     frame: g,
                     at: cells[g * slots + s].0,
                     reason: LostReason::Unknown,
@@ -378,7 +379,7 @@ mod tests {
                     slot: 0,
                     first: 0,
                     points: vec![[1.5, 2.0], [2.5, 2.25]],
-                    lost: Some(Loss {
+                    lost: Some(TrackEnd {
                         frame: 2,
                         at: [3.0, -1.0],
                         reason: LostReason::LeftImage,

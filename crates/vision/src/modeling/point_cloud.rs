@@ -1,4 +1,4 @@
-//! Point-cloud calibration (book chapter 8, as GAPS.md restates it): the same n scene points
+//! Point-cloud calibration (book chapter 8): the same n scene points
 //! are marked, in the same order, on several frames whose cameras are known. Each point is
 //! triangulated from every pair of its marked frames; the candidate with the least total
 //! reprojection error over all its marks is kept and refined by Levenberg–Marquardt with the
