@@ -2,7 +2,7 @@
 //! camera centre, change of reference (the book's `calib_change_ref`, §7.12) and the mapping of a
 //! calibrated camera to a render camera's frustum (§2.8).
 //!
-//! Conventions (DESIGN.md §3): a world point X maps to x ~ K(RX + t); the camera looks down +z;
+//! Conventions (ARCHITECTURE.md, Conventions): a world point X maps to x ~ K(RX + t); the camera looks down +z;
 //! pixel coordinates have their origin at the centre of the top-left pixel, x right, y down.
 
 use nalgebra::{Matrix3, Matrix3x4, Matrix4, Point2, Point3, Vector3};

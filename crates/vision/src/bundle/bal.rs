@@ -177,8 +177,8 @@ pub fn write_bal(problem: &Problem, path: impl AsRef<Path>) -> Result<(), Bundle
         path: path.display().to_string(),
         source,
     };
-    let file = std::fs::File::create(path).map_err(io)?;
-    let mut w = std::io::BufWriter::new(file);
+    // Formatted in memory, then written atomically (no half-written file on an error).
+    let mut w: Vec<u8> = Vec::new();
     let mut body = || -> std::io::Result<()> {
         writeln!(
             w,
@@ -210,9 +210,10 @@ pub fn write_bal(problem: &Problem, path: impl AsRef<Path>) -> Result<(), Bundle
                 writeln!(w, "{v:e}")?;
             }
         }
-        w.flush()
+        Ok(())
     };
-    body().map_err(io)
+    body().map_err(io)?;
+    vfxgraph_fsutil::atomic_write(path, &w).map_err(io)
 }
 
 #[cfg(test)]

@@ -38,7 +38,7 @@ impl Default for BalBenchOptions {
     }
 }
 
-/// What `vfxgraph bench ba --json` prints. The first five fields are the contract of issue #5.
+/// What `vfxgraph bench ba --json` prints. The first five fields are a stable contract (scripts read them).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct BalBenchReport {
     /// ½·Σρ(‖r‖²) at the file's parameters.

@@ -15,7 +15,7 @@ use super::residual::INTRINSICS;
 /// seven for [`CameraModel::Radial`]) and of the pixel coordinates of the observations.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub enum CameraModel {
-    /// The project's model (book 4.2, DESIGN.md §3): x ~ K(RX + t), camera looking down +z,
+    /// The project's model (book 4.2, ARCHITECTURE.md, Conventions): x ~ K(RX + t), camera looking down +z,
     /// pixels with origin at the top-left pixel centre and y down. Parameters `[f, cx, cy]`;
     /// K = [[f, skew, cx], [0, aspect·f, cy], [0, 0, 1]] with `aspect` and `skew` held constant.
     Pinhole {

@@ -1,4 +1,4 @@
-//! Tests of the whole solver on real and synthetic data (issue #5, "What it must show").
+//! Tests of the whole solver on real and synthetic data (the BAL figures, the noise floor and the determinism the bundle adjuster promises).
 
 use nalgebra::{Matrix3, Vector2, Vector3};
 use rand::SeedableRng;

@@ -25,10 +25,6 @@ pub use pyramid::{pyr_down, GrayImage, Level, Pyramid};
 pub use tracker::{track_sequence, Tracker, TrackerParams};
 pub use tracks::{LostReason, Track, TrackEnd, Tracks};
 
-/// The former name of [`TrackEnd`] ("how a track ended"; it was easily read as a robust
-/// loss). Kept only while `matchmove::synthetic` still spells it; use [`TrackEnd`].
-pub type Loss = TrackEnd;
-
 /// Errors of the KLT module (book chapter 6).
 #[derive(Debug, thiserror::Error)]
 pub enum KltError {

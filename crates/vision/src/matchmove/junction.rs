@@ -1,4 +1,4 @@
-//! Scale compatibility and junction of fragments (book §7.12, as GAPS.md restates it).
+//! Scale compatibility and junction of fragments (book §7.12).
 //!
 //! Each fragment is solved in its own frame and scale (its best pair has a unit baseline).
 //! Neighbouring fragments share one frame. For a trial scale s of the next fragment, its

@@ -1,4 +1,4 @@
-//! The best frame pair of a fragment (book §7.2–7.6, as GAPS.md restates them).
+//! The best frame pair of a fragment (book §7.2–7.6).
 //!
 //! For every candidate pair (i, j) of the fragment whose features moved more than
 //! `min_displacement` pixels: RANSAC on the fundamental matrix, E = KᵀFK, the factorization that

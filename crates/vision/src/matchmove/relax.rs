@@ -1,4 +1,4 @@
-//! Relaxation (book §7.14, as GAPS.md restates it): a global refinement of a joined camera path
+//! Relaxation (book §7.14): a global refinement of a joined camera path
 //! by alternating point and camera optimizations.
 //!
 //! Every track longer than `min_run` frames becomes a *homologous point*; it is triangulated from

@@ -1,4 +1,4 @@
-//! The figures of a solve (issue 6's report): per-frame reprojection RMS and inlier count,
+//! The figures of a solve (the solve report): per-frame reprojection RMS and inlier count,
 //! per-track error, overall RMS, time per stage, and the per-fragment figures.
 
 use std::time::Instant;

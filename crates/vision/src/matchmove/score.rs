@@ -1,5 +1,5 @@
 //! Scoring a camera path against tracks the way the book's own solution was scored for this
-//! project (issue 6): every maximal run of a feature with status 0 is a track; each is
+//! project: every maximal run of a feature with status 0 is a track; each is
 //! triangulated linearly from all its frames that have a camera and refined by Gauss–Newton with
 //! the cameras fixed; the per-observation reprojection errors over ALL tracks (no inlier
 //! filtering) are summarized. Also the smoothness of the path: the largest frame-to-frame

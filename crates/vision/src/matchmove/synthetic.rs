@@ -147,7 +147,7 @@ pub fn synthetic_shot(o: &ShotOptions) -> SyntheticShot {
                 None => Some([0.0, 0.0]),
             };
             if let Some(at) = lost {
-                tracks[ti].lost = Some(crate::klt::Loss {
+                tracks[ti].lost = Some(crate::klt::TrackEnd {
                     frame: f,
                     at,
                     reason: LostReason::LeftImage,

@@ -196,7 +196,7 @@ fn fragments_share_one_frame_and_keep_features_tracked_throughout() {
 
 /// The book's own tracks: every one of the 286 frames gets a finite camera, the path is smooth,
 /// and on the 240 frames the book's solution covered, our cameras score better than the book's
-/// (median 2.40 px, 57.5 % above 2 px, measured on the book's refined cameras for issue 6).
+/// (median 2.40 px, 57.5 % above 2 px, measured on the book's refined cameras).
 #[test]
 fn book_tracks_every_frame_solved_and_better_than_the_book() {
     let Some([f, g7cam]) = vfxgraph_testdata::paths(["book-demo/f.txt", "book-demo/g7cam.txt"])
