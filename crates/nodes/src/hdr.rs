@@ -5,7 +5,6 @@
 //! `vfxgraph_render::dome`.
 
 use nalgebra::Vector3;
-use std::path::PathBuf;
 use vfxgraph_engine::artifact::codec::{put_bytes, put_f64, put_u64, Reader};
 use vfxgraph_engine::{
     ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, ParamValue, PathRole,
@@ -14,9 +13,8 @@ use vfxgraph_engine::{
 
 use vfxgraph_imaging::draw::{plot_response, PlotOptions};
 use vfxgraph_imaging::hdr::{
-    align_exposures, calibrate_debevec, exposure_list_files, merge_debevec, photograph,
-    probe_to_equirect, read_exposure_files, read_exposure_files_exif, AlignOptions,
-    CalibrateOptions, Exposure, ExposureStack, HdrError, LdrOptions, ProbeOptions, ResponseCurve,
+    align_exposures, calibrate_debevec, merge_debevec, photograph, probe_to_equirect, AlignOptions,
+    CalibrateOptions, Exposure, ExposureStack, LdrOptions, ProbeOptions, ResponseCurve, StackFiles,
     StackOptions, LEVELS,
 };
 use vfxgraph_render::dome::{Dome, DomeOptions};
@@ -328,90 +326,16 @@ pub fn register(r: &mut Registry) {
     ));
 }
 
-/// The names of two files for messages: their file names.
-fn file_name(p: &std::path::Path) -> String {
-    p.file_name().map_or_else(
-        || p.display().to_string(),
-        |n| n.to_string_lossy().into_owned(),
-    )
-}
-
-/// Rewrites stack validation errors in terms of the node's params and files.
-fn stack_error(e: HdrError, paths: &[PathBuf], files_param: &str, times_param: &str) -> NodeError {
-    match e {
-        HdrError::DuplicateExposure {
-            first,
-            second,
-            time,
-        } => NodeError::msg(format!(
-            "param `{times_param}`: {} and {} have the same exposure {time} s (a stack needs \
-             distinct exposures)",
-            file_name(&paths[first]),
-            file_name(&paths[second])
-        )),
-        HdrError::SizeMismatch {
-            index,
-            expected,
-            found,
-        } => NodeError::msg(format!(
-            "{} is {found}, {} is {expected}: the exposures of a stack must have one size",
-            file_name(&paths[index]),
-            file_name(&paths[0])
-        )),
-        other => NodeError::msg(format!(
-            "param `{files_param}`: {}",
-            NodeError::from(other).message
-        )),
-    }
-}
-
 fn run_read_stack(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: StackOptions = ctx.options()?;
-    let (list, n_paths) = (
-        !ctx.params().str("list").is_empty(),
-        ctx.params().strs("paths").len(),
-    );
-    let mut stack = match (list, n_paths) {
-        (true, 0) => {
-            if !o.times.is_empty() {
-                return Err(NodeError::msg(
-                    "param `times` goes with `paths`; a `list` file holds its own times",
-                ));
-            }
-            let (paths, times) = exposure_list_files(&ctx.path("list"))?;
-            // The listed images are inputs too: declare them so an edit reruns the node.
-            for path in &paths {
-                ctx.declare_input_file(path)
-                    .map_err(|e| NodeError::msg(format!("param `list`: {e}")))?;
-            }
-            read_exposure_files(&paths, &times)
-                .map_err(|e| stack_error(e, &paths, "list", "list"))?
-        }
-        (false, 0) => {
-            return Err(NodeError::msg(
-                "give `list` (an exposure list file) or `paths` (with `times`, or EXIF)",
-            ))
-        }
-        (true, _) => return Err(NodeError::msg("give either `list` or `paths`, not both")),
-        (false, n) => {
-            let paths = ctx.paths("paths");
-            if o.times.is_empty() {
-                read_exposure_files_exif(&paths)
-                    .map_err(|e| stack_error(e, &paths, "paths", "paths (EXIF times)"))?
-                    .0
-            } else if o.times.len() != n {
-                return Err(NodeError::msg(format!(
-                    "param `paths` names {n} files but `times` has {} values",
-                    o.times.len()
-                )));
-            } else {
-                read_exposure_files(&paths, &o.times)
-                    .map_err(|e| stack_error(e, &paths, "paths", "times"))?
-            }
-        }
-    };
-    o.apply_mask(&mut stack)?;
-    ctx.output("stack", StackArt(stack));
+    let list = (!ctx.params().str("list").is_empty()).then(|| ctx.path("list"));
+    let files = StackFiles::resolve(list.as_deref(), ctx.paths("paths"), &o.times)?;
+    // The listed images are inputs too: declare them so an edit reruns the node.
+    for path in files.listed() {
+        ctx.declare_input_file(path)
+            .map_err(|e| NodeError::msg(format!("param `list`: {e}")))?;
+    }
+    ctx.output("stack", StackArt(files.read(&o)?));
     Ok(())
 }
 

@@ -29,6 +29,7 @@ pub mod merge;
 pub mod probe;
 pub mod response;
 pub mod stack;
+pub mod stack_files;
 
 use std::path::PathBuf;
 
@@ -50,6 +51,7 @@ pub use stack::{
     read_exposure_files, read_exposure_files_exif, read_exposure_list, CodeImage, Exposure,
     ExposureStack, ListEntry, StackOptions,
 };
+pub use stack_files::{StackFiles, StackFilesError};
 
 /// Number of 8-bit code values: the length of a response curve (Debevec & Malik 1997, §2.1).
 pub const LEVELS: usize = 256;
