@@ -13,7 +13,7 @@ use vfxgraph_render::Vec3;
 
 use crate::artifacts::{ImageArt, Points3dArt, ReportArt};
 use crate::hdr::DomeArt;
-use crate::render::{camera_for_frame, pick_light, SceneArt};
+use crate::render::{camera_for, pick_light, SceneArt};
 use crate::shot::{light_and_camera_inputs, size_params};
 use crate::FnNode;
 
@@ -164,7 +164,7 @@ fn run_catcher_texture(ctx: &mut Context<'_>) -> Result<(), NodeError> {
                     "param `frames`: the plate has no frame {f} (its frames are {range})"
                 ))
             })?;
-        chosen.push((*f, camera_for_frame(ctx, &art.scene, Some(*f))?, plate));
+        chosen.push((*f, camera_for(ctx, &art.scene, Some(*f))?, plate));
     }
     let views: Vec<View> = chosen
         .iter()

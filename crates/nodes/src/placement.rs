@@ -5,26 +5,16 @@
 //! the measured ground points and sets objects designed in the catcher's own frame on it. The
 //! algorithms and their options are in the render crate's `placement` module.
 
-use serde_json::json;
 use vfxgraph_engine::{ArtifactType, Context, Mode, NodeError, NodeSpec, PortSpec, Registry};
 use vfxgraph_render::placement::place::{
     catcher_from_points, place_scene, CatcherOptions, Design, PlaceOptions, Viewers,
 };
-use vfxgraph_render::placement::Similarity;
-use vfxgraph_render::{Camera, Shape, Vec3};
+use vfxgraph_render::{Camera, Vec3};
 use vfxgraph_vision::formats::CameraPath;
 
 use crate::artifacts::{CameraPathArt, ImageArt, Points3dArt, ReportArt};
 use crate::render::SceneArt;
 use crate::FnNode;
-
-fn row(v: Vec3) -> [f64; 3] {
-    [v.x, v.y, v.z]
-}
-
-fn rows(v: &[Vec3]) -> Vec<[f64; 3]> {
-    v.iter().map(|a| row(*a)).collect()
-}
 
 /// The `points3d` input as render points.
 fn measured(ctx: &Context<'_>) -> Result<Vec<Vec3>, NodeError> {
@@ -61,17 +51,6 @@ fn viewers(path: &CameraPath, with_view: bool) -> Result<Viewers, NodeError> {
         _ => None,
     };
     Ok(Viewers { centres, first })
-}
-
-fn similarity_json(s: &Similarity) -> serde_json::Value {
-    let r = &s.rotation;
-    json!({
-        "scale": s.scale,
-        "rotation": [[r[(0,0)], r[(0,1)], r[(0,2)]], [r[(1,0)], r[(1,1)], r[(1,2)]],
-                     [r[(2,0)], r[(2,1)], r[(2,2)]]],
-        "rotation_deg": s.angle_deg(),
-        "translation": [s.translation.x, s.translation.y, s.translation.z],
-    })
 }
 
 /// Registers the nodes of this module.
@@ -188,16 +167,7 @@ fn run_place_scene(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let image = ctx.input_opt::<ImageArt>("dome_image")?.map(|i| &i.0);
     let p = place_scene(design, image, &measured(ctx)?, &o)
         .map_err(|e| NodeError::msg(format!("place_scene: {e}")))?;
-    let s = &p.fit.similarity;
-    let report = json!({
-        "similarity": similarity_json(s),
-        "anchors": rows(&p.anchors),
-        "measured": rows(&p.measured),
-        "placed_anchors": p.anchors.iter().map(|a| row(s.point(*a))).collect::<Vec<_>>(),
-        "residuals": p.fit.residuals,
-        "relative_rms": p.fit.relative_rms,
-        "dome": p.scene.dome.as_ref().map(|d| json!({"orig": row(d.orig), "south": row(d.south)})),
-    });
+    let report = p.report();
     ctx.output(
         "scene",
         SceneArt {
@@ -224,21 +194,7 @@ fn run_catcher_from_points(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let image = ctx.input_opt::<ImageArt>("dome_image")?.map(|i| &i.0);
     let c = catcher_from_points(&pts, &viewers, design, image, &o)
         .map_err(|e| NodeError::msg(format!("catcher_from_points: {e}")))?;
-    let placed: Vec<serde_json::Value> = c.scene.objects[1..]
-        .iter()
-        .map(|o| match &o.shape {
-            Shape::Sphere(s) => json!({"sphere": {"center": row(s.center), "radius": s.radius}}),
-            Shape::Triangles { triangles } => json!({"triangles": triangles.len()}),
-        })
-        .collect();
-    let f = &c.polygon.frame;
-    let report = json!({
-        "corners": rows(&c.polygon.corners),
-        "frame": {"origin": row(f.origin), "x": row(f.x), "y": row(f.y), "z": row(f.z), "unit": f.unit},
-        "planarity": c.polygon.planarity,
-        "normal_towards_cameras": c.faces_cameras,
-        "objects": placed,
-    });
+    let report = c.report();
     ctx.output(
         "scene",
         SceneArt {
@@ -260,11 +216,17 @@ mod tests {
     use vfxgraph_render::brdf::{Brdf, Lambert};
     use vfxgraph_render::dome::Dome;
     use vfxgraph_render::placement::first_catcher_vertices;
+    use vfxgraph_render::placement::Similarity;
     use vfxgraph_render::shape::Sphere;
     use vfxgraph_render::DomeSpec;
+    use vfxgraph_render::Shape;
     use vfxgraph_render::{Object, Rgb, Scene};
     use vfxgraph_vision::formats::{CameraPath, FramePose};
     use vfxgraph_vision::{Points3d, Pose};
+
+    fn row(v: Vec3) -> [f64; 3] {
+        [v.x, v.y, v.z]
+    }
 
     fn lambert() -> Brdf {
         Brdf::Lambert(Lambert {

@@ -4,10 +4,8 @@
 //! `tonemap` + PNG), optionally lit by a `dome` from the HDR nodes and seen by frame f's camera
 //! of a solved `camera_path`.
 
-use std::path::Path;
 use std::sync::Mutex;
 
-use nalgebra::Vector3;
 use vfxgraph_engine::artifact::codec::{put_bytes, put_u64, Reader};
 use vfxgraph_engine::artifact::{decode_json, encode_json};
 use vfxgraph_engine::{
@@ -16,8 +14,10 @@ use vfxgraph_engine::{
 };
 use vfxgraph_render::dome::{Dome, Light};
 use vfxgraph_render::{
-    parse_scn, parse_yaml_scene, render, Camera, ImageSize, RenderOptions, Scene,
+    camera_for_frame, read_scene_file, render, Camera, ImageSize, PathPose, RenderOptions, Scene,
+    SolvedK,
 };
+use vfxgraph_vision::formats::FramePose;
 
 use crate::artifacts::{CameraPathArt, ImageArt, IntrinsicsArt};
 use crate::hdr::DomeArt;
@@ -152,63 +152,13 @@ pub fn register(r: &mut Registry) {
     ));
 }
 
-/// Loads and orients the dome image a scene names (relative to `dir`); `None` if the file does
-/// not exist (a `dome` input can provide it later).
-fn load_dome(scene: &Scene, dir: &Path) -> Result<Option<Dome>, NodeError> {
-    let Some(spec) = &scene.dome else {
-        return Ok(None);
-    };
-    let path = dir.join(&spec.image);
-    if !path.exists() {
-        return Ok(None);
-    }
-    let mut img = vfxgraph_imaging::io::read_image(&path)
-        .map_err(|e| NodeError::msg(format!("dome image {}: {e}", path.display())))?;
-    if spec.scale != 1.0 {
-        let k = spec.scale as f32;
-        img.data.iter_mut().for_each(|v| *v *= k);
-    }
-    let v = |p: vfxgraph_render::Vec3| Vector3::new(p.x, p.y, p.z);
-    let dome = Dome::new(&img, v(spec.orig), v(spec.south))
-        .map_err(|e| NodeError::msg(format!("dome image {}: {e}", path.display())))?;
-    Ok(Some(dome))
-}
-
 fn run_read_scene(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let path = ctx.path("path");
-    let text = std::fs::read_to_string(&path)
-        .map_err(|e| NodeError::msg(format!("cannot read {}: {e}", path.display())))?;
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .unwrap_or("")
-        .to_ascii_lowercase();
-    let dir = path.parent().unwrap_or(Path::new("."));
-    let scene = match ext.as_str() {
-        "scn" => parse_scn(&text).map_err(|e| NodeError::msg(format!("{}:{e}", path.display())))?,
-        "yaml" | "yml" => {
-            let parsed = parse_yaml_scene(&text, dir)
-                .map_err(|e| NodeError::msg(format!("{}:{e}", path.display())))?;
-            // The OBJ meshes it read are part of the cache key (an edit in place reruns).
-            for f in parsed.files.iter().filter(|f| f.is_file()) {
-                ctx.declare_input_file(f)?;
-            }
-            parsed.scene
-        }
-        _ => {
-            return Err(NodeError::msg(format!(
-                "{}: unknown scene format `.{ext}` (expected .scn, .yaml or .yml)",
-                path.display()
-            )))
-        }
-    };
-    if let Some(spec) = &scene.dome {
-        let image = dir.join(&spec.image);
-        if image.is_file() && ext == "scn" {
-            ctx.declare_input_file(&image)?;
-        }
+    let file = read_scene_file(&ctx.path("path")).map_err(|e| NodeError::msg(e.to_string()))?;
+    // The OBJ meshes and dome image it read are part of the cache key (an edit reruns).
+    for f in &file.files {
+        ctx.declare_input_file(f)?;
     }
-    let dome = load_dome(&scene, dir)?;
+    let (scene, dome) = (file.scene, file.dome);
     ctx.output("scene", SceneArt { scene, dome });
     Ok(())
 }
@@ -216,100 +166,51 @@ fn run_read_scene(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 /// The camera of this instance: the scene's, or frame f's pose of `cameras` with K from
 /// `intrinsics`, the path's own K, or the scene camera (book §2.8), then the size override.
 pub(crate) fn instance_camera(ctx: &Context<'_>, scene: &Scene) -> Result<Camera, NodeError> {
-    camera_for_frame(ctx, scene, ctx.frame())
+    camera_for(ctx, scene, ctx.frame())
 }
 
-/// [`instance_camera`] for frame `frame` (`None`: the scene camera unless `cameras` is
-/// connected, which then is an error). A scene without a camera (a YAML scene without
-/// `camera:`) needs both the pose (`cameras`) and K with its image size (`intrinsics` or the
-/// path's K) from the inputs; the error says which is missing.
-pub(crate) fn camera_for_frame(
+/// [`instance_camera`] for frame `frame`: vfxgraph-render's `camera_for_frame` over the
+/// `cameras` and `intrinsics` inputs (K: `intrinsics`, else the path's own K).
+pub(crate) fn camera_for(
     ctx: &Context<'_>,
     scene: &Scene,
     frame: Option<i64>,
 ) -> Result<Camera, NodeError> {
-    let path = ctx.input_opt::<CameraPathArt>("cameras")?;
-    // K: the `intrinsics` input, else the camera path's own K, else the scene camera's.
+    let path = ctx.input_opt::<CameraPathArt>("cameras")?.map(|p| &p.0);
     let k = match ctx.input_opt::<IntrinsicsArt>("intrinsics")? {
-        Some(k) => Some(k.0.clone()),
-        None => path.and_then(|p| p.0.intrinsics.clone()),
+        Some(k) => Some(&k.0),
+        None => path.and_then(|p| p.intrinsics.as_ref()),
     };
-    let mut camera = match (&scene.camera, &k, path) {
-        (Some(c), _, _) => c.clone(),
-        (None, _, None) => {
-            return Err(NodeError::msg(
-                "no camera: the scene has no `camera:` and no `cameras` input is connected \
-                 (connect a camera path, or give the scene a camera)",
-            ))
-        }
-        (None, None, Some(_)) => {
-            return Err(NodeError::msg(
-                "no camera: the scene has no `camera:`, and neither the `cameras` path nor an \
-                 `intrinsics` input carries K",
-            ))
-        }
-        // K and the pose are set below, from K and the path.
-        (None, Some(k), Some(_)) => match (k.width, k.height) {
-            (Some(w), Some(h)) => Camera {
-                k: [[0.0; 3]; 3],
-                r: [[0.0; 3]; 3],
-                t: [0.0; 3],
-                width: w as usize,
-                height: h as usize,
-                distortion: Default::default(),
-            },
-            _ => {
-                return Err(NodeError::msg(
-                    "no camera: the scene has no `camera:` and K carries no image size (give \
-                     the scene a camera whose `size` is K's image size, or K with its size)",
-                ))
-            }
-        },
-    };
-    if let Some(k) = &k {
-        camera.k = [[k.f1, k.s, k.u0], [0.0, k.f2, k.v0], [0.0, 0.0, 1.0]];
-        // A solved lens: the render traces the plate's own (distorted) pixels.
-        camera.distortion = k.distortion;
-        if let (Some(w), Some(h)) = (k.width, k.height) {
-            (camera.width, camera.height) = (w as usize, h as usize);
-        }
-    }
-    if let Some(path) = path {
-        let Some(f) = frame else {
-            return Err(NodeError::msg(
-                "the `cameras` input renders one frame per instance: set `per_frame: true` on \
-                 this render node",
-            ));
-        };
-        let frames = &path.0.frames;
-        let pose = frames.iter().find(|p| p.frame as i64 == f).ok_or_else(|| {
-            let range = match (frames.first(), frames.last()) {
-                (Some(a), Some(b)) => format!("frames {}–{}", a.frame, b.frame),
-                _ => "no frames".into(),
-            };
-            NodeError::msg(format!(
-                "the camera path has no camera for frame {f} (it has {range}, {} cameras)",
-                frames.len()
-            ))
-        })?;
-        if let Some(focal) = pose.focal {
-            // A zoom: the frame's own focal length (the aspect kept).
-            let aspect = camera.k[1][1] / camera.k[0][0];
-            camera.k[0][0] = focal;
-            camera.k[1][1] = focal * aspect;
-        }
-        let (r, t) = (&pose.pose.r, &pose.pose.t);
-        camera.r = [
+    let k = k.map(|k| SolvedK {
+        k: [[k.f1, k.s, k.u0], [0.0, k.f2, k.v0], [0.0, 0.0, 1.0]],
+        size: k.width.zip(k.height).map(|(w, h)| (w as usize, h as usize)),
+        distortion: k.distortion,
+    });
+    let poses: Option<Vec<PathPose>> = path.map(|p| p.frames.iter().map(path_pose).collect());
+    let size: ImageSize = ctx.options()?;
+    camera_for_frame(
+        scene.camera.as_ref(),
+        k.as_ref(),
+        poses.as_deref(),
+        frame,
+        &size,
+    )
+    .map_err(|e| NodeError::msg(e.to_string()))
+}
+
+/// A camera path's frame as render's pose.
+pub(crate) fn path_pose(f: &FramePose) -> PathPose {
+    let (r, t) = (&f.pose.r, &f.pose.t);
+    PathPose {
+        frame: f.frame as i64,
+        r: [
             [r[(0, 0)], r[(0, 1)], r[(0, 2)]],
             [r[(1, 0)], r[(1, 1)], r[(1, 2)]],
             [r[(2, 0)], r[(2, 1)], r[(2, 2)]],
-        ];
-        camera.t = [t.x, t.y, t.z];
+        ],
+        t: [t.x, t.y, t.z],
+        focal: f.focal,
     }
-    camera
-        .validate()
-        .map_err(|e| NodeError::msg(format!("camera of this frame: {e}")))?;
-    Ok(ctx.options::<ImageSize>()?.apply(camera))
 }
 
 /// The light of a render: the `dome` input if connected, else the scene's loaded dome, else its
@@ -367,6 +268,8 @@ fn run_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 mod tests {
     use super::*;
     use crate::testing::{params, spec};
+    use nalgebra::Vector3;
+    use std::path::Path;
     use vfxgraph_engine::{InputValue, ParamValue, Value};
     use vfxgraph_imaging::Image;
     use vfxgraph_vision::formats::{CameraPath, FramePose};

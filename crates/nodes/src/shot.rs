@@ -19,7 +19,7 @@ use vfxgraph_render::ImageSize;
 use crate::artifacts::{ImageArt, ReportArt};
 use crate::hdr::DomeArt;
 use crate::render::{
-    camera_for_frame, check_finite, instance_camera, pick_light, scene_inputs, with_sync_progress,
+    camera_for, check_finite, instance_camera, pick_light, scene_inputs, with_sync_progress,
     SceneArt,
 };
 use crate::{output_path, FnNode};
@@ -237,7 +237,7 @@ fn run_fit_catcher(ctx: &mut Context<'_>) -> Result<(), NodeError> {
                 }
             ))
         })?;
-    let camera = camera_for_frame(ctx, &art.scene, Some(frame))?;
+    let camera = camera_for(ctx, &art.scene, Some(frame))?;
     if (plate.width, plate.height) != (camera.width, camera.height) {
         return Err(NodeError::msg(format!(
             "plate frame {frame} is {}×{} but the camera renders {}×{} (set width/height)",
@@ -253,16 +253,7 @@ fn run_fit_catcher(ctx: &mut Context<'_>) -> Result<(), NodeError> {
         Some(ctx.cancel_flag()),
     )
     .map_err(|e| NodeError::msg(format!("frame {frame}: {e}")))?;
-    let report = serde_json::json!({
-        "frame": frame,
-        "ratio": fit.ratio,
-        "colour_before": fit.before,
-        "colour_after": fit.after,
-        "pixels": fit.pixels,
-        "mean_plate": fit.mean_plate,
-        "relative_residual_rms": fit.residual,
-        "renders": fit.iterations,
-    });
+    let report = fit.report(frame);
     let dome = art.dome.clone();
     ctx.output("scene", SceneArt { scene, dome });
     ctx.output("report", ReportArt(report));

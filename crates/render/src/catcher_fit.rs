@@ -82,6 +82,22 @@ pub struct CatcherFit {
     pub iterations: usize,
 }
 
+impl CatcherFit {
+    /// What the `fit_catcher` node reports for a fit on plate frame `frame`.
+    pub fn report(&self, frame: i64) -> serde_json::Value {
+        serde_json::json!({
+            "frame": frame,
+            "ratio": self.ratio,
+            "colour_before": self.before,
+            "colour_after": self.after,
+            "pixels": self.pixels,
+            "mean_plate": self.mean_plate,
+            "relative_residual_rms": self.residual,
+            "renders": self.iterations,
+        })
+    }
+}
+
 fn diffuse(b: &Brdf) -> Option<Rgb> {
     match b {
         Brdf::Lambert(l) => Some(l.albedo),

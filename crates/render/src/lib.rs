@@ -32,8 +32,10 @@ pub mod ray;
 pub mod render;
 pub mod sampling;
 pub mod scene;
+pub mod scene_file;
 pub mod scn;
 pub mod shape;
+pub mod shot_camera;
 pub mod spherical_triangle;
 pub mod texture;
 pub mod world;
@@ -49,7 +51,9 @@ pub use render::{
     RenderStats,
 };
 pub use scene::{AreaLight, DomeSpec, Object, Scene, Shape};
+pub use scene_file::{read_scene_file, SceneFile, SceneFileError};
 pub use scn::{parse_scn, ScnError};
+pub use shot_camera::{camera_for_frame, PathPose, ShotCameraError, SolvedK};
 pub use texture::Texture;
 pub use world::World;
 pub use yaml_scene::{parse_yaml_scene, YamlScene, YamlSceneError};

@@ -4,6 +4,7 @@
 //! objects designed in the catcher's own frame on it (resting them on the ground on request).
 
 use nalgebra::Vector3;
+use serde_json::json;
 use vfxgraph_imaging::Image;
 
 use super::{
@@ -191,6 +192,39 @@ pub struct PlacedScene {
     pub fit: SimilarityFit,
 }
 
+impl PlacedScene {
+    /// What the `place_scene` node reports: the similarity (scale, rotation, its angle,
+    /// translation), the anchors, the measured points, the anchors placed, the residuals, the
+    /// relative RMS and the dome's orig/south.
+    pub fn report(&self) -> serde_json::Value {
+        let s = &self.fit.similarity;
+        let r = &s.rotation;
+        json!({
+            "similarity": {
+                "scale": s.scale,
+                "rotation": [[r[(0,0)], r[(0,1)], r[(0,2)]], [r[(1,0)], r[(1,1)], r[(1,2)]],
+                             [r[(2,0)], r[(2,1)], r[(2,2)]]],
+                "rotation_deg": s.angle_deg(),
+                "translation": [s.translation.x, s.translation.y, s.translation.z],
+            },
+            "anchors": rows(&self.anchors),
+            "measured": rows(&self.measured),
+            "placed_anchors": self.anchors.iter().map(|a| row(s.point(*a))).collect::<Vec<_>>(),
+            "residuals": self.fit.residuals,
+            "relative_rms": self.fit.relative_rms,
+            "dome": self.scene.dome.as_ref().map(|d| json!({"orig": row(d.orig), "south": row(d.south)})),
+        })
+    }
+}
+
+fn row(v: Vec3) -> [f64; 3] {
+    [v.x, v.y, v.z]
+}
+
+fn rows(v: &[Vec3]) -> Vec<[f64; 3]> {
+    v.iter().map(|a| row(*a)).collect()
+}
+
 /// Moves a designed scene onto measured points (module docs): the similarity (Umeyama 1991)
 /// from its anchors to `points` (picked by `indices`), refused when its relative RMS residual
 /// exceeds `max_residual`, applied to the whole scene and its dome.
@@ -279,6 +313,30 @@ pub struct PlacedCatcher {
     pub polygon: CatcherPolygon,
     /// Whether the ground's normal was turned towards the cameras.
     pub faces_cameras: bool,
+}
+
+impl PlacedCatcher {
+    /// What the `catcher_from_points` node reports: the corners, the catcher's frame, the
+    /// planarity, whether the normal was turned towards the cameras, and each placed object.
+    pub fn report(&self) -> serde_json::Value {
+        let placed: Vec<serde_json::Value> = self.scene.objects[1..]
+            .iter()
+            .map(|o| match &o.shape {
+                Shape::Sphere(s) => {
+                    json!({"sphere": {"center": row(s.center), "radius": s.radius}})
+                }
+                Shape::Triangles { triangles } => json!({"triangles": triangles.len()}),
+            })
+            .collect();
+        let f = &self.polygon.frame;
+        json!({
+            "corners": rows(&self.polygon.corners),
+            "frame": {"origin": row(f.origin), "x": row(f.x), "y": row(f.y), "z": row(f.z), "unit": f.unit},
+            "planarity": self.polygon.planarity,
+            "normal_towards_cameras": self.faces_cameras,
+            "objects": placed,
+        })
+    }
 }
 
 /// A shadow catcher through measured ground points (module docs), with the objects of an
