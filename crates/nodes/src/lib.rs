@@ -120,7 +120,7 @@ mod tests {
         ),
         (
             "write_cameras",
-            check_defaults::<crate::matchmove::WriteCamerasParams>,
+            check_defaults::<vfxgraph_vision::formats::WriteCamerasOptions>,
         ),
         (
             "undistort",

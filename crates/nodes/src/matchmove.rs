@@ -6,7 +6,7 @@ use vfxgraph_engine::{
     ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, PathRole, PortSpec,
     Registry,
 };
-use vfxgraph_params::{Choice, Options};
+use vfxgraph_params::Options;
 use vfxgraph_vision::formats;
 use vfxgraph_vision::matchmove::{
     adjust_path, matchmove_with_lens, relax_path, GlobalOptions, MatchmoveOptions, RelaxOptions,
@@ -47,29 +47,6 @@ pub(crate) struct RelaxParams {
     relax: RelaxOptions,
     #[param(flatten)]
     score: Score,
-}
-
-/// The file format of `write_cameras`.
-#[derive(Clone, Copy, Debug, PartialEq, Choice)]
-pub(crate) enum CamerasFormat {
-    Auto,
-    Book,
-    Json,
-}
-
-/// The params of `write_cameras` (besides its path).
-#[derive(Debug, PartialEq, Options)]
-pub(crate) struct WriteCamerasParams {
-    /// auto: JSON for a .json path, else the book's format
-    format: CamerasFormat,
-}
-
-impl Default for WriteCamerasParams {
-    fn default() -> Self {
-        WriteCamerasParams {
-            format: CamerasFormat::Auto,
-        }
-    }
 }
 
 fn solve_node(name: &'static str, doc: &'static str, cameras_in: bool) -> NodeSpec {
@@ -173,19 +150,10 @@ fn run_global(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 }
 
 fn run_write_cameras(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let o: WriteCamerasParams = ctx.options()?;
+    let o: formats::WriteCamerasOptions = ctx.options()?;
     let path = output_path(ctx, "path")?;
     let cams = &ctx.input::<CameraPathArt>("cameras")?.0;
-    let json = match o.format {
-        CamerasFormat::Json => true,
-        CamerasFormat::Book => false,
-        CamerasFormat::Auto => formats::is_json(&path),
-    };
-    if json {
-        formats::write_json(&path, cams)?;
-    } else {
-        formats::write_cameras(&path, cams)?;
-    }
+    formats::write_camera_path(&path, cams, o.format)?;
     Ok(())
 }
 
@@ -245,7 +213,7 @@ pub fn register(r: &mut Registry) {
         )
         .mode(Mode::Once)
         .param(output_file("output file"))
-        .options::<WriteCamerasParams>()
+        .options::<formats::WriteCamerasOptions>()
         .input(PortSpec::one(
             "cameras",
             CameraPathArt::NAME,

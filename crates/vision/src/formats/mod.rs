@@ -5,6 +5,7 @@
 //!
 //! Parse errors name the file and the 1-based line.
 
+pub mod camera_file;
 pub mod cameras;
 pub mod flo;
 pub mod intrinsics;
@@ -12,6 +13,7 @@ pub mod marked_points;
 pub mod points;
 pub mod vgg;
 
+pub use camera_file::{write_camera_path, CamerasFormat, WriteCamerasOptions};
 pub use cameras::{
     format_cameras, parse_cameras, read_cameras, write_cameras, CameraPath, FramePose,
 };
