@@ -12,6 +12,8 @@ pub mod corners;
 pub mod drift;
 pub mod lucas_kanade;
 pub mod noise;
+#[cfg(feature = "opencv")]
+pub mod opencv;
 pub mod overlay;
 pub mod pyramid;
 pub mod tracker;

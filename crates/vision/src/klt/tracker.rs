@@ -11,7 +11,7 @@ use super::corners::{good_features_to_track, CornerParams};
 use super::drift::Template;
 use super::lucas_kanade::{track_points, LkParams};
 use super::pyramid::{GrayImage, Pyramid};
-use super::tracks::{LostReason, Track, TrackEnd, Tracks};
+use super::tracks::{LostReason, Tracks};
 use super::KltError;
 use rayon::prelude::*;
 
@@ -194,17 +194,9 @@ impl Tracker {
 
     /// Positions of the live features, by slot.
     fn live_points(&self) -> Vec<[f32; 2]> {
-        self.live
-            .iter()
-            .flatten()
-            .map(|&k| {
-                let p = self.tracks.tracks[k]
-                    .points
-                    .last()
-                    .copied()
-                    .unwrap_or_default();
-                [p[0] as f32, p[1] as f32]
-            })
+        self.tracks
+            .last_points(&self.live)
+            .map(|p| [p[0] as f32, p[1] as f32])
             .collect()
     }
 
@@ -239,19 +231,11 @@ impl Tracker {
         });
         let corners = good_features_to_track(img, &cp, mask.as_deref(), &existing)?;
         for (slot, c) in free.into_iter().zip(corners) {
-            let id = self.tracks.tracks.len() as u64;
             self.templates
                 .push(self.params.drift_correction.and_then(|_| {
                     Template::capture(drift_img, [c.x, c.y], self.params.lk.half_window())
                 }));
-            self.live[slot] = Some(self.tracks.tracks.len());
-            self.tracks.tracks.push(Track {
-                id,
-                slot,
-                first: fi,
-                points: vec![[c.x as f64, c.y as f64]],
-                lost: None,
-            });
+            self.live[slot] = Some(self.tracks.start(slot, fi, [c.x as f64, c.y as f64]));
         }
         Ok(())
     }
@@ -356,23 +340,9 @@ impl Tracker {
             }
             for (slot, r) in slots.into_iter().zip(res) {
                 let Some(k) = self.live[slot] else { continue };
-                let t = &mut self.tracks.tracks[k];
                 let pos = [r.pos[0] as f64, r.pos[1] as f64];
-                match r.lost {
-                    None => t.points.push(pos),
-                    Some(reason) => {
-                        let at = if pos[0].is_finite() && pos[1].is_finite() {
-                            pos
-                        } else {
-                            t.points.last().copied().unwrap_or_default()
-                        };
-                        t.lost = Some(TrackEnd {
-                            frame: fi,
-                            at,
-                            reason,
-                        });
-                        self.live[slot] = None;
-                    }
+                if self.tracks.tracks[k].advance(fi, pos, r.lost) {
+                    self.live[slot] = None;
                 }
             }
             self.tracks.frames.push(frame);

@@ -87,6 +87,23 @@ impl Track {
             .and_then(|k| self.points.get(k))
             .copied()
     }
+
+    /// One frame of a sequence tracker (book 6.5): the track is seen at `pos` in frame index
+    /// `frame`, or (`lost`) ends there for that reason, at `pos` when it is finite, else at its
+    /// last observation. Returns whether it ended (its slot is then free).
+    pub fn advance(&mut self, frame: usize, pos: [f64; 2], lost: Option<LostReason>) -> bool {
+        let Some(reason) = lost else {
+            self.points.push(pos);
+            return false;
+        };
+        let at = if pos[0].is_finite() && pos[1].is_finite() {
+            pos
+        } else {
+            self.points.last().copied().unwrap_or_default()
+        };
+        self.lost = Some(TrackEnd { frame, at, reason });
+        true
+    }
 }
 
 /// Feature tracks over a sequence of frames (book chapter 6's output, chapter 7's input).
@@ -114,6 +131,30 @@ const NATIVE_FORMAT: &str = "vfxgraph-tracks";
 pub const MAX_SLOTS: usize = 10_000_000;
 
 impl Tracks {
+    /// The last observation of each track `live` holds (a tracker's slots), in slot order.
+    pub fn last_points<'a>(
+        &'a self,
+        live: &'a [Option<usize>],
+    ) -> impl Iterator<Item = [f64; 2]> + 'a {
+        live.iter()
+            .flatten()
+            .map(|&k| self.tracks[k].points.last().copied().unwrap_or_default())
+    }
+
+    /// Starts a track with the next id in feature slot `slot`, seen at `pos` in frame index
+    /// `first` (a refill, book 6.5); returns its index.
+    pub fn start(&mut self, slot: usize, first: usize, pos: [f64; 2]) -> usize {
+        let k = self.tracks.len();
+        self.tracks.push(Track {
+            id: k as u64,
+            slot,
+            first,
+            points: vec![pos],
+            lost: None,
+        });
+        k
+    }
+
     /// Every track seen in frame index `f`, as (id, position), by increasing slot.
     pub fn observations(&self, f: usize) -> Vec<(u64, [f64; 2])> {
         let mut v: Vec<(usize, u64, [f64; 2])> = self
