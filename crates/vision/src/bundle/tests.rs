@@ -599,21 +599,8 @@ fn zoom_problem(cameras: usize) -> (Problem, Vec<f64>, Problem) {
     (problem, truth_f, truth)
 }
 
-/// The smoothness prior of a zoom: `(fᵢ₋₁ − 2fᵢ + fᵢ₊₁)/σ` over every interior camera.
-fn second_differences(n: usize, sigma: f64) -> Vec<Prior> {
-    (1..n - 1)
-        .map(|i| Prior {
-            terms: [(i - 1, 1.0), (i, -2.0), (i + 1, 1.0)]
-                .map(|(k, c)| PriorTerm {
-                    intrinsics: k,
-                    param: 0,
-                    coefficient: c / sigma,
-                })
-                .to_vec(),
-            target: 0.0,
-        })
-        .collect()
-}
+/// The smoothness prior of a zoom (the matchmove's, one block per camera).
+use crate::matchmove::zoom::zoom_priors as second_differences;
 
 /// A solve with priors stops where the gradient of the whole cost (observations and priors,
 /// by finite differences of [`Problem::cost`]) vanishes in every focal length — the priors'
