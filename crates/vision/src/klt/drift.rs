@@ -48,9 +48,10 @@ pub struct Template {
     big: Vec<f32>,
     frames: u32,
     values: Vec<f32>,
-    /// Per pixel, ∇T · ∂W/∂p at p = 0 for the affine warp
-    /// W(u; p) = ((1 + p₁)u + p₃v + p₅, p₂u + (1 + p₄)v + p₆).
-    sd: Vec<[f32; 6]>,
+    /// ∇T · ∂W/∂p at p = 0 for the affine warp W(u; p) = ((1 + p₁)u + p₃v + p₅,
+    /// p₂u + (1 + p₄)v + p₆): one image per parameter, each row by row over the window (laid
+    /// out by parameter so the gradient's sums are plain dot products).
+    sd: [Vec<f32>; 6],
     /// Gauss–Newton Hessian of the affine parameters, Σ sd sdᵀ.
     h: Matrix6<f64>,
     /// Window coordinates → image coordinates in the last frame.
@@ -68,7 +69,7 @@ impl Template {
             big,
             frames: 1,
             values: Vec::new(),
-            sd: Vec::new(),
+            sd: Default::default(),
             h: Matrix6::zeros(),
             warp,
         };
@@ -84,7 +85,9 @@ impl Template {
         let m = n + 2;
         let big = &self.big;
         self.values.clear();
-        self.sd.clear();
+        for s in &mut self.sd {
+            s.clear();
+        }
         let mut h = Matrix6::<f64>::zeros();
         let (mut a, mut b, mut c) = (0.0f64, 0.0f64, 0.0f64);
         for j in 1..=n {
@@ -96,7 +99,9 @@ impl Template {
                 let rv = Vector6::from_iterator(row.iter().map(|&x| x as f64));
                 h += rv * rv.transpose();
                 self.values.push(big[j * m + i]);
-                self.sd.push(row);
+                for (s, r) in self.sd.iter_mut().zip(row) {
+                    s.push(r);
+                }
                 a += (gx * gx) as f64;
                 b += (gx * gy) as f64;
                 c += (gy * gy) as f64;
@@ -137,18 +142,16 @@ impl Template {
         // the gradients they compute anyway: the template's Hessian Σ∇T∇Tᵀ overstates the
         // cost's curvature where the template's gradients carry noise or the frame's window
         // has changed, so plain inverse-compositional steps fall short and converge linearly.
+        let mut e = vec![0.0f32; n * n];
         let mut secant = Secant::new(self.h.fixed_view::<2, 2>(4, 4).into_owned());
         let mut base = w;
         for _ in 0..max_iterations {
             if !inside(&w) {
                 return None;
             }
-            let (mut g, mut ss) = (Vector2::<f64>::zeros(), 0.0f64);
-            self.residuals(img, &w, |k, e| {
-                g[0] += (self.sd[k][4] * e) as f64;
-                g[1] += (self.sd[k][5] * e) as f64;
-                ss += (e * e) as f64;
-            });
+            self.residuals(img, &w, &mut e);
+            let g = Vector2::new(dot(&self.sd[4], &e), dot(&self.sd[5], &e));
+            let ss = dot(&e, &e);
             let (d, retry) = secant.step(g, ss, |m, g| m.try_inverse().map(|i| i * g))?;
             if retry {
                 w = base;
@@ -170,13 +173,9 @@ impl Template {
             if !inside(&w) {
                 return None;
             }
-            let (mut g, mut ss) = (Vector6::<f64>::zeros(), 0.0f64);
-            self.residuals(img, &w, |k, e| {
-                for (gi, s) in g.iter_mut().zip(&self.sd[k]) {
-                    *gi += (s * e) as f64;
-                }
-                ss += (e * e) as f64;
-            });
+            self.residuals(img, &w, &mut e);
+            let g = Vector6::from_fn(|l, _| dot(&self.sd[l], &e));
+            let ss = dot(&e, &e);
             let (d, retry) = secant.step(g, ss, |m, g| m.lu().solve(g))?;
             if retry {
                 w = base;
@@ -209,30 +208,42 @@ impl Template {
         if !inside(&w) {
             return None;
         }
-        let mut ss = 0.0f32;
-        self.residuals(img, &w, |_, e| ss += e * e);
+        self.residuals(img, &w, &mut e);
+        let ss = dot(&e, &e);
         Some((
             [w[(0, 2)] as f32, w[(1, 2)] as f32],
-            (ss / (n * n) as f32).sqrt(),
+            (ss / (n * n) as f64).sqrt() as f32,
             w,
         ))
     }
 
-    /// Calls `each(k, I(W(u_k)) − T(u_k))` for every window pixel k under the warp `w`.
-    /// Every sample of a warp that passed `align`'s `inside` lies in the image (the window's
-    /// corners do, and the warped window is their convex hull), so no clamping.
+    /// The residuals `e_k = I(W(u_k)) − T(u_k)` of every window pixel k under the warp `w`,
+    /// row by row. Every sample of a warp that passed `align`'s `inside` lies in the image (the
+    /// window's corners do, and the warped window is their convex hull), so no clamping. The
+    /// sample positions are stepped along each row in `f32` from the row's start, computed in
+    /// `f64` (a window is at most a few dozen pixels wide: the error stays below 1e-5 px).
     #[inline]
-    fn residuals(&self, img: &GrayImage, w: &Matrix3<f64>, mut each: impl FnMut(usize, f32)) {
+    fn residuals(&self, img: &GrayImage, w: &Matrix3<f64>, e: &mut [f32]) {
         let n = 2 * self.half + 1;
         let h = self.half as f64;
-        for j in 0..n {
+        let (ax, ay) = (w[(0, 0)] as f32, w[(1, 0)] as f32);
+        for (j, (row, t)) in e
+            .chunks_exact_mut(n)
+            .zip(self.values.chunks_exact(n))
+            .enumerate()
+        {
             let v = j as f64 - h;
-            for i in 0..n {
-                let u = i as f64 - h;
-                let x = w[(0, 0)] * u + w[(0, 1)] * v + w[(0, 2)];
-                let y = w[(1, 0)] * u + w[(1, 1)] * v + w[(1, 2)];
-                let k = j * n + i;
-                each(k, img.sample_inside(x as f32, y as f32) - self.values[k]);
+            let x0 = (w[(0, 1)] * v + w[(0, 2)] - w[(0, 0)] * h) as f32;
+            let y0 = (w[(1, 1)] * v + w[(1, 2)] - w[(1, 0)] * h) as f32;
+            let mut done = 0;
+            #[cfg(target_arch = "x86_64")]
+            if simd::usable(img) {
+                // SAFETY: `usable` checked AVX2 and the image's size.
+                done = unsafe { simd::row_residuals(img, [x0, y0], [ax, ay], t, row) };
+            }
+            for i in done..n {
+                let fi = i as f32;
+                row[i] = img.sample_inside(x0 + ax * fi, y0 + ay * fi) - t[i];
             }
         }
     }
@@ -265,6 +276,103 @@ impl Template {
             self.prepare();
         }
     }
+}
+
+/// The residual row of [`Template::residuals`] with AVX2 gathers: eight samples at a time,
+/// each computed by exactly the operations of [`GrayImage::sample_inside`] in the same order
+/// (no FMA), so the results are the portable loop's to the bit.
+#[cfg(target_arch = "x86_64")]
+mod simd {
+    use std::arch::x86_64::*;
+
+    use super::GrayImage;
+
+    /// AVX2 is there and every pixel index fits the gathers' 32-bit offsets.
+    pub(super) fn usable(img: &GrayImage) -> bool {
+        std::is_x86_feature_detected!("avx2")
+            && img.width >= 2
+            && img.height >= 2
+            && img.width * img.height < i32::MAX as usize / 2
+    }
+
+    /// `row[i] = I(start + i·step) − t[i]` for the leading multiple of eight of `i`; returns how
+    /// many were done. Positions are clamped into the image (as `sample_inside` does), so a
+    /// gather never reads outside it.
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn row_residuals(
+        img: &GrayImage,
+        start: [f32; 2],
+        step: [f32; 2],
+        t: &[f32],
+        row: &mut [f32],
+    ) -> usize {
+        let n = row.len().min(t.len()) / 8 * 8;
+        let (wd, ht) = (img.width as i32, img.height as i32);
+        let data = img.data.as_ptr();
+        let (x0, y0) = (_mm256_set1_ps(start[0]), _mm256_set1_ps(start[1]));
+        let (ax, ay) = (_mm256_set1_ps(step[0]), _mm256_set1_ps(step[1]));
+        let (xmax, ymax) = (_mm256_set1_epi32(wd - 2), _mm256_set1_epi32(ht - 2));
+        let (zero, one, width) = (
+            _mm256_setzero_si256(),
+            _mm256_set1_ps(1.0),
+            _mm256_set1_epi32(wd),
+        );
+        let mut i = 0;
+        while i < n {
+            let fi = _mm256_setr_ps(
+                i as f32,
+                (i + 1) as f32,
+                (i + 2) as f32,
+                (i + 3) as f32,
+                (i + 4) as f32,
+                (i + 5) as f32,
+                (i + 6) as f32,
+                (i + 7) as f32,
+            );
+            let x = _mm256_add_ps(x0, _mm256_mul_ps(ax, fi));
+            let y = _mm256_add_ps(y0, _mm256_mul_ps(ay, fi));
+            // Truncation is floor for x ≥ 0; NaN or negative becomes 0, as `as usize` does.
+            let xi = _mm256_max_epi32(_mm256_min_epi32(_mm256_cvttps_epi32(x), xmax), zero);
+            let yi = _mm256_max_epi32(_mm256_min_epi32(_mm256_cvttps_epi32(y), ymax), zero);
+            let fx = _mm256_sub_ps(x, _mm256_cvtepi32_ps(xi));
+            let fy = _mm256_sub_ps(y, _mm256_cvtepi32_ps(yi));
+            let k = _mm256_add_epi32(_mm256_mullo_epi32(yi, width), xi);
+            let p00 = _mm256_i32gather_ps::<4>(data, k);
+            let p10 = _mm256_i32gather_ps::<4>(data.add(1), k);
+            let p01 = _mm256_i32gather_ps::<4>(data.add(img.width), k);
+            let p11 = _mm256_i32gather_ps::<4>(data.add(img.width + 1), k);
+            let gx = _mm256_sub_ps(one, fx);
+            let top = _mm256_add_ps(_mm256_mul_ps(p00, gx), _mm256_mul_ps(p10, fx));
+            let bot = _mm256_add_ps(_mm256_mul_ps(p01, gx), _mm256_mul_ps(p11, fx));
+            let v = _mm256_add_ps(
+                _mm256_mul_ps(top, _mm256_sub_ps(one, fy)),
+                _mm256_mul_ps(bot, fy),
+            );
+            let r = _mm256_sub_ps(v, _mm256_loadu_ps(t.as_ptr().add(i)));
+            _mm256_storeu_ps(row.as_mut_ptr().add(i), r);
+            i += 8;
+        }
+        n
+    }
+}
+
+/// Σ aₖbₖ in eight `f32` lanes (so the compiler vectorizes it), summed in `f64`.
+#[inline]
+fn dot(a: &[f32], b: &[f32]) -> f64 {
+    let mut lanes = [0.0f32; 8];
+    let (ca, cb) = (a.chunks_exact(8), b.chunks_exact(8));
+    let tail: f32 = ca
+        .remainder()
+        .iter()
+        .zip(cb.remainder())
+        .map(|(x, y)| x * y)
+        .sum();
+    for (x, y) in ca.zip(cb) {
+        for l in 0..8 {
+            lanes[l] += x[l] * y[l];
+        }
+    }
+    lanes.iter().map(|&l| l as f64).sum::<f64>() + tail as f64
 }
 
 /// How many frames' windows a template averages ([`Template::accept`]).
@@ -387,5 +495,41 @@ mod tests {
         assert!(res < 2.0, "residual {res}");
         let flat = GrayImage::from_fn(64, 64, |_, _| 100.0);
         assert!(Template::capture(&flat, [30.0, 30.0], 7).is_none());
+    }
+
+    /// The AVX2 residual rows are the portable samples to the bit, over sheared, rotated and
+    /// scaled warps, including windows touching the image's last row and column.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn simd_residuals_equal_the_portable_samples() {
+        let img = GrayImage::from_fn(61, 47, |x, y| {
+            ((x * 37 + y * 91) % 256) as f32 * 0.7 + (x as f32 * 0.3).sin()
+        });
+        if !simd::usable(&img) {
+            eprintln!("no AVX2 here: nothing to compare");
+            return;
+        }
+        let t: Vec<f32> = (0..29).map(|i| i as f32 * 1.5).collect();
+        for (start, step) in [
+            ([0.0f32, 0.0f32], [1.0f32, 0.0f32]),
+            ([3.3, 40.9], [1.07, 0.21]),
+            ([31.0, 45.99], [1.0, 0.0]),
+            ([59.5, 2.25], [-0.93, 0.37]),
+            ([1.2, 1.7], [2.05, 1.5]),
+        ] {
+            let mut row = vec![0.0f32; 29];
+            let done = unsafe { simd::row_residuals(&img, start, step, &t, &mut row) };
+            assert_eq!(done, 24);
+            for i in 0..done {
+                let fi = i as f32;
+                let (x, y) = (start[0] + step[0] * fi, start[1] + step[1] * fi);
+                let want = img.sample_inside(x, y) - t[i];
+                assert_eq!(
+                    row[i].to_bits(),
+                    want.to_bits(),
+                    "{start:?} {step:?} sample {i}"
+                );
+            }
+        }
     }
 }
