@@ -140,6 +140,11 @@ impl Value {
         out
     }
 
+    /// The value, shared.
+    pub fn data(&self) -> &Arc<dyn DynArtifact> {
+        &self.data
+    }
+
     /// Borrows the value as `T`, if it is one.
     pub fn get<T: ArtifactType>(&self) -> Option<&T> {
         self.data.as_any().downcast_ref::<T>()

@@ -105,6 +105,8 @@ pub struct NodeSpec {
     /// How much memory an instance needs: a hint for farms (Slurm's `--mem`, OpenJD's host
     /// requirements), never part of the key.
     pub memory: Memory,
+    /// False for a node whose outputs stay out of the cache (see [`NodeSpec::uncached`]).
+    pub cache_outputs: bool,
 }
 
 /// The memory one instance of a node type needs, for farm schedulers.
@@ -171,6 +173,7 @@ impl NodeSpec {
             seeded: false,
             threads: Threads::All,
             memory: Memory::Unknown,
+            cache_outputs: true,
         }
     }
     /// Sets the version.
@@ -196,6 +199,18 @@ impl NodeSpec {
     /// Marks the node seeded.
     pub fn seeded(mut self) -> Self {
         self.seeded = true;
+        self
+    }
+    /// Keeps the node's outputs out of the cache (Gaffer's uncached compute policy): its
+    /// action entry is stored — key, output digests, the files it read — so it still shows as
+    /// cached and its consumers' keys still hold, but an output is recomputed from the node's
+    /// params and files whenever a consumer that runs reads it (and checked against the
+    /// recorded digest). For readers whose files decode about as fast as a cache object
+    /// loads: a 100 KB JPEG frame decodes in a few milliseconds, where its decoded frame is a
+    /// 6 MB object to encode, compress, hash and write. Only for nodes without inputs (the
+    /// registry refuses others), so a recompute needs nothing but the graph.
+    pub fn uncached(mut self) -> Self {
+        self.cache_outputs = false;
         self
     }
     /// Adds an input.

@@ -56,6 +56,11 @@ impl Registry {
     /// registered once (both programming errors, so they panic at start-up).
     pub fn register_node(&mut self, node: impl Node) {
         let spec = node.spec();
+        assert!(
+            spec.cache_outputs || spec.inputs.is_empty(),
+            "node `{}` is uncached but has inputs: only input-less readers may be",
+            spec.name
+        );
         for p in spec.inputs.iter().chain(&spec.outputs) {
             assert!(
                 self.artifacts.contains_key(p.ty),

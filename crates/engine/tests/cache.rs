@@ -552,3 +552,94 @@ fn bad_selections_are_errors() {
         assert!(e.to_string().contains(msg), "{e}");
     }
 }
+
+/// An uncached reader (`NodeSpec::uncached`): its action entries are stored, its objects are
+/// not; it shows as cached on the next run, and a consumer that reruns gets its frames
+/// recomputed — also where only selected instances may run (a farm task) — with the same
+/// results and entries as a cached reader's.
+#[test]
+fn uncached_readers_store_entries_not_objects() {
+    let uncached = FILES.replace("type: read_num,", "type: read_num_uncached,");
+    // Values no consumer also produces (content addressing would share their objects).
+    let write_inputs = |s: &Scratch| {
+        for f in 1..=4 {
+            s.write(&format!("in/{f:04}.txt"), &format!("{f}.1\n"));
+        }
+    };
+    let s = Scratch::new();
+    write_inputs(&s);
+    let r = s.run(&uncached);
+    assert_eq!(ran_cached(&r, "read"), (4, 0));
+    let store = vfxgraph_engine::store::Store::open(&s.path(".vfxgraph")).unwrap();
+    let entries = store.list();
+    let reads: Vec<_> = entries
+        .iter()
+        .filter(|e| e.entry.node_id == "read")
+        .collect();
+    assert_eq!(reads.len(), 4);
+    for e in &reads {
+        let d = vfxgraph_engine::Digest::from_hex(&e.entry.outputs[0].digest).unwrap();
+        assert!(
+            !store.has_object(&d),
+            "an uncached reader's object was stored"
+        );
+    }
+    // Everything cached; the plan agrees.
+    let r = s.run(&uncached);
+    assert!(r.nodes.iter().all(|n| n.status == Status::Cached), "{r:?}");
+    let p = exec::plan(&s.graph(&uncached), &s.opts()).unwrap();
+    assert!(p.nodes.iter().all(|n| n.status == PlanStatus::Cached));
+    // `twice` forced: it reads the four frames, recomputed, with the same result.
+    let g = s.graph(&uncached);
+    let mut o = s.opts();
+    o.force = vec!["twice".into()];
+    let r = exec::run(&g, &registry(), &o, &exec::Quiet).unwrap();
+    assert!(!r.failed(), "{r:?}");
+    assert_eq!(ran_cached(&r, "read"), (0, 4));
+    assert_eq!(ran_cached(&r, "twice"), (4, 0));
+    assert_eq!(ran_cached(&r, "total"), (0, 1), "same bytes: early cutoff");
+    // A farm task: `twice` frame 3 alone, its input from the cache only.
+    o.force = vec!["twice".into()];
+    o.only = only(&[("twice", Some(vec![3]))]);
+    let r = exec::run(&g, &registry(), &o, &exec::Quiet).unwrap();
+    assert!(!r.failed(), "{r:?}");
+    assert_eq!(r.count("twice", Status::Ran), 1);
+    // The same entries (keys and output digests) as with a cached reader, read's node type
+    // aside.
+    let cached = Scratch::new();
+    write_inputs(&cached);
+    cached.run(FILES);
+    let outputs = |dir: &std::path::Path| {
+        let mut k: Vec<_> = vfxgraph_engine::store::Store::open(dir)
+            .unwrap()
+            .list()
+            .into_iter()
+            .filter(|e| e.entry.node_id != "read")
+            .map(|e| (e.entry.node_id, e.entry.frame, e.entry.outputs))
+            .collect();
+        k.sort_by(|a, b| (&a.0, a.1).cmp(&(&b.0, b.1)));
+        k
+    };
+    assert_eq!(
+        outputs(&s.path(".vfxgraph")),
+        outputs(&cached.path(".vfxgraph"))
+    );
+    // A frame's file edited after the run: that frame reruns (and is recomputed, not loaded).
+    s.write("in/0002.txt", "20\n");
+    let r = s.run(&uncached);
+    assert_eq!(ran_cached(&r, "read"), (1, 3));
+    assert_eq!(ran_cached(&r, "twice"), (1, 3));
+}
+
+/// Only input-less nodes may be uncached: a recompute must need nothing but the graph.
+#[test]
+#[should_panic(expected = "uncached but has inputs")]
+fn an_uncached_node_with_inputs_is_refused() {
+    let mut r = registry();
+    r.register_node(common::Round(
+        vfxgraph_engine::NodeSpec::new("round_uncached", "")
+            .uncached()
+            .input(vfxgraph_engine::PortSpec::one("a", "float", ""))
+            .output(vfxgraph_engine::PortSpec::one("out", "float", "")),
+    ));
+}

@@ -24,6 +24,7 @@ pub fn register(r: &mut Registry) {
         )
         .mode(Mode::Once)
         .threads(vfxgraph_engine::Threads::One)
+        .uncached()
         .param(ParamSpec::required(
             "path",
             ParamType::Path(PathRole::Input),
@@ -58,6 +59,7 @@ pub fn register(r: &mut Registry) {
              pattern (`%04d` or `####`). Each frame is cached on its own file's content.",
         )
         .mode(Mode::PerFrame)
+        .uncached()
         .param(ParamSpec::required(
             "path",
             ParamType::Path(PathRole::Input),

@@ -18,7 +18,7 @@ use image::codecs::jpeg::JpegEncoder;
 use image::codecs::png::{CompressionType, FilterType, PngEncoder};
 use image::{ExtendedColorType, ImageEncoder};
 use vfxgraph_engine::artifact::DynArtifact;
-use vfxgraph_engine::exec::last_run_entry;
+use vfxgraph_engine::exec::{last_run_entry, recompute_uncached};
 use vfxgraph_engine::store::Store;
 use vfxgraph_engine::{Digest, Graph, Registry};
 use vfxgraph_imaging::color::linear_to_srgb8;
@@ -141,12 +141,23 @@ pub struct View {
     pub jpeg: bool,
 }
 
-/// One stored output of the last run: its type and digest.
+/// One output of the last run: its type and digest.
 pub struct Output {
     /// Artifact type name.
     pub ty: String,
     /// Content digest.
     pub digest: Digest,
+    /// Where to recompute it: the output of an uncached reader is not in the store
+    /// ([`vfxgraph_engine::NodeSpec::uncached`]).
+    pub uncached: Option<Uncached>,
+}
+
+/// An uncached reader's instance: the graph, node index, frame and output port.
+pub struct Uncached {
+    graph: Arc<Graph>,
+    node: usize,
+    frame: Option<i64>,
+    port: String,
 }
 
 /// Finds output `port` of node `node_id` at `frame` in the last run's entry.
@@ -191,14 +202,22 @@ pub fn find_output(
         .ok_or_else(|| ApiError::not_found(format!("`{node_id}.{port}` was not stored")))?;
     let digest = Digest::from_hex(&out.digest)
         .ok_or_else(|| ApiError::internal("a corrupt digest in the cache entry"))?;
+    let uncached = (!gn.spec().cache_outputs).then(|| Uncached {
+        graph: Arc::new(graph.clone()),
+        node,
+        frame,
+        port: port.to_string(),
+    });
     Ok(Output {
         ty: out.ty.clone(),
         digest,
+        uncached,
     })
 }
 
 impl PreviewCache {
-    /// The decoded artifact of `out` (verified read from the store).
+    /// The decoded artifact of `out`: a verified read from the store, or an uncached reader's
+    /// output recomputed (checked against the run's digest).
     pub fn artifact(
         &self,
         store: &Store,
@@ -214,12 +233,20 @@ impl PreviewCache {
         {
             return Ok(a);
         }
-        let (ty, bytes) = store.get_object(&out.digest).ok_or_else(|| {
-            ApiError::not_found("the output's object is no longer in the cache (run again)")
-        })?;
-        let art = registry
-            .decode(&ty, &bytes)
-            .map_err(|e| ApiError::internal(format!("cannot decode the `{ty}` object: {e}")))?;
+        let art = match &out.uncached {
+            Some(u) => recompute_uncached(&u.graph, u.node, u.frame, &u.port, &out.digest)
+                .map_err(ApiError::conflict)?
+                .data()
+                .clone(),
+            None => {
+                let (ty, bytes) = store.get_object(&out.digest).ok_or_else(|| {
+                    ApiError::not_found("the output's object is no longer in the cache (run again)")
+                })?;
+                registry.decode(&ty, &bytes).map_err(|e| {
+                    ApiError::internal(format!("cannot decode the `{ty}` object: {e}"))
+                })?
+            }
+        };
         self.decoded
             .lock()
             .unwrap_or_else(|p| p.into_inner())

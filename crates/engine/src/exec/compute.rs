@@ -3,6 +3,8 @@
 //! entry).
 
 use std::collections::BTreeMap;
+
+use rayon::prelude::*;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
 
@@ -56,8 +58,11 @@ impl Runner<'_> {
         for d in &self.c.insts[i].deps {
             let v = match &d.kind {
                 DepKind::One(j) => InputValue::One(self.value(*j, d.from_port)?),
+                // In parallel: values not in memory are loaded or recomputed (an uncached
+                // reader's frames are decoded again).
                 DepKind::Seq(r) => InputValue::Sequence(
                     r.clone()
+                        .into_par_iter()
                         .map(|j| {
                             self.value(j, d.from_port)
                                 .map(|v| (self.c.insts[j].frame.unwrap_or(0), v))
@@ -70,8 +75,8 @@ impl Runner<'_> {
         Ok(inputs)
     }
 
-    /// Stores a computed instance: its objects, then its action entry. An error (e.g. a full
-    /// disk) names the file it could not write.
+    /// Stores a computed instance: its objects (none for an uncached node), then its action
+    /// entry. An error (e.g. a full disk) names the file it could not write.
     pub(super) fn store_outputs(
         &self,
         i: usize,
@@ -86,7 +91,9 @@ impl Runner<'_> {
         let gn = &self.c.graph.nodes[inst.node];
         let mut outs = Vec::new();
         for (port, (v, bytes)) in &computed.outputs {
-            store.put_object(&v.digest(), v.type_name(), bytes)?;
+            if gn.spec().cache_outputs {
+                store.put_object(&v.digest(), v.type_name(), bytes)?;
+            }
             outs.push(ActionOutput {
                 port: port.to_string(),
                 ty: v.type_name().to_string(),
@@ -176,4 +183,50 @@ fn collect_outputs(spec: &NodeSpec, ctx: &mut Context) -> Result<Computed, Strin
         out.outputs.insert(p.name, encoded);
     }
     Ok(out)
+}
+
+/// Output `port` of instance `frame` of the uncached node `node` (see
+/// [`NodeSpec::uncached`]), recomputed outside a run — for a viewer showing what the last run
+/// produced — and checked against the `digest` that run recorded.
+pub fn recompute_uncached(
+    graph: &crate::Graph,
+    node: usize,
+    frame: Option<i64>,
+    port: &str,
+    digest: &crate::Digest,
+) -> Result<crate::Value, String> {
+    let gn = graph
+        .nodes
+        .get(node)
+        .ok_or_else(|| format!("no node {node} in the graph"))?;
+    if gn.spec().cache_outputs || !gn.spec().inputs.is_empty() {
+        return Err(format!("`{}` is not an uncached reader", gn.id));
+    }
+    let cancel = std::sync::atomic::AtomicBool::new(false);
+    let mut ctx = Context {
+        node_id: &gn.id,
+        frame,
+        params: &gn.params,
+        spec: gn.spec(),
+        graph_dir: &graph.dir,
+        inputs: BTreeMap::new(),
+        seed: super::seed_for(graph.seed, &gn.id, frame),
+        progress: &|_| {},
+        cancel: &cancel,
+        outputs: BTreeMap::new(),
+        read_files: Vec::new(),
+        written_files: Vec::new(),
+    };
+    run_node(gn, &mut ctx)?;
+    let (v, _) = collect_outputs(gn.spec(), &mut ctx)?
+        .outputs
+        .remove(port)
+        .ok_or_else(|| format!("`{}` has no output `{port}`", gn.id))?;
+    if v.digest() != *digest {
+        return Err(format!(
+            "`{}`'s files changed since the run (recomputing it gave different bytes); run again",
+            gn.id
+        ));
+    }
+    Ok(v)
 }

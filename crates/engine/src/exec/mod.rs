@@ -39,6 +39,7 @@ mod report;
 mod schedule;
 mod values;
 
+pub use compute::recompute_uncached;
 pub use plan::plan;
 pub use records::last_run_entry;
 pub use report::{

@@ -1,5 +1,7 @@
 //! Lazy loading: the value of a resolved instance's output, read when a consumer runs — from
-//! memory, else from the store (verified), else recomputed if it was lost from the cache.
+//! memory, else from the store (verified), else recomputed: an uncached node's always
+//! ([`NodeSpec::uncached`](crate::NodeSpec::uncached)), anything else's if it was lost from
+//! the cache.
 
 use std::sync::atomic::Ordering;
 
@@ -22,17 +24,19 @@ impl Runner<'_> {
             .digests
             .get(port)
             .ok_or_else(|| format!("internal: no output `{port}`"))?;
-        let static_port = self.c.graph.nodes[self.c.insts[j].node]
-            .spec()
+        let spec = self.c.graph.nodes[self.c.insts[j].node].spec();
+        let static_port = spec
             .outputs
             .iter()
             .find(|p| p.name == port)
             .map(|p| p.name)
             .ok_or_else(|| format!("internal: unknown port `{port}`"))?;
-        if let Some(v) = self.load_stored(j, static_port, &digest) {
-            return Ok(v);
+        if spec.cache_outputs {
+            if let Some(v) = self.load_stored(j, static_port, &digest) {
+                return Ok(v);
+            }
         }
-        self.recompute_lost(j, static_port, digest)
+        self.recompute(j, static_port, digest)
     }
 
     /// Keeps `v` in memory as output `port` of instance `j` if another consumer will read it.
@@ -63,37 +67,42 @@ impl Runner<'_> {
         }
     }
 
-    /// Output `port` of instance `j`, lost from the cache (deleted or corrupt): recomputed.
-    /// Deterministic nodes give the same bytes; anything else is reported rather than
-    /// silently mixed.
-    fn recompute_lost(
-        &self,
-        j: usize,
-        port: &'static str,
-        digest: Digest,
-    ) -> Result<Value, String> {
+    /// Output `port` of instance `j` recomputed: an uncached node's, or one lost from the
+    /// cache (deleted or corrupt). Deterministic nodes give the same bytes; anything else is
+    /// reported rather than silently mixed. An uncached node is recomputed even where only
+    /// the selected instances may run (a farm task): it reads nothing but its files.
+    fn recompute(&self, j: usize, port: &'static str, digest: Digest) -> Result<Value, String> {
         let up = &self.c.insts[j];
-        let id = &self.c.graph.nodes[up.node].id;
-        if self.c.role[j] == Role::CacheOnly {
+        let gn = &self.c.graph.nodes[up.node];
+        let (id, cached) = (&gn.id, gn.spec().cache_outputs);
+        if cached && self.c.role[j] == Role::CacheOnly {
             return Err(format!(
                 "the cached output `{port}` of `{id}`{} is missing from the cache, and only the \
                  selected instances may run",
                 frame_suffix(up.frame)
             ));
         }
-        tracing::info!("recomputing `{id}` (its cached output was lost)");
+        if cached {
+            tracing::info!("recomputing `{id}` (its cached output was lost)");
+        }
         let outputs = self.compute(j)?;
         let (v, bytes) = outputs
             .outputs
             .get(port)
             .ok_or_else(|| format!("internal: no output `{port}`"))?;
+        if v.digest() != digest && !cached {
+            return Err(format!(
+                "`{id}`'s files changed during the run (recomputing its output gave different \
+                 bytes); run again"
+            ));
+        }
         if v.digest() != digest {
             return Err(format!(
                 "the cached output of `{id}` was lost, and recomputing it gave different bytes \
                  (is the node deterministic?); run again"
             ));
         }
-        if let Some(store) = &self.c.store {
+        if let (Some(store), true) = (&self.c.store, cached) {
             let _ = store.put_object(&digest, v.type_name(), bytes);
         }
         self.keep(j, port, v);

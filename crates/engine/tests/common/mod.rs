@@ -36,7 +36,7 @@ impl Node for Add {
     }
 }
 
-pub struct Round(NodeSpec);
+pub struct Round(pub NodeSpec);
 impl Node for Round {
     fn spec(&self) -> &NodeSpec {
         &self.0
@@ -269,6 +269,19 @@ pub fn registry() -> Registry {
                 "",
             ))
             .output(PortSpec::one("out", "float", "")),
+    ));
+    r.register_node(ReadNum(
+        NodeSpec::new(
+            "read_num_uncached",
+            "read_num, its outputs kept out of the cache",
+        )
+        .uncached()
+        .param(ParamSpec::required(
+            "path",
+            ParamType::Path(PathRole::Input),
+            "",
+        ))
+        .output(PortSpec::one("out", "float", "")),
     ));
     r.register_node(SumListed(
         NodeSpec::new("sum_listed", "sum of the numbers in the files a list names")
