@@ -514,7 +514,13 @@ impl<'a> Context<'a> {
             "node {} output `{port}` type",
             self.spec.name
         );
-        self.outputs.insert(spec.name, Value::new_encoded(value));
+        // An uncached node's outputs are never stored: only their digest is needed.
+        let v = if self.spec.cache_outputs {
+            Value::new_encoded(value)
+        } else {
+            (Value::new_hashed(value), Vec::new())
+        };
+        self.outputs.insert(spec.name, v);
     }
 
     /// Takes an output set earlier (for tests of nodes).

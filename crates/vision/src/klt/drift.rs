@@ -295,9 +295,11 @@ mod simd {
             && img.width * img.height < i32::MAX as usize / 2
     }
 
-    /// `row[i] = I(start + i·step) − t[i]` for the leading multiple of eight of `i`; returns how
-    /// many were done. Positions are clamped into the image (as `sample_inside` does), so a
-    /// gather never reads outside it.
+    /// `row[i] = I(start + i·step) − t[i]` for every `i` of a row of at least eight (a last
+    /// partial chunk is done as the row's last eight, overlapping the one before: the same
+    /// samples, computed again); returns how many were done (0 for a shorter row). Positions
+    /// are clamped into the image (as `sample_inside` does), so a gather never reads outside
+    /// it.
     #[target_feature(enable = "avx2")]
     pub(super) unsafe fn row_residuals(
         img: &GrayImage,
@@ -306,7 +308,10 @@ mod simd {
         t: &[f32],
         row: &mut [f32],
     ) -> usize {
-        let n = row.len().min(t.len()) / 8 * 8;
+        let n = row.len().min(t.len());
+        if n < 8 {
+            return 0;
+        }
         let (wd, ht) = (img.width as i32, img.height as i32);
         let data = img.data.as_ptr();
         let (x0, y0) = (_mm256_set1_ps(start[0]), _mm256_set1_ps(start[1]));
@@ -317,8 +322,10 @@ mod simd {
             _mm256_set1_ps(1.0),
             _mm256_set1_epi32(wd),
         );
-        let mut i = 0;
-        while i < n {
+        let mut next = 0;
+        while next < n {
+            // The chunk's first sample: the next one, or the row's last eight.
+            let i = next.min(n - 8);
             let fi = _mm256_setr_ps(
                 i as f32,
                 (i + 1) as f32,
@@ -350,7 +357,7 @@ mod simd {
             );
             let r = _mm256_sub_ps(v, _mm256_loadu_ps(t.as_ptr().add(i)));
             _mm256_storeu_ps(row.as_mut_ptr().add(i), r);
-            i += 8;
+            next = i + 8;
         }
         n
     }
@@ -519,7 +526,7 @@ mod tests {
         ] {
             let mut row = vec![0.0f32; 29];
             let done = unsafe { simd::row_residuals(&img, start, step, &t, &mut row) };
-            assert_eq!(done, 24);
+            assert_eq!(done, 29);
             for i in 0..done {
                 let fi = i as f32;
                 let (x, y) = (start[0] + step[0] * fi, start[1] + step[1] * fi);
