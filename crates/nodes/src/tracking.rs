@@ -127,11 +127,10 @@ pub(crate) fn klt_spec(
 
 /// The frames of input `frames` as gray images (the trackers' input).
 pub(crate) fn gray_frames(ctx: &Context<'_>) -> Result<Vec<(i64, GrayImage)>, NodeError> {
-    Ok(ctx
-        .sequence::<ImageArt>("frames")?
-        .iter()
-        .map(|(f, img)| (*f, GrayImage::from_image(&img.0)))
-        .collect())
+    let frames = ctx.sequence::<ImageArt>("frames")?;
+    let images: Vec<_> = frames.iter().map(|(_, img)| &img.0).collect();
+    let grays = GrayImage::from_images(&images);
+    Ok(frames.iter().map(|(f, _)| *f).zip(grays).collect())
 }
 
 pub(crate) fn run_klt_track(ctx: &mut Context<'_>) -> Result<(), NodeError> {

@@ -494,6 +494,9 @@ struct Terms<'a> {
     lin: &'a Linearization,
     v: &'a [[f64; 6]],
     g: &'a [[f64; 3 * INTRINSICS]],
+    /// Per f-block: its parameters are the pose's six, camera columns 0..6 (a matchmove's
+    /// cameras with K held), whose block updates take a fixed-size path.
+    pose_only: Vec<bool>,
 }
 
 /// The damped reduced camera system `S δf = b` (upper block triangle of S).
@@ -574,7 +577,15 @@ impl Structure {
             });
 
         let g = self.shared_point_sums(lin);
-        let ctx = Terms { lin, v: &v, g: &g };
+        let pose_only = (0..self.fblocks.len())
+            .map(|c| self.cols(c) == [0, 1, 2, 3, 4, 5])
+            .collect();
+        let ctx = Terms {
+            lin,
+            v: &v,
+            g: &g,
+            pose_only,
+        };
         let mut values = vec![0.0; self.n_values];
         let mut rhs = vec![0.0; self.n_reduced];
         #[cfg(test)]
@@ -688,6 +699,18 @@ impl Structure {
                 b[ro - b0 + u] = -lin.g_f[ro + u];
             }
         }
+        // Block (r, c)'s offset in its row: a table for the group's rows when it is small
+        // (a shot's few hundred cameras), else a binary search of the row's pattern.
+        let n = self.fblocks.len();
+        let table: Option<Vec<usize>> = (g.rows.len() * n <= 1 << 20).then(|| {
+            let mut t = vec![usize::MAX; g.rows.len() * n];
+            for r in g.rows.clone() {
+                for (&c, &o) in self.row_cols[r].iter().zip(&self.row_val_offset[r]) {
+                    t[(r - g.rows.start) * n + c as usize] = o;
+                }
+            }
+            t
+        });
         for &p in &g.points {
             let p = p as usize;
             for a in self.point_ptr[p]..self.point_ptr[p + 1] {
@@ -704,14 +727,14 @@ impl Structure {
                         row_vals,
                         &mut b[ro..ro + self.fblock_dim[r]],
                         t,
-                        |c| {
-                            let k =
-                                self.row_cols[r]
-                                    .binary_search(&(c as u32))
-                                    .unwrap_or_else(|_| {
-                                        unreachable!("block ({r}, {c}) is in the pattern")
-                                    });
-                            self.row_val_offset[r][k]
+                        |c| match &table {
+                            Some(t) => t[(r - g.rows.start) * n + c],
+                            None => {
+                                let k = self.row_cols[r].binary_search(&(c as u32)).unwrap_or_else(
+                                    |_| unreachable!("block ({r}, {c}) is in the pattern"),
+                                );
+                                self.row_val_offset[r][k]
+                            }
                         },
                     );
                 }
@@ -848,6 +871,14 @@ impl Structure {
                     for (u, row) in blk.chunks_exact_mut(9).enumerate() {
                         let (a0, a1) = (ja[u][0], ja[u][1]);
                         for w in 0..9 {
+                            row[w] += a0 * t0[w] + a1 * t1[w];
+                        }
+                    }
+                } else if t.pose_only[c] {
+                    // A pose alone (K held): columns 0..6.
+                    for (u, row) in blk.chunks_exact_mut(6).enumerate() {
+                        let (a0, a1) = (ja[u][0], ja[u][1]);
+                        for w in 0..6 {
                             row[w] += a0 * t0[w] + a1 * t1[w];
                         }
                     }

@@ -10,7 +10,7 @@
 //! a [`Pyramid`] samples the point `p / 2^l` of level 0 at the same place in the scene.
 
 use rayon::prelude::*;
-use vfxgraph_imaging::color::linear_to_srgb;
+use vfxgraph_imaging::color::{linear_to_srgb, luminance};
 use vfxgraph_imaging::Image;
 
 use super::KltError;
@@ -62,20 +62,37 @@ impl GrayImage {
     /// transfer curve (a perceptual scale, as 8-bit video is) and scaled to 0–255. Non-finite
     /// values become 0.
     pub fn from_image(img: &Image) -> GrayImage {
-        let lum = img.luminance();
-        let data = lum
-            .data
-            .par_iter()
-            .map(|&v| {
-                let v = if v.is_finite() { v } else { 0.0 };
-                255.0 * linear_to_srgb(v.clamp(0.0, 1.0))
-            })
-            .collect();
+        let (w, ch, cc) = (img.width, img.channels.max(1), img.color_channels());
+        let mut data = vec![0.0f32; img.width * img.height];
+        if w > 0 {
+            // One pass per row: the luminance of `Image::luminance`, then the curve.
+            data.par_chunks_mut(w)
+                .zip(img.data.par_chunks(w * ch))
+                .for_each(|(out, row)| {
+                    for (o, p) in out.iter_mut().zip(row.chunks_exact(ch)) {
+                        let v = if cc == 3 {
+                            luminance(p[0], p[1], p[2])
+                        } else {
+                            p[0]
+                        };
+                        let v = if v.is_finite() { v } else { 0.0 };
+                        *o = 255.0 * linear_to_srgb(v.clamp(0.0, 1.0));
+                    }
+                });
+        }
         GrayImage {
             width: img.width,
             height: img.height,
             data,
         }
+    }
+
+    /// [`GrayImage::from_image`] of every image, converted in parallel.
+    pub fn from_images(images: &[&Image]) -> Vec<GrayImage> {
+        images
+            .par_iter()
+            .map(|i| GrayImage::from_image(i))
+            .collect()
     }
 
     /// Brightness at pixel (x, y) (no bounds check beyond the slice's).

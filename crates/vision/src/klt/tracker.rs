@@ -332,11 +332,20 @@ impl Tracker {
                         })
                     })
                     .collect();
+                // Each accepted template updates itself (and, for its first frames, averages
+                // the frame's window in): in parallel, by track.
+                let mut warps = vec![None; self.templates.len()];
                 for (k, warp) in accepted.into_iter().flatten() {
-                    if let Some(t) = self.templates[k].as_mut() {
-                        t.accept(warp, drift_img);
-                    }
+                    warps[k] = Some(warp);
                 }
+                self.templates
+                    .par_iter_mut()
+                    .zip(warps)
+                    .for_each(|(t, warp)| {
+                        if let (Some(t), Some(warp)) = (t.as_mut(), warp) {
+                            t.accept(warp, drift_img);
+                        }
+                    });
             }
             for (slot, r) in slots.into_iter().zip(res) {
                 let Some(k) = self.live[slot] else { continue };

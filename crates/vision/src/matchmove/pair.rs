@@ -9,7 +9,8 @@
 //! frame's DLT camera, factored as K'[R|t], has a K' farther than `max_k_difference` (largest
 //! entry difference) from the known K — unless the known K itself explains the frame
 //! ([`known_k_inliers`], for nearly planar sets where K' is poorly determined). The pair with
-//! the most inliers wins.
+//! the most inliers wins. Pairs whose inliers can no longer beat the best finished one are
+//! not resected further ([`best_pair`]): the same winner, found sooner.
 //!
 //! The book tries every pair; `stride` restricts the candidates to every `stride`-th frame (plus
 //! the last) — with the default 6, about 60 pairs of a 60-frame fragment instead of 1800, at no
@@ -105,9 +106,10 @@ pub struct BestPair {
     /// Inlier features (indices into `Fragment::features`) and their 3D points, in the frame
     /// of camera i (which is [I|0]); camera j has a unit baseline.
     pub points: Vec<(usize, Vector3<f64>)>,
-    /// Pairs evaluated.
+    /// Candidate pairs (all of them were reconstructed from two views).
     pub candidates: usize,
-    /// Pairs rejected by the intrinsics-consistency test.
+    /// Pairs rejected by the intrinsics-consistency test, of those whose frames were resected
+    /// (a pair that could no longer beat the best is not resected further).
     pub rejected_k: usize,
 }
 
@@ -116,10 +118,28 @@ enum PairFailure {
     TwoView(VisionError),
     IntrinsicsTest,
     TooFew,
+    /// Its inliers fell to where it can no longer win (see [`best_pair`]).
+    Beaten,
 }
 
-/// Evaluates one pair: its inlier features and their points, or why it failed.
-fn evaluate_pair(
+/// A pair's two-view reconstruction: its features (indices into the fragment's) and their
+/// points, and its random stream, which the frames' resections go on drawing from.
+struct TwoViewSeed {
+    feats: Vec<usize>,
+    p3: Vec<Point3<f64>>,
+    rng: Pcg64,
+}
+
+/// The best result so far of the resection stage: (inliers, candidate index). A pair with
+/// `inliers` below it, or equal with a later index, can no longer win.
+type Bound = Option<(usize, usize)>;
+
+fn beaten(count: usize, n: usize, bound: Bound) -> bool {
+    bound.is_some_and(|(best, at)| count < best || (count == best && n > at))
+}
+
+/// Stage one of a pair: the two-view reconstruction, or why it failed.
+fn two_view_stage(
     k: &Intrinsics,
     frag: &Fragment,
     obs: &[&[[f64; 2]]],
@@ -127,7 +147,7 @@ fn evaluate_pair(
     j: usize,
     options: &PairOptions,
     seed: u64,
-) -> std::result::Result<Vec<(usize, Vector3<f64>)>, PairFailure> {
+) -> std::result::Result<TwoViewSeed, PairFailure> {
     let mut rng = Pcg64::seed_from_u64(seed);
     let (li, lj) = (i - frag.first, j - frag.first);
     let a: Vec<Point2<f64>> = obs
@@ -161,6 +181,23 @@ fn evaluate_pair(
     if feats.len() < options.min_inliers.max(6) {
         return Err(PairFailure::TooFew);
     }
+    Ok(TwoViewSeed { feats, p3, rng })
+}
+
+/// Stage two of pair `n`: every frame of the fragment resected from its points; its inlier
+/// features and their points, or why it failed. Stops as [`PairFailure::Beaten`] once its
+/// inliers (which only fall, frame by frame) can no longer beat `bound`.
+#[allow(clippy::too_many_arguments)]
+fn resection_stage(
+    k: &Intrinsics,
+    frag: &Fragment,
+    obs: &[&[[f64; 2]]],
+    seed: TwoViewSeed,
+    options: &PairOptions,
+    n: usize,
+    bound: Bound,
+) -> std::result::Result<Vec<(usize, Vector3<f64>)>, PairFailure> {
+    let TwoViewSeed { feats, p3, mut rng } = seed;
     let mut inlier = vec![true; feats.len()];
     let res_params = RansacParams {
         threshold: options.resection_tolerance,
@@ -190,8 +227,12 @@ fn evaluate_pair(
         for (flag, r) in inlier.iter_mut().zip(&frame_inliers) {
             *flag &= *r;
         }
-        if inlier.iter().filter(|&&x| x).count() < options.min_inliers {
+        let count = inlier.iter().filter(|&&x| x).count();
+        if count < options.min_inliers {
             return Err(PairFailure::TooFew);
+        }
+        if beaten(count, n, bound) {
+            return Err(PairFailure::Beaten);
         }
     }
     Ok(feats
@@ -273,26 +314,60 @@ pub fn best_pair(
             options.min_displacement
         )));
     }
-    let results: Vec<_> = pairs
+    // Stage one, every pair: the two-view reconstructions.
+    let mut staged: Vec<(usize, std::result::Result<TwoViewSeed, PairFailure>)> = pairs
         .par_iter()
         .enumerate()
         .map(|(n, &(i, j))| {
-            evaluate_pair(k, frag, &obs, i, j, options, derive_seed(seed, 7, n as u64))
+            let s = two_view_stage(k, frag, &obs, i, j, options, derive_seed(seed, 7, n as u64));
+            (n, s)
         })
         .collect();
+    // Stage two, the frames' resections, most two-view inliers first, a batch of pairs at a
+    // time: a pair's inliers only fall as its frames are resected, so one that starts (or
+    // falls) below the best finished pair's — or level with it and later in the order, as
+    // ties go to the earlier pair — cannot win and is dropped. The batches are fixed (not
+    // the thread count), so the winner — the pair with the most inliers after every frame,
+    // the earliest on ties — is the one evaluating every pair would find, on any machine.
+    const BATCH: usize = 4;
+    staged.sort_by_key(|(n, s)| {
+        (
+            std::cmp::Reverse(s.as_ref().map_or(0, |s| s.feats.len())),
+            *n,
+        )
+    });
     type Seed = Vec<(usize, Vector3<f64>)>;
     let mut best: Option<(usize, Seed)> = None;
     let (mut zero_baseline, mut rejected_k) = (0usize, 0usize);
-    for (n, r) in results.into_iter().enumerate() {
-        match r {
-            Ok(points) => {
-                if best.as_ref().is_none_or(|b| points.len() > b.1.len()) {
-                    best = Some((n, points));
+    let mut rest = staged.into_iter().peekable();
+    while rest.peek().is_some() {
+        let bound: Bound = best.as_ref().map(|(n, p)| (p.len(), *n));
+        let batch: Vec<_> = rest.by_ref().take(BATCH).collect();
+        let results: Vec<(usize, std::result::Result<Seed, PairFailure>)> = batch
+            .into_par_iter()
+            .map(|(n, s)| {
+                let r = s.and_then(|s| {
+                    if beaten(s.feats.len(), n, bound) {
+                        return Err(PairFailure::Beaten);
+                    }
+                    resection_stage(k, frag, &obs, s, options, n, bound)
+                });
+                (n, r)
+            })
+            .collect();
+        for (n, r) in results {
+            match r {
+                Ok(points) => {
+                    if best.as_ref().is_none_or(|b| {
+                        (points.len(), std::cmp::Reverse(n)) > (b.1.len(), std::cmp::Reverse(b.0))
+                    }) {
+                        best = Some((n, points));
+                    }
                 }
+                Err(PairFailure::TwoView(VisionError::ZeroBaseline)) => zero_baseline += 1,
+                Err(PairFailure::IntrinsicsTest) => rejected_k += 1,
+                Err(_) => {}
             }
-            Err(PairFailure::TwoView(VisionError::ZeroBaseline)) => zero_baseline += 1,
-            Err(PairFailure::IntrinsicsTest) => rejected_k += 1,
-            Err(_) => {}
         }
     }
     match best {
