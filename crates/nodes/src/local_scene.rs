@@ -5,7 +5,7 @@
 //! ([`vfxgraph_render::proxy`]); `add_objects` puts the designed CG objects into that local scene last, so the local scene's
 //! nodes never see them and a change of an object reruns only what renders it.
 
-use vfxgraph_engine::{ArtifactType, Context, NodeError, NodeSpec, PortSpec, Registry};
+use vfxgraph_engine::{Context, NodeError, NodeSpec, Registry};
 use vfxgraph_render::catcher_texture::View;
 use vfxgraph_render::local_scene::{add_objects, texture_local_scene_report, LocalTextureOptions};
 use vfxgraph_render::proxy::{add_proxies, ProxyOptions};
@@ -51,17 +51,12 @@ pub fn register(r: &mut Registry) {
              from the set alone and add the objects last: a change of an object's material \
              then reruns only this node and the renders, never the catcher fit or texture.",
         )
-        .input(PortSpec::one("scene", SceneArt::NAME, "the local scene"))
-        .input(PortSpec::one(
+        .input_of::<SceneArt>("scene", "the local scene")
+        .input_of::<SceneArt>(
             "objects",
-            SceneArt::NAME,
             "the placed insert (its catchers, camera and dome are not used)",
-        ))
-        .output(PortSpec::one(
-            "scene",
-            SceneArt::NAME,
-            "the local scene with the objects",
-        )),
+        )
+        .output_of::<SceneArt>("scene", "the local scene with the objects"),
         run_add_objects,
     ));
     r.register_node(FnNode::new(
@@ -74,18 +69,10 @@ pub fn register(r: &mut Registry) {
              in their reflections and occludes the dome for their lighting.",
         )
         .options::<ProxyOptions>()
-        .input(PortSpec::one("scene", SceneArt::NAME, "the placed scene"))
-        .input(PortSpec::one(
-            "points3d",
-            Points3dArt::NAME,
-            "the measured points",
-        ))
-        .output(PortSpec::one(
-            "scene",
-            SceneArt::NAME,
-            "the scene with the proxies' faces as catchers",
-        ))
-        .output(PortSpec::one("report", ReportArt::NAME, "proxies made")),
+        .input_of::<SceneArt>("scene", "the placed scene")
+        .input_of::<Points3dArt>("points3d", "the measured points")
+        .output_of::<SceneArt>("scene", "the scene with the proxies' faces as catchers")
+        .output_of::<ReportArt>("report", "proxies made"),
         run_proxy_from_points,
     ));
     r.register_node(FnNode::new(
@@ -112,28 +99,15 @@ pub fn register(r: &mut Registry) {
             .version(3)
             .options::<LocalTextureOptions>(),
         ))
-        .input(PortSpec::sequence(
-            "plate",
-            ImageArt::NAME,
-            "the plate frames (linear radiance)",
-        ))
-        .output(PortSpec::one(
-            "scene",
-            SceneArt::NAME,
-            "the scene with the catcher's albedo texture",
-        ))
-        .output(PortSpec::one(
+        .sequence_input_of::<ImageArt>("plate", "the plate frames (linear radiance)")
+        .output_of::<SceneArt>("scene", "the scene with the catcher's albedo texture")
+        .output_of::<ImageArt>(
             "albedo",
-            ImageArt::NAME,
             "the estimated albedo, linear RGB; column i along the map's u edge, row j along v \
              (see the report's map corners)",
-        ))
-        .output(PortSpec::one(
-            "seen",
-            ImageArt::NAME,
-            "frames that saw each texel (one channel)",
-        ))
-        .output(PortSpec::one("report", ReportArt::NAME, "the estimate")),
+        )
+        .output_of::<ImageArt>("seen", "frames that saw each texel (one channel)")
+        .output_of::<ReportArt>("report", "the estimate"),
         run_catcher_texture,
     ));
 }

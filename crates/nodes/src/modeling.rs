@@ -1,9 +1,7 @@
 //! Modeling nodes (book chapter 8): `read_marks`, `point_cloud_calibrate`.
 
 use vfxgraph_engine::artifact::{decode_json, encode_json};
-use vfxgraph_engine::{
-    ArtifactType, Mode, NodeSpec, ParamSpec, ParamType, PathRole, PortSpec, Registry,
-};
+use vfxgraph_engine::{ArtifactType, Mode, NodeSpec, Registry};
 use vfxgraph_vision::formats::marked_points::{
     read_marked_points, write_marked_points, MarkedPoints,
 };
@@ -40,12 +38,8 @@ pub fn register(r: &mut Registry) {
         .mode(Mode::Once)
         .threads(vfxgraph_engine::Threads::One)
         .memory(vfxgraph_engine::Memory::Fixed(256))
-        .param(ParamSpec::required(
-            "path",
-            ParamType::Path(PathRole::Input),
-            "marked-points file",
-        ))
-        .output(PortSpec::one("marks", MarkedPointsArt::NAME, "the marks")),
+        .input_file_param("path", "marked-points file")
+        .output_of::<MarkedPointsArt>("marks", "the marks"),
         |ctx| {
             let path = ctx.path("path");
             let marks = if vfxgraph_vision::formats::is_json(&path) {
@@ -63,12 +57,8 @@ pub fn register(r: &mut Registry) {
             "Writes marked points as the book's `points2d.txt`, or JSON when the name ends \
              in .json; what `read_marks` reads.",
         )
-        .param(ParamSpec::required(
-            "path",
-            ParamType::Path(PathRole::Output),
-            "marked-points file",
-        ))
-        .input(PortSpec::one("marks", MarkedPointsArt::NAME, "the marks")),
+        .output_file_param("path", "marked-points file")
+        .input_of::<MarkedPointsArt>("marks", "the marks"),
         |ctx| {
             let marks = &ctx.input::<MarkedPointsArt>("marks")?.0;
             Ok(write_marked_points(
@@ -85,31 +75,17 @@ pub fn register(r: &mut Registry) {
              Levenberg–Marquardt over all its marks with the cameras fixed.",
         )
         .mode(Mode::Once)
-        .input(PortSpec::one(
-            "marks",
-            MarkedPointsArt::NAME,
-            "the marked points",
-        ))
-        .input(PortSpec::one(
+        .input_of::<MarkedPointsArt>("marks", "the marked points")
+        .input_of::<CameraPathArt>(
             "cameras",
-            CameraPathArt::NAME,
             "the solved cameras (K from the path unless `intrinsics` is connected)",
-        ))
-        .input(PortSpec::optional(PortSpec::one(
-            "intrinsics",
-            IntrinsicsArt::NAME,
-            "K, when the path carries none",
-        )))
-        .output(PortSpec::one(
-            "points3d",
-            Points3dArt::NAME,
-            "one world point per marked point",
-        ))
-        .output(PortSpec::one(
+        )
+        .optional_input_of::<IntrinsicsArt>("intrinsics", "K, when the path carries none")
+        .output_of::<Points3dArt>("points3d", "one world point per marked point")
+        .output_of::<ReportArt>(
             "report",
-            ReportArt::NAME,
             "frames used, the pair each point came from, per-point RMS and per-mark errors",
-        )),
+        ),
         |ctx| {
             let marks = &ctx.input::<MarkedPointsArt>("marks")?.0;
             let path = &ctx.input::<CameraPathArt>("cameras")?.0;

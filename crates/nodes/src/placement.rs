@@ -5,7 +5,7 @@
 //! the measured ground points and sets objects designed in the catcher's own frame on it. The
 //! algorithms and their options are in the render crate's `placement` module.
 
-use vfxgraph_engine::{ArtifactType, Context, Mode, NodeError, NodeSpec, PortSpec, Registry};
+use vfxgraph_engine::{Context, Mode, NodeError, NodeSpec, Registry};
 use vfxgraph_render::placement::place::{
     catcher_from_points, place_scene, CatcherOptions, Design, PlaceOptions, Viewers,
 };
@@ -71,32 +71,19 @@ pub fn register(r: &mut Registry) {
         )
         .mode(Mode::Once)
         .options::<PlaceOptions>()
-        .input(PortSpec::one("scene", SceneArt::NAME, "the designed scene"))
-        .input(PortSpec::one(
-            "points3d",
-            Points3dArt::NAME,
-            "the same points measured in the solve's frame",
-        ))
-        .input(
-            PortSpec::one(
-                "dome_image",
-                ImageArt::NAME,
-                "an equirectangular image for the scene's dome (when its own, e.g. the book's \
-                 dome.pfm, is not available)",
-            )
-            .optional(),
+        .input_of::<SceneArt>("scene", "the designed scene")
+        .input_of::<Points3dArt>("points3d", "the same points measured in the solve's frame")
+        .optional_input_of::<ImageArt>(
+            "dome_image",
+            "an equirectangular image for the scene's dome (when its own, e.g. the book's \
+             dome.pfm, is not available)",
         )
-        .output(PortSpec::one(
-            "scene",
-            SceneArt::NAME,
-            "the scene in the solve's frame",
-        ))
-        .output(PortSpec::one(
+        .output_of::<SceneArt>("scene", "the scene in the solve's frame")
+        .output_of::<ReportArt>(
             "report",
-            ReportArt::NAME,
             "the similarity (scale, rotation, angle, translation), anchors, measured points, \
              residuals and the relative RMS",
-        )),
+        ),
         run_place_scene,
     ));
     r.register_node(FnNode::new(
@@ -113,46 +100,28 @@ pub fn register(r: &mut Registry) {
         )
         .mode(Mode::Once)
         .options::<CatcherOptions>()
-        .input(PortSpec::one(
-            "points3d",
-            Points3dArt::NAME,
-            "measured points (point_cloud_calibrate)",
-        ))
-        .input(
-            PortSpec::one(
-                "scene",
-                SceneArt::NAME,
-                "objects (and dome, lights) designed in the catcher's frame (y up, unit |AB|)",
-            )
-            .optional(),
-        )
-        .input(
-            PortSpec::one(
-                "cameras",
-                CameraPathArt::NAME,
-                "the solved cameras: the ground's normal faces them; the first one is the \
-                 output scene's camera when no scene is connected",
-            )
-            .optional(),
-        )
-        .input(
-            PortSpec::one(
-                "dome_image",
-                ImageArt::NAME,
-                "an equirectangular image for the designed scene's dome",
-            )
-            .optional(),
-        )
-        .output(PortSpec::one(
+        .input_of::<Points3dArt>("points3d", "measured points (point_cloud_calibrate)")
+        .optional_input_of::<SceneArt>(
             "scene",
-            SceneArt::NAME,
+            "objects (and dome, lights) designed in the catcher's frame (y up, unit |AB|)",
+        )
+        .optional_input_of::<CameraPathArt>(
+            "cameras",
+            "the solved cameras: the ground's normal faces them; the first one is the \
+             output scene's camera when no scene is connected",
+        )
+        .optional_input_of::<ImageArt>(
+            "dome_image",
+            "an equirectangular image for the designed scene's dome",
+        )
+        .output_of::<SceneArt>(
+            "scene",
             "the catcher and the placed objects in the solve's frame",
-        ))
-        .output(PortSpec::one(
+        )
+        .output_of::<ReportArt>(
             "report",
-            ReportArt::NAME,
             "the catcher's corners, frame (origin, axes, unit), planarity and the placed objects",
-        )),
+        ),
         run_catcher_from_points,
     ));
 }

@@ -8,10 +8,7 @@ use std::sync::Mutex;
 
 use vfxgraph_engine::artifact::codec::{put_bytes, put_u64, Reader};
 use vfxgraph_engine::artifact::{decode_json, encode_json};
-use vfxgraph_engine::{
-    ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, PathRole, PortSpec,
-    Registry, Threads,
-};
+use vfxgraph_engine::{ArtifactType, Context, Mode, NodeError, NodeSpec, Registry, Threads};
 use vfxgraph_render::dome::{Dome, Light};
 use vfxgraph_render::{
     camera_for_frame, read_scene_file, render, Camera, ImageSize, PathPose, RenderOptions, Scene,
@@ -75,10 +72,10 @@ impl ArtifactType for SceneArt {
 pub(crate) fn scene_inputs(spec: NodeSpec, docs: [&'static str; 3]) -> NodeSpec {
     let [scene, cameras, intrinsics] = docs;
     let dome = "a light dome replacing the scene's dome or background";
-    spec.input(PortSpec::one("scene", SceneArt::NAME, scene))
-        .input(PortSpec::one("dome", DomeArt::NAME, dome).optional())
-        .input(PortSpec::one("cameras", CameraPathArt::NAME, cameras).optional())
-        .input(PortSpec::one("intrinsics", IntrinsicsArt::NAME, intrinsics).optional())
+    spec.input_of::<SceneArt>("scene", scene)
+        .optional_input_of::<DomeArt>("dome", dome)
+        .optional_input_of::<CameraPathArt>("cameras", cameras)
+        .optional_input_of::<IntrinsicsArt>("intrinsics", intrinsics)
 }
 
 /// Registers the artifact and nodes of this module.
@@ -102,12 +99,11 @@ pub fn register(r: &mut Registry) {
         .threads(Threads::One)
         .mode(Mode::Once)
         .memory(vfxgraph_engine::Memory::Fixed(512))
-        .param(ParamSpec::required(
+        .input_file_param(
             "path",
-            ParamType::Path(PathRole::Input),
             "the .scn or .yaml scene file, relative to the graph file",
-        ))
-        .output(PortSpec::one("scene", SceneArt::NAME, "the scene")),
+        )
+        .output_of::<SceneArt>("scene", "the scene"),
         run_read_scene,
     ));
     r.register_node(FnNode::new(
@@ -138,16 +134,8 @@ pub fn register(r: &mut Registry) {
                 "K (and image size, if known) replacing the scene camera's",
             ],
         )
-        .output(PortSpec::one(
-            "image",
-            ImageArt::NAME,
-            "radiance, linear RGB",
-        ))
-        .output(PortSpec::one(
-            "variance",
-            ImageArt::NAME,
-            "per-pixel variance of the mean, linear RGB",
-        )),
+        .output_of::<ImageArt>("image", "radiance, linear RGB")
+        .output_of::<ImageArt>("variance", "per-pixel variance of the mean, linear RGB"),
         run_render,
     ));
 }

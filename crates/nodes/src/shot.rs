@@ -4,8 +4,7 @@
 
 use vfxgraph_engine::artifact::codec::{put_bytes, put_u64, Reader};
 use vfxgraph_engine::{
-    ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, PathRole, PortSpec,
-    Registry,
+    ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, Registry,
 };
 use vfxgraph_imaging::io::{encode_exr_layers, LayersOptions};
 use vfxgraph_imaging::{read_image, Image};
@@ -98,17 +97,12 @@ pub fn register(r: &mut Registry) {
             ))
             .options::<FitCatcherOptions>(),
         )
-        .input(PortSpec::sequence(
+        .sequence_input_of::<ImageArt>(
             "plate",
-            ImageArt::NAME,
             "the plate frames (linear radiance); frame `frame` is used",
-        ))
-        .output(PortSpec::one(
-            "scene",
-            SceneArt::NAME,
-            "the scene with the fitted catcher colour",
-        ))
-        .output(PortSpec::one("report", ReportArt::NAME, "the fit")),
+        )
+        .output_of::<SceneArt>("scene", "the scene with the fitted catcher colour")
+        .output_of::<ReportArt>("report", "the fit"),
         run_fit_catcher,
     ));
     r.register_node(FnNode::new(
@@ -135,40 +129,22 @@ pub fn register(r: &mut Registry) {
             })
             .options::<DifferentialOptions>(),
         )
-        .input(
-            PortSpec::one(
-                "plate",
-                ImageArt::NAME,
-                "this frame's plate (linear radiance)",
-            )
-            .optional(),
-        )
-        .output(PortSpec::one(
-            "image",
-            ImageArt::NAME,
-            "the composite (linear RGB)",
-        ))
-        .output(PortSpec::one(
+        .optional_input_of::<ImageArt>("plate", "this frame's plate (linear radiance)")
+        .output_of::<ImageArt>("image", "the composite (linear RGB)")
+        .output_of::<ImageArt>(
             "beauty",
-            ImageArt::NAME,
             "the synthetic objects, RGBA premultiplied (alpha = coverage)",
-        ))
-        .output(PortSpec::one(
+        )
+        .output_of::<ImageArt>(
             "shadow",
-            ImageArt::NAME,
             "the shadow/light matte: catcher with / without objects (1 = unchanged), RGB",
-        ))
-        .output(PortSpec::one(
+        )
+        .output_of::<LayersArt>(
             "layers",
-            LayersArt::NAME,
             "composite, beauty, shadow, shadow_difference, catcher_with, catcher_without, \
              variance, samples",
-        ))
-        .output(PortSpec::one(
-            "report",
-            ReportArt::NAME,
-            "counters and time",
-        )),
+        )
+        .output_of::<ReportArt>("report", "counters and time"),
         run_differential_render,
     ));
     r.register_node(FnNode::new(
@@ -183,17 +159,9 @@ pub fn register(r: &mut Registry) {
         .mode(Mode::Either)
         .threads(vfxgraph_engine::Threads::One)
         .options::<CompositeOptions>()
-        .input(PortSpec::one(
-            "layers",
-            LayersArt::NAME,
-            "from differential_render",
-        ))
-        .input(PortSpec::one("plate", ImageArt::NAME, "the frame's plate").optional())
-        .output(PortSpec::one(
-            "image",
-            ImageArt::NAME,
-            "the composite, linear RGB",
-        )),
+        .input_of::<LayersArt>("layers", "from differential_render")
+        .optional_input_of::<ImageArt>("plate", "the frame's plate")
+        .output_of::<ImageArt>("image", "the composite, linear RGB"),
         run_composite,
     ));
     r.register_node(FnNode::new(
@@ -205,13 +173,9 @@ pub fn register(r: &mut Registry) {
         )
         .mode(Mode::Either)
         .threads(vfxgraph_engine::Threads::One)
-        .param(ParamSpec::required(
-            "path",
-            ParamType::Path(PathRole::Output),
-            "output file, e.g. out/shot.%04d.exr",
-        ))
+        .output_file_param("path", "output file, e.g. out/shot.%04d.exr")
         .options::<LayersOptions>()
-        .input(PortSpec::one("layers", LayersArt::NAME, "the layers")),
+        .input_of::<LayersArt>("layers", "the layers"),
         run_write_layers,
     ));
 }
