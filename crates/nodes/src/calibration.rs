@@ -1,7 +1,6 @@
 //! Camera calibration nodes (book chapters 2–5): `read_intrinsics`, `read_points2d`,
 //! `read_points3d`, `calibrate_camera`, `two_view`, `write_camera`, `write_report`.
 
-use vfxgraph_engine::fsutil::atomic_write;
 use vfxgraph_engine::{ArtifactType, Context, Mode, NodeError, NodeSpec, PortSpec, Registry};
 use vfxgraph_vision::calibration::{calibrate_camera, CalibrateParams};
 use vfxgraph_vision::formats;
@@ -142,9 +141,7 @@ pub fn register(r: &mut Registry) {
 fn write_json<T: serde::Serialize>(ctx: &Context<'_>, value: &T) -> Result<(), NodeError> {
     let mut text = serde_json::to_string_pretty(value)?;
     text.push('\n');
-    let path = crate::output_path(ctx, "path")?;
-    atomic_write(&path, text.as_bytes())
-        .map_err(|e| NodeError::msg(format!("cannot write {}: {e}", path.display())))
+    crate::write_output(ctx, "path", text.as_bytes())
 }
 
 fn run_calibrate(ctx: &mut Context<'_>) -> Result<(), NodeError> {

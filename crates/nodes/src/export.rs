@@ -5,7 +5,6 @@
 use std::path::{Path, PathBuf};
 
 use serde_json::json;
-use vfxgraph_engine::fsutil::atomic_write;
 use vfxgraph_engine::{
     Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, PortSpec, Registry,
 };
@@ -162,10 +161,7 @@ pub fn write(
     shot: &Shot,
     options: &SceneOptions,
 ) -> Result<Vec<PathBuf>, NodeError> {
-    write_with(format, path, shot, options, |p, bytes| {
-        atomic_write(p, bytes)
-            .map_err(|e| NodeError::msg(format!("cannot write {}: {e}", p.display())))
-    })
+    write_with(format, path, shot, options, crate::write_atomic)
 }
 
 /// [`write`] with each file's bytes handed to `put` (the node's `Context::write_file`).

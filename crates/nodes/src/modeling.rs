@@ -1,30 +1,20 @@
 //! Modeling nodes (book chapter 8): `read_marks`, `point_cloud_calibrate`.
 
-use vfxgraph_engine::artifact::{decode_json, encode_json};
-use vfxgraph_engine::{ArtifactType, Mode, NodeSpec, Registry};
+use vfxgraph_engine::{Mode, NodeSpec, Registry};
 use vfxgraph_vision::formats::marked_points::{
     read_marked_points, write_marked_points, MarkedPoints,
 };
 use vfxgraph_vision::modeling::point_cloud_calibrate;
 
-use crate::artifacts::{CameraPathArt, IntrinsicsArt, Points3dArt, ReportArt};
+use crate::artifacts::{json_artifact, CameraPathArt, IntrinsicsArt, Points3dArt, ReportArt};
 use crate::FnNode;
 
-/// Points marked by hand on several frames (`marks`).
-#[derive(Clone, Debug, PartialEq)]
-pub struct MarkedPointsArt(pub MarkedPoints);
-
-impl ArtifactType for MarkedPointsArt {
-    const NAME: &'static str = "marks";
-    const DOC: &'static str =
-        "The same n scene points marked, in the same order, on several frames (book chapter 8).";
-    fn encode(&self, out: &mut Vec<u8>) {
-        encode_json(&self.0, out);
-    }
-    fn decode(bytes: &[u8]) -> Result<Self, String> {
-        decode_json(bytes).map(MarkedPointsArt)
-    }
-}
+json_artifact!(
+    /// Points marked by hand on several frames (`marks`).
+    MarkedPointsArt(MarkedPoints),
+    "marks",
+    "The same n scene points marked, in the same order, on several frames (book chapter 8)."
+);
 
 /// Registers the artifact and nodes of this module.
 pub fn register(r: &mut Registry) {

@@ -2,7 +2,6 @@
 //! `draw_tracks`, and the `tracks` artifact.
 
 use vfxgraph_engine::artifact::{decode_json, encode_json};
-use vfxgraph_engine::fsutil::atomic_write;
 use vfxgraph_engine::{ArtifactType, Context, Mode, NodeError, NodeSpec, Registry};
 use vfxgraph_vision::klt::{
     draw_tracks, track_sequence, DrawTracksOptions, GrayImage, TrackerParams, Tracks,
@@ -138,9 +137,7 @@ fn run_read_tracks(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 fn run_write_tracks(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: WriteTracksOptions = ctx.options()?;
     let text = o.format.text(&ctx.input::<TracksArt>("tracks")?.0);
-    let path = crate::output_path(ctx, "path")?;
-    atomic_write(&path, text.as_bytes())
-        .map_err(|e| NodeError::msg(format!("cannot write {}: {e}", path.display())))
+    crate::write_output(ctx, "path", text.as_bytes())
 }
 
 fn run_draw_tracks(ctx: &mut Context<'_>) -> Result<(), NodeError> {
