@@ -62,7 +62,8 @@ pub fn register(r: &mut Registry) {
     ));
 }
 
-fn check_pattern(ctx: &Context<'_>) -> Result<(), NodeError> {
+/// Per frame, path param `path` must hold a frame pattern (else every frame would use one file).
+pub(crate) fn check_pattern(ctx: &Context<'_>) -> Result<(), NodeError> {
     if ctx.frame().is_some() && !has_frame_pattern(ctx.params().str("path")) {
         return Err(NodeError::msg(format!(
             "path `{}` has no frame pattern (`%04d` or `####`): every frame would use one file",

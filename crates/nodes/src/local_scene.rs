@@ -9,10 +9,9 @@ use vfxgraph_engine::{Context, NodeError, NodeSpec, Registry};
 use vfxgraph_render::catcher_texture::View;
 use vfxgraph_render::local_scene::{add_objects, texture_local_scene_report, LocalTextureOptions};
 use vfxgraph_render::proxy::{add_proxies, ProxyOptions};
-use vfxgraph_render::Vec3;
 
 use crate::artifacts::{ImageArt, Points3dArt, ReportArt};
-use crate::hdr::DomeArt;
+use crate::placement::measured;
 use crate::render::{camera_for, pick_light, SceneArt};
 use crate::shot::{light_and_camera_inputs, size_params};
 use crate::FnNode;
@@ -20,11 +19,7 @@ use crate::FnNode;
 fn run_proxy_from_points(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: ProxyOptions = ctx.options()?;
     let art = ctx.input::<SceneArt>("scene")?;
-    let pts: Vec<Vec3> = (ctx.input::<Points3dArt>("points3d")?.0 .0)
-        .iter()
-        .map(|p| Vec3::new(p.x, p.y, p.z))
-        .collect();
-    let (scene, report) = add_proxies(&art.scene, &pts, &o).map_err(NodeError::msg)?;
+    let (scene, report) = add_proxies(&art.scene, &measured(ctx)?, &o).map_err(NodeError::msg)?;
     let dome = art.dome.clone();
     ctx.output("scene", SceneArt { scene, dome });
     ctx.output("report", ReportArt(report));
@@ -115,8 +110,7 @@ pub fn register(r: &mut Registry) {
 fn run_catcher_texture(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: LocalTextureOptions = ctx.options()?;
     let art = ctx.input::<SceneArt>("scene")?;
-    let input_dome = ctx.input_opt::<DomeArt>("dome")?.map(|d| &d.0);
-    let light = pick_light(input_dome, art)?;
+    let light = pick_light(ctx, art)?;
     let plates = ctx.sequence::<ImageArt>("plate")?;
     let range = match (plates.first(), plates.last()) {
         (Some(a), Some(b)) => format!("{}–{}", a.0, b.0),
@@ -157,14 +151,8 @@ fn run_catcher_texture(ctx: &mut Context<'_>) -> Result<(), NodeError> {
         Some(ctx.cancel_flag()),
     )
     .map_err(|e| NodeError::msg(e.to_string()))?;
-    let dome = art.dome.clone();
-    ctx.output(
-        "scene",
-        SceneArt {
-            scene: out.scene,
-            dome,
-        },
-    );
+    let (scene, dome) = (out.scene, art.dome.clone());
+    ctx.output("scene", SceneArt { scene, dome });
     ctx.output("albedo", ImageArt(out.albedo));
     ctx.output("seen", ImageArt(out.seen));
     ctx.output("report", ReportArt(out.report));

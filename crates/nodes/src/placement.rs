@@ -13,11 +13,11 @@ use vfxgraph_render::{Camera, Vec3};
 use vfxgraph_vision::formats::CameraPath;
 
 use crate::artifacts::{CameraPathArt, ImageArt, Points3dArt, ReportArt};
-use crate::render::SceneArt;
+use crate::render::{rows, SceneArt};
 use crate::FnNode;
 
 /// The `points3d` input as render points.
-fn measured(ctx: &Context<'_>) -> Result<Vec<Vec3>, NodeError> {
+pub(crate) fn measured(ctx: &Context<'_>) -> Result<Vec<Vec3>, NodeError> {
     let pts = &ctx.input::<Points3dArt>("points3d")?.0 .0;
     Ok(pts.iter().map(|p| Vec3::new(p.x, p.y, p.z)).collect())
 }
@@ -34,20 +34,13 @@ fn viewers(path: &CameraPath, with_view: bool) -> Result<Viewers, NodeError> {
         })
         .collect();
     let first = match (path.frames.first(), &path.intrinsics) {
-        (Some(f), Some(k)) if with_view => {
-            let r = &f.pose.r;
-            Some(Camera::from_krt(
-                [[k.f1, k.s, k.u0], [0.0, k.f2, k.v0], [0.0, 0.0, 1.0]],
-                [
-                    [r[(0, 0)], r[(0, 1)], r[(0, 2)]],
-                    [r[(1, 0)], r[(1, 1)], r[(1, 2)]],
-                    [r[(2, 0)], r[(2, 1)], r[(2, 2)]],
-                ],
-                [f.pose.t.x, f.pose.t.y, f.pose.t.z],
-                k.width.unwrap_or(1280) as usize,
-                k.height.unwrap_or(720) as usize,
-            )?)
-        }
+        (Some(f), Some(k)) if with_view => Some(Camera::from_krt(
+            rows(&k.k()),
+            rows(&f.pose.r),
+            [f.pose.t.x, f.pose.t.y, f.pose.t.z],
+            k.width.unwrap_or(1280) as usize,
+            k.height.unwrap_or(720) as usize,
+        )?),
         _ => None,
     };
     Ok(Viewers { centres, first })
@@ -137,13 +130,8 @@ fn run_place_scene(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let p = place_scene(design, image, &measured(ctx)?, &o)
         .map_err(|e| NodeError::msg(format!("place_scene: {e}")))?;
     let report = p.report();
-    ctx.output(
-        "scene",
-        SceneArt {
-            scene: p.scene,
-            dome: p.dome,
-        },
-    );
+    let (scene, dome) = (p.scene, p.dome);
+    ctx.output("scene", SceneArt { scene, dome });
     ctx.output("report", ReportArt(report));
     Ok(())
 }
@@ -164,13 +152,8 @@ fn run_catcher_from_points(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let c = catcher_from_points(&pts, &viewers, design, image, &o)
         .map_err(|e| NodeError::msg(format!("catcher_from_points: {e}")))?;
     let report = c.report();
-    ctx.output(
-        "scene",
-        SceneArt {
-            scene: c.scene,
-            dome: c.dome,
-        },
-    );
+    let (scene, dome) = (c.scene, c.dome);
+    ctx.output("scene", SceneArt { scene, dome });
     ctx.output("report", ReportArt(report));
     Ok(())
 }

@@ -6,6 +6,8 @@
 
 use std::sync::Mutex;
 
+use nalgebra::Matrix3;
+
 use vfxgraph_engine::artifact::codec::{put_bytes, put_u64, Reader};
 use vfxgraph_engine::artifact::{decode_json, encode_json};
 use vfxgraph_engine::{ArtifactType, Context, Mode, NodeError, NodeSpec, Registry, Threads};
@@ -170,7 +172,7 @@ pub(crate) fn camera_for(
         None => path.and_then(|p| p.intrinsics.as_ref()),
     };
     let k = k.map(|k| SolvedK {
-        k: [[k.f1, k.s, k.u0], [0.0, k.f2, k.v0], [0.0, 0.0, 1.0]],
+        k: rows(&k.k()),
         size: k.width.zip(k.height).map(|(w, h)| (w as usize, h as usize)),
         distortion: k.distortion,
     });
@@ -186,16 +188,17 @@ pub(crate) fn camera_for(
     .map_err(|e| NodeError::msg(e.to_string()))
 }
 
+/// A matrix as the render crate takes it: an array of its rows.
+pub(crate) fn rows(m: &Matrix3<f64>) -> [[f64; 3]; 3] {
+    m.transpose().into()
+}
+
 /// A camera path's frame as render's pose.
 pub(crate) fn path_pose(f: &FramePose) -> PathPose {
     let (r, t) = (&f.pose.r, &f.pose.t);
     PathPose {
         frame: f.frame as i64,
-        r: [
-            [r[(0, 0)], r[(0, 1)], r[(0, 2)]],
-            [r[(1, 0)], r[(1, 1)], r[(1, 2)]],
-            [r[(2, 0)], r[(2, 1)], r[(2, 2)]],
-        ],
+        r: rows(r),
         t: [t.x, t.y, t.z],
         focal: f.focal,
     }
@@ -204,9 +207,10 @@ pub(crate) fn path_pose(f: &FramePose) -> PathPose {
 /// The light of a render: the `dome` input if connected, else the scene's loaded dome, else its
 /// background colour.
 pub(crate) fn pick_light<'a>(
-    input_dome: Option<&'a Dome>,
+    ctx: &'a Context<'_>,
     art: &'a SceneArt,
 ) -> Result<Light<'a>, NodeError> {
+    let input_dome = ctx.input_opt::<DomeArt>("dome")?.map(|d| &d.0);
     Light::pick(input_dome, art.dome.as_ref(), &art.scene).map_err(NodeError::msg)
 }
 
@@ -237,8 +241,7 @@ pub(crate) fn check_finite(nonfinite: u64) -> Result<(), NodeError> {
 fn run_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: RenderOptions = ctx.options()?;
     let art = ctx.input::<SceneArt>("scene")?;
-    let input_dome = ctx.input_opt::<DomeArt>("dome")?.map(|d| &d.0);
-    let light = pick_light(input_dome, art)?;
+    let light = pick_light(ctx, art)?;
     let camera = instance_camera(ctx, &art.scene)?;
     let (world, settings) = (o.world(&art.scene), o.settings(ctx.seed()));
     let out = with_sync_progress(ctx, |progress| {

@@ -16,7 +16,6 @@ use vfxgraph_render::differential::{
 use vfxgraph_render::ImageSize;
 
 use crate::artifacts::{ImageArt, ReportArt};
-use crate::hdr::DomeArt;
 use crate::render::{
     camera_for, check_finite, instance_camera, pick_light, scene_inputs, with_sync_progress,
     SceneArt,
@@ -183,8 +182,7 @@ pub fn register(r: &mut Registry) {
 fn run_fit_catcher(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: FitCatcherOptions = ctx.options()?;
     let art = ctx.input::<SceneArt>("scene")?;
-    let input_dome = ctx.input_opt::<DomeArt>("dome")?.map(|d| &d.0);
-    let light = pick_light(input_dome, art)?;
+    let light = pick_light(ctx, art)?;
     let frame = ctx.params().i64("frame");
     let plates = ctx.sequence::<ImageArt>("plate")?;
     let plate = plates
@@ -227,8 +225,7 @@ fn run_fit_catcher(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 fn run_differential_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: DifferentialOptions = ctx.options()?;
     let art = ctx.input::<SceneArt>("scene")?;
-    let input_dome = ctx.input_opt::<DomeArt>("dome")?.map(|d| &d.0);
-    let light = pick_light(input_dome, art)?;
+    let light = pick_light(ctx, art)?;
     let camera = instance_camera(ctx, &art.scene)?;
     let plate = plate_of(ctx)?;
     let plate = plate.as_ref();
@@ -308,12 +305,7 @@ fn run_composite(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 
 fn run_write_layers(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: LayersOptions = ctx.options()?;
-    let path_text = ctx.params().str("path").to_string();
-    if ctx.frame().is_some() && !vfxgraph_engine::node::has_frame_pattern(&path_text) {
-        return Err(NodeError::msg(format!(
-            "path `{path_text}` has no frame pattern (`%04d` or `####`): every frame would use one file"
-        )));
-    }
+    crate::image_io::check_pattern(ctx)?;
     let layers = &ctx.input::<LayersArt>("layers")?.0;
     if layers.is_empty() {
         return Err(NodeError::msg("no layers to write"));
