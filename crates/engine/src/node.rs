@@ -680,6 +680,34 @@ mod tests {
         );
     }
 
+    /// The typed port and file-param builders declare what the long forms declare.
+    #[test]
+    fn typed_builders_are_the_long_forms() {
+        let short = NodeSpec::new("n", "")
+            .input_of::<f64>("a", "doc a")
+            .optional_input_of::<i64>("b", "doc b")
+            .sequence_input_of::<String>("c", "doc c")
+            .output_of::<bool>("d", "doc d")
+            .input_file_param("in", "read")
+            .output_file_param("out", "written");
+        let long = NodeSpec::new("n", "")
+            .input(PortSpec::one("a", "float", "doc a"))
+            .input(PortSpec::one("b", "int", "doc b").optional())
+            .input(PortSpec::sequence("c", "string", "doc c"))
+            .output(PortSpec::one("d", "bool", "doc d"))
+            .param(ParamSpec::required(
+                "in",
+                ParamType::Path(PathRole::Input),
+                "read",
+            ))
+            .param(ParamSpec::required(
+                "out",
+                ParamType::Path(PathRole::Output),
+                "written",
+            ));
+        assert_eq!(format!("{short:?}"), format!("{long:?}"));
+    }
+
     /// Regression (fuzzing): a width from the file reached `format!`, which panics past 65535.
     #[test]
     fn too_wide_frame_patterns_are_refused_not_a_panic() {
