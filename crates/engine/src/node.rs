@@ -64,6 +64,16 @@ impl PortSpec {
         }
     }
 
+    /// A port carrying one artifact of type `T`: `PortSpec::one(name, T::NAME, doc)`.
+    pub fn of<T: ArtifactType>(name: &'static str, doc: &'static str) -> Self {
+        PortSpec::one(name, T::NAME, doc)
+    }
+
+    /// An input taking a whole sequence of `T`: `PortSpec::sequence(name, T::NAME, doc)`.
+    pub fn sequence_of<T: ArtifactType>(name: &'static str, doc: &'static str) -> Self {
+        PortSpec::sequence(name, T::NAME, doc)
+    }
+
     /// Marks an input optional.
     pub fn optional(mut self) -> Self {
         self.optional = true;
@@ -222,6 +232,40 @@ impl NodeSpec {
     pub fn output(mut self, p: PortSpec) -> Self {
         self.outputs.push(p);
         self
+    }
+    /// Adds an input carrying one `T` (the typed short form of
+    /// `.input(PortSpec::one(name, T::NAME, doc))`).
+    pub fn input_of<T: ArtifactType>(self, name: &'static str, doc: &'static str) -> Self {
+        self.input(PortSpec::of::<T>(name, doc))
+    }
+    /// Adds an optional input carrying one `T` (may be left unconnected).
+    pub fn optional_input_of<T: ArtifactType>(self, name: &'static str, doc: &'static str) -> Self {
+        self.input(PortSpec::of::<T>(name, doc).optional())
+    }
+    /// Adds an input taking the whole sequence of `T` of a per-frame producer.
+    pub fn sequence_input_of<T: ArtifactType>(self, name: &'static str, doc: &'static str) -> Self {
+        self.input(PortSpec::sequence_of::<T>(name, doc))
+    }
+    /// Adds an output carrying one `T` (the typed short form of
+    /// `.output(PortSpec::one(name, T::NAME, doc))`).
+    pub fn output_of<T: ArtifactType>(self, name: &'static str, doc: &'static str) -> Self {
+        self.output(PortSpec::of::<T>(name, doc))
+    }
+    /// Adds a required parameter naming a file the node reads (its content enters the key).
+    pub fn input_file_param(self, name: &'static str, doc: &'static str) -> Self {
+        self.param(ParamSpec::required(
+            name,
+            ParamType::Path(PathRole::Input),
+            doc,
+        ))
+    }
+    /// Adds a required parameter naming a file the node writes.
+    pub fn output_file_param(self, name: &'static str, doc: &'static str) -> Self {
+        self.param(ParamSpec::required(
+            name,
+            ParamType::Path(PathRole::Output),
+            doc,
+        ))
     }
     /// Adds a parameter.
     pub fn param(mut self, p: ParamSpec) -> Self {
@@ -634,6 +678,34 @@ mod tests {
             resolve_path(Path::new("/g"), "x/%03d.png", Some(5)),
             PathBuf::from("/g/x/005.png")
         );
+    }
+
+    /// The typed port and file-param builders declare what the long forms declare.
+    #[test]
+    fn typed_builders_are_the_long_forms() {
+        let short = NodeSpec::new("n", "")
+            .input_of::<f64>("a", "doc a")
+            .optional_input_of::<i64>("b", "doc b")
+            .sequence_input_of::<String>("c", "doc c")
+            .output_of::<bool>("d", "doc d")
+            .input_file_param("in", "read")
+            .output_file_param("out", "written");
+        let long = NodeSpec::new("n", "")
+            .input(PortSpec::one("a", "float", "doc a"))
+            .input(PortSpec::one("b", "int", "doc b").optional())
+            .input(PortSpec::sequence("c", "string", "doc c"))
+            .output(PortSpec::one("d", "bool", "doc d"))
+            .param(ParamSpec::required(
+                "in",
+                ParamType::Path(PathRole::Input),
+                "read",
+            ))
+            .param(ParamSpec::required(
+                "out",
+                ParamType::Path(PathRole::Output),
+                "written",
+            ));
+        assert_eq!(format!("{short:?}"), format!("{long:?}"));
     }
 
     /// Regression (fuzzing): a width from the file reached `format!`, which panics past 65535.

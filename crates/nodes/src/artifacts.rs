@@ -2,7 +2,6 @@
 //! engine's `ArtifactType` is implemented here so the algorithm crates stay engine-free).
 
 use vfxgraph_engine::artifact::codec::{hash_f32s, hash_u64, put_f32s, put_u64, Hasher, Reader};
-use vfxgraph_engine::artifact::{decode_json, encode_json};
 use vfxgraph_engine::{ArtifactType, Registry};
 use vfxgraph_imaging::Image;
 
@@ -48,18 +47,19 @@ macro_rules! json_artifact {
         #[derive(Clone, Debug, PartialEq)]
         pub struct $name(pub $inner);
 
-        impl ArtifactType for $name {
+        impl vfxgraph_engine::ArtifactType for $name {
             const NAME: &'static str = $type_name;
             const DOC: &'static str = $type_doc;
             fn encode(&self, out: &mut Vec<u8>) {
-                encode_json(&self.0, out)
+                vfxgraph_engine::artifact::encode_json(&self.0, out)
             }
             fn decode(bytes: &[u8]) -> Result<Self, String> {
-                decode_json(bytes).map($name)
+                vfxgraph_engine::artifact::decode_json(bytes).map($name)
             }
         }
     };
 }
+pub(crate) use json_artifact;
 
 json_artifact!(
     /// Camera intrinsics K (`intrinsics`).

@@ -1,9 +1,6 @@
 //! Bundle adjustment nodes (book §7.7): `bundle_adjust`, `read_cameras`.
 
-use vfxgraph_engine::{
-    ArtifactType, Mode, NodeError, NodeSpec, ParamSpec, ParamType, ParamValue, PathRole, PortSpec,
-    Registry,
-};
+use vfxgraph_engine::{Mode, NodeError, NodeSpec, ParamSpec, ParamType, ParamValue, Registry};
 use vfxgraph_vision::bundle::{adjust_sequence, LinearSolverKind, Loss, SolverOptions};
 use vfxgraph_vision::formats;
 
@@ -22,10 +19,10 @@ pub fn register(r: &mut Registry) {
              loss. The first camera and the first baseline's scale fix the gauge.",
         )
         .mode(Mode::Once)
-        .input(PortSpec::one("cameras", CameraPathArt::NAME, "initial cameras"))
-        .input(PortSpec::one("points", PointCloudArt::NAME, "initial points (with track ids)"))
-        .input(PortSpec::one("tracks", crate::tracking::TracksArt::NAME, "the observations"))
-        .input(PortSpec::one("intrinsics", IntrinsicsArt::NAME, "K shared by every frame"))
+        .input_of::<CameraPathArt>("cameras", "initial cameras")
+        .input_of::<PointCloudArt>("points", "initial points (with track ids)")
+        .input_of::<crate::tracking::TracksArt>("tracks", "the observations")
+        .input_of::<IntrinsicsArt>("intrinsics", "K shared by every frame")
         .param(ParamSpec::optional(
             "loss",
             ParamType::Enum(&["none", "huber", "cauchy"]),
@@ -56,14 +53,13 @@ pub fn register(r: &mut Registry) {
             ParamValue::Str("auto".into()),
             "linear solver of the reduced camera system",
         ))
-        .output(PortSpec::one("cameras", CameraPathArt::NAME, "refined cameras"))
-        .output(PortSpec::one("points", PointCloudArt::NAME, "refined points, errors filled in"))
-        .output(PortSpec::one("intrinsics", IntrinsicsArt::NAME, "K (refined if asked)"))
-        .output(PortSpec::one(
+        .output_of::<CameraPathArt>("cameras", "refined cameras")
+        .output_of::<PointCloudArt>("points", "refined points, errors filled in")
+        .output_of::<IntrinsicsArt>("intrinsics", "K (refined if asked)")
+        .output_of::<ReportArt>(
             "report",
-            ReportArt::NAME,
             "initial/final cost and RMS, iterations, time, termination, per-camera and per-point error",
-        )),
+        ),
         |ctx| {
             let p = ctx.params();
             let scale = p.f64("loss_scale_px");
@@ -107,21 +103,9 @@ pub fn register(r: &mut Registry) {
              With `intrinsics` connected, the path carries that K (the book's file has none).",
         )
         .mode(Mode::Once)
-        .input(PortSpec::optional(PortSpec::one(
-            "intrinsics",
-            IntrinsicsArt::NAME,
-            "K to attach to the path",
-        )))
-        .param(ParamSpec::required(
-            "path",
-            ParamType::Path(PathRole::Input),
-            "cameras file",
-        ))
-        .output(PortSpec::one(
-            "cameras",
-            CameraPathArt::NAME,
-            "one [R|t] per frame",
-        )),
+        .optional_input_of::<IntrinsicsArt>("intrinsics", "K to attach to the path")
+        .input_file_param("path", "cameras file")
+        .output_of::<CameraPathArt>("cameras", "one [R|t] per frame"),
         |ctx| {
             let mut path = formats::read_cameras(&ctx.path("path"))?;
             if let Some(k) = ctx.input_opt::<IntrinsicsArt>("intrinsics")? {

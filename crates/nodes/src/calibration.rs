@@ -1,11 +1,7 @@
 //! Camera calibration nodes (book chapters 2–5): `read_intrinsics`, `read_points2d`,
 //! `read_points3d`, `calibrate_camera`, `two_view`, `write_camera`, `write_report`.
 
-use vfxgraph_engine::fsutil::atomic_write;
-use vfxgraph_engine::{
-    ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, PathRole, PortSpec,
-    Registry,
-};
+use vfxgraph_engine::{ArtifactType, Context, Mode, NodeError, NodeSpec, PortSpec, Registry};
 use vfxgraph_vision::calibration::{calibrate_camera, CalibrateParams};
 use vfxgraph_vision::formats;
 use vfxgraph_vision::two_view::{reconstruct_two_view, TwoViewParams};
@@ -34,16 +30,8 @@ fn file_reader(
 ) -> NodeSpec {
     NodeSpec::new(name, doc)
         .mode(Mode::Once)
-        .param(ParamSpec::required(
-            "path",
-            ParamType::Path(PathRole::Input),
-            path_doc,
-        ))
+        .input_file_param("path", path_doc)
         .output(port)
-}
-
-fn path_out(doc: &'static str) -> ParamSpec {
-    ParamSpec::required("path", ParamType::Path(PathRole::Output), doc)
 }
 
 /// Registers the nodes of this module.
@@ -53,7 +41,7 @@ pub fn register(r: &mut Registry) {
             "read_intrinsics",
             "Reads camera intrinsics K: the book's g7cam.txt (3×3 matrix, rows) or JSON.",
             "g7cam.txt-style K file, or .json",
-            PortSpec::one("intrinsics", IntrinsicsArt::NAME, "K"),
+            PortSpec::of::<IntrinsicsArt>("intrinsics", "K"),
         )
         .threads(vfxgraph_engine::Threads::One)
         .memory(vfxgraph_engine::Memory::Fixed(256)),
@@ -64,7 +52,7 @@ pub fn register(r: &mut Registry) {
             "read_points2d",
             "Reads image points, `u v` per line (the book's calib_projs.txt), or JSON.",
             "points file",
-            PortSpec::one("points", Points2dArt::NAME, "pixel coordinates"),
+            PortSpec::of::<Points2dArt>("points", "pixel coordinates"),
         ),
         |ctx| read_into(ctx, "points", formats::read_points2d, Points2dArt),
     ));
@@ -73,7 +61,7 @@ pub fn register(r: &mut Registry) {
             "read_points3d",
             "Reads 3D points, `X Y Z` per line, or JSON.",
             "points file",
-            PortSpec::one("points", Points3dArt::NAME, "world coordinates"),
+            PortSpec::of::<Points3dArt>("points", "world coordinates"),
         ),
         |ctx| read_into(ctx, "points", formats::read_points3d, Points3dArt),
     ));
@@ -85,19 +73,11 @@ pub fn register(r: &mut Registry) {
              or `tsai` (planar target, known principal point, §4.8), optionally inside RANSAC \
              (§4.7, the book's ransac_singlecam).",
         )
-        .input(PortSpec::one("points3d", Points3dArt::NAME, "world points"))
-        .input(PortSpec::one(
-            "points2d",
-            Points2dArt::NAME,
-            "their projections, same order",
-        ))
+        .input_of::<Points3dArt>("points3d", "world points")
+        .input_of::<Points2dArt>("points2d", "their projections, same order")
         .options::<CalibrateParams>()
-        .output(PortSpec::one("camera", CameraArt::NAME, "K[R|t]"))
-        .output(PortSpec::one(
-            "report",
-            ReportArt::NAME,
-            "per-point reprojection errors, inliers and RMS",
-        )),
+        .output_of::<CameraArt>("camera", "K[R|t]")
+        .output_of::<ReportArt>("report", "per-point reprojection errors, inliers and RMS"),
         run_calibrate,
     ));
     r.register_node(FnNode::new(
@@ -107,38 +87,14 @@ pub fn register(r: &mut Registry) {
              normalized 8-point F (Sampson distance in pixels, or the book's algebraic error), \
              E = KᵀFK, the four (R, t) and cheirality, triangulation. Camera a is K[I|0]; |t| = 1.",
         )
-        .input(PortSpec::one(
-            "points_a",
-            Points2dArt::NAME,
-            "points in view a",
-        ))
-        .input(PortSpec::one(
-            "points_b",
-            Points2dArt::NAME,
-            "the same points in view b",
-        ))
-        .input(PortSpec::one(
-            "intrinsics",
-            IntrinsicsArt::NAME,
-            "K of both views",
-        ))
+        .input_of::<Points2dArt>("points_a", "points in view a")
+        .input_of::<Points2dArt>("points_b", "the same points in view b")
+        .input_of::<IntrinsicsArt>("intrinsics", "K of both views")
         .options::<TwoViewParams>()
-        .output(PortSpec::one(
-            "camera_b",
-            CameraArt::NAME,
-            "K[R|t] of view b",
-        ))
-        .output(PortSpec::one(
-            "points3d",
-            Points3dArt::NAME,
-            "triangulated inliers",
-        ))
-        .output(PortSpec::one(
-            "inliers",
-            IndicesArt::NAME,
-            "input index of each 3D point",
-        ))
-        .output(PortSpec::one("report", ReportArt::NAME, "figures")),
+        .output_of::<CameraArt>("camera_b", "K[R|t] of view b")
+        .output_of::<Points3dArt>("points3d", "triangulated inliers")
+        .output_of::<IndicesArt>("inliers", "input index of each 3D point")
+        .output_of::<ReportArt>("report", "figures"),
         run_two_view,
     ));
     r.register_node(FnNode::new(
@@ -147,8 +103,8 @@ pub fn register(r: &mut Registry) {
             "Writes a camera as JSON {\"K\": [[3×3]], \"R\": [[3×3]], \"t\": [3], \"width\"?, \
              \"height\"?}, rows first, mapping X to K(RX + t).",
         )
-        .input(PortSpec::one("camera", CameraArt::NAME, "the camera"))
-        .param(path_out("JSON file")),
+        .input_of::<CameraArt>("camera", "the camera")
+        .output_file_param("path", "JSON file"),
         |ctx| {
             let cam = &ctx.input::<CameraArt>("camera")?.0;
             write_json(ctx, cam)
@@ -160,8 +116,8 @@ pub fn register(r: &mut Registry) {
             "Writes camera intrinsics K as the book's g7cam.txt (3×3, rows), or JSON (with \
              the image size) when the name ends in .json; what `read_intrinsics` reads.",
         )
-        .input(PortSpec::one("intrinsics", IntrinsicsArt::NAME, "K"))
-        .param(path_out("g7cam.txt-style K file, or .json")),
+        .input_of::<IntrinsicsArt>("intrinsics", "K")
+        .output_file_param("path", "g7cam.txt-style K file, or .json"),
         |ctx| {
             let k = &ctx.input::<IntrinsicsArt>("intrinsics")?.0;
             Ok(formats::write_intrinsics(
@@ -173,8 +129,8 @@ pub fn register(r: &mut Registry) {
     r.register_node(FnNode::new(
         NodeSpec::new("write_report", "Writes any report as pretty JSON.")
             .threads(vfxgraph_engine::Threads::One)
-            .input(PortSpec::one("report", ReportArt::NAME, "the report"))
-            .param(path_out("JSON file")),
+            .input_of::<ReportArt>("report", "the report")
+            .output_file_param("path", "JSON file"),
         |ctx| {
             let rep = &ctx.input::<ReportArt>("report")?.0;
             write_json(ctx, rep)
@@ -185,9 +141,7 @@ pub fn register(r: &mut Registry) {
 fn write_json<T: serde::Serialize>(ctx: &Context<'_>, value: &T) -> Result<(), NodeError> {
     let mut text = serde_json::to_string_pretty(value)?;
     text.push('\n');
-    let path = crate::output_path(ctx, "path")?;
-    atomic_write(&path, text.as_bytes())
-        .map_err(|e| NodeError::msg(format!("cannot write {}: {e}", path.display())))
+    crate::write_output(ctx, "path", text.as_bytes())
 }
 
 fn run_calibrate(ctx: &mut Context<'_>) -> Result<(), NodeError> {

@@ -5,10 +5,8 @@
 use std::path::{Path, PathBuf};
 
 use serde_json::json;
-use vfxgraph_engine::fsutil::atomic_write;
 use vfxgraph_engine::{
-    ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, PathRole, PortSpec,
-    Registry,
+    Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, PortSpec, Registry,
 };
 use vfxgraph_imaging::Image;
 use vfxgraph_params::{read_field, Choice};
@@ -38,51 +36,31 @@ pub fn register(r: &mut Registry) {
              such model, with the fit error stated). Writes are atomic.",
         )
         .mode(Mode::Once)
-        .input(PortSpec::one("cameras", CameraPathArt::NAME, "the solved cameras"))
-        .input(
-            PortSpec::one(
-                "intrinsics",
-                IntrinsicsArt::NAME,
-                "K shared by every frame, when the camera path does not carry it (with the image \
-                 size, or connect the plate or set width/height)",
-            )
-            .optional(),
+        .input_of::<CameraPathArt>("cameras", "the solved cameras")
+        .optional_input_of::<IntrinsicsArt>(
+            "intrinsics",
+            "K shared by every frame, when the camera path does not carry it (with the image \
+             size, or connect the plate or set width/height)",
         )
-        .input(PortSpec::one("points", PointCloudArt::NAME, "the solved points").optional())
-        .input(
-            PortSpec::one(
-                "tracks",
-                TracksArt::NAME,
-                "the observations: COLMAP 2-D points and tracks (only those the solve kept as \
-                 inliers linked to a point, per the points' inlier marks), per-frame solve error \
-                 over the inliers",
-            )
-            .optional(),
+        .optional_input_of::<PointCloudArt>("points", "the solved points")
+        .optional_input_of::<TracksArt>(
+            "tracks",
+            "the observations: COLMAP 2-D points and tracks (only those the solve kept as \
+             inliers linked to a point, per the points' inlier marks), per-frame solve error \
+             over the inliers",
         )
         .input(
-            PortSpec::sequence(
-                "plate",
-                ImageArt::NAME,
-                "the plate: image size and point colours",
-            )
-            .optional(),
+            PortSpec::sequence_of::<ImageArt>("plate", "the plate: image size and point colours")
+                .optional(),
         )
         .param(ParamSpec::required(
             "format",
             ParamType::Enum(ExportFormat::CHOICES),
             "colmap, blender, usd, nuke, json or ply",
         ))
-        .param(ParamSpec::required(
-            "path",
-            ParamType::Path(PathRole::Output),
-            "the file to write (colmap: the model's cameras.txt)",
-        ))
+        .output_file_param("path", "the file to write (colmap: the model's cameras.txt)")
         .options::<ExportOptions>()
-        .output(PortSpec::one(
-            "report",
-            ReportArt::NAME,
-            "format, files written, frames, points, image size",
-        )),
+        .output_of::<ReportArt>("report", "format, files written, frames, points, image size"),
         run_export,
     ));
     r.register_node(FnNode::new(
@@ -93,35 +71,22 @@ pub fn register(r: &mut Registry) {
              book's cameras file (`Frame i`, R, t; K from the `intrinsics` input).",
         )
         .mode(Mode::Once)
-        .input(
-            PortSpec::one(
-                "intrinsics",
-                IntrinsicsArt::NAME,
-                "K of the book's format (ignored for colmap, which carries its own)",
-            )
-            .optional(),
+        .optional_input_of::<IntrinsicsArt>(
+            "intrinsics",
+            "K of the book's format (ignored for colmap, which carries its own)",
         )
         .param(ParamSpec::required(
             "format",
             ParamType::Enum(ImportFormat::CHOICES),
             "colmap or book",
         ))
-        .param(ParamSpec::required(
-            "path",
-            ParamType::Path(PathRole::Input),
-            "COLMAP cameras.txt (images.txt and points3D.txt beside it) or the book's cameras file",
-        ))
-        .output(PortSpec::one(
-            "cameras",
-            CameraPathArt::NAME,
-            "one [R|t] per frame",
-        ))
-        .output(PortSpec::one("intrinsics", IntrinsicsArt::NAME, "K"))
-        .output(PortSpec::one(
+        .input_file_param("path", "COLMAP cameras.txt (images.txt and points3D.txt beside it) or the book's cameras file")
+        .output_of::<CameraPathArt>("cameras", "one [R|t] per frame")
+        .output_of::<IntrinsicsArt>("intrinsics", "K")
+        .output_of::<PointCloudArt>(
             "points",
-            PointCloudArt::NAME,
             "COLMAP's points (track id = point id), empty for the book's format",
-        )),
+        ),
         run_import,
     ));
 }
@@ -196,10 +161,7 @@ pub fn write(
     shot: &Shot,
     options: &SceneOptions,
 ) -> Result<Vec<PathBuf>, NodeError> {
-    write_with(format, path, shot, options, |p, bytes| {
-        atomic_write(p, bytes)
-            .map_err(|e| NodeError::msg(format!("cannot write {}: {e}", p.display())))
-    })
+    write_with(format, path, shot, options, crate::write_atomic)
 }
 
 /// [`write`] with each file's bytes handed to `put` (the node's `Context::write_file`).

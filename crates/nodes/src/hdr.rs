@@ -8,7 +8,7 @@ use nalgebra::Vector3;
 use vfxgraph_engine::artifact::codec::{put_bytes, put_f64, put_u64, Reader};
 use vfxgraph_engine::{
     ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, ParamValue, PathRole,
-    PortSpec, Registry,
+    Registry,
 };
 
 use vfxgraph_imaging::draw::{plot_response, PlotOptions};
@@ -168,7 +168,7 @@ pub fn register(r: &mut Registry) {
             "the photographs, when no `list` is given",
         ))
         .options::<StackOptions>()
-        .output(PortSpec::one("stack", StackArt::NAME, "the exposure stack")),
+        .output_of::<StackArt>("stack", "the exposure stack"),
         run_read_stack,
     ));
     r.register_node(FnNode::new(
@@ -181,13 +181,12 @@ pub fn register(r: &mut Registry) {
              from outside the frame get code 0 (ignored by the merge) and join the mask.",
         )
         .options::<AlignOptions>()
-        .input(PortSpec::one("stack", StackArt::NAME, "the exposure stack"))
-        .output(PortSpec::one("stack", StackArt::NAME, "the aligned stack"))
-        .output(PortSpec::one(
+        .input_of::<StackArt>("stack", "the exposure stack")
+        .output_of::<StackArt>("stack", "the aligned stack")
+        .output_of::<ReportArt>(
             "report",
-            ReportArt::NAME,
             "{\"reference\": r, \"shifts\": [[dx, dy], ...]}: aligned(x, y) = exposure(x - dx, y - dy)",
-        )),
+        ),
         run_align,
     ));
     r.register_node(FnNode::new(
@@ -201,12 +200,8 @@ pub fn register(r: &mut Registry) {
         .mode(Mode::Once)
         .seeded()
         .options::<CalibrateOptions>()
-        .input(PortSpec::one("stack", StackArt::NAME, "the exposure stack"))
-        .output(PortSpec::one(
-            "response",
-            ResponseArt::NAME,
-            "the response curve",
-        )),
+        .input_of::<StackArt>("stack", "the exposure stack")
+        .output_of::<ResponseArt>("response", "the response curve"),
         run_calibrate,
     ));
     r.register_node(FnNode::new(
@@ -216,17 +211,9 @@ pub fn register(r: &mut Registry) {
              pixels clipped in every exposure take the stack's bound; g(128) = 0 per channel \
              keeps the camera's mid-grey white balance.",
         )
-        .input(PortSpec::one("stack", StackArt::NAME, "the exposure stack"))
-        .input(PortSpec::one(
-            "response",
-            ResponseArt::NAME,
-            "the response curve",
-        ))
-        .output(PortSpec::one(
-            "image",
-            ImageArt::NAME,
-            "the radiance map, linear",
-        )),
+        .input_of::<StackArt>("stack", "the exposure stack")
+        .input_of::<ResponseArt>("response", "the response curve")
+        .output_of::<ImageArt>("image", "the radiance map, linear"),
         run_merge,
     ));
     r.register_node(FnNode::new(
@@ -237,13 +224,9 @@ pub fn register(r: &mut Registry) {
              The output, written to PNG/JPEG, stores those codes exactly.",
         )
         .options::<LdrOptions>()
-        .input(PortSpec::one("image", ImageArt::NAME, "linear HDR image"))
-        .input(PortSpec::one("response", ResponseArt::NAME, "response curve").optional())
-        .output(PortSpec::one(
-            "image",
-            ImageArt::NAME,
-            "the simulated photograph",
-        )),
+        .input_of::<ImageArt>("image", "linear HDR image")
+        .optional_input_of::<ResponseArt>("response", "response curve")
+        .output_of::<ImageArt>("image", "the simulated photograph"),
         run_to_ldr,
     ));
     r.register_node(FnNode::new(
@@ -254,12 +237,8 @@ pub fn register(r: &mut Registry) {
              grid at every unit of ln exposure and every 32 codes.",
         )
         .options::<PlotOptions>()
-        .input(PortSpec::one("response", ResponseArt::NAME, "the curve"))
-        .output(PortSpec::one(
-            "image",
-            ImageArt::NAME,
-            "the plot (write it as PNG)",
-        )),
+        .input_of::<ResponseArt>("response", "the curve")
+        .output_of::<ImageArt>("image", "the plot (write it as PNG)"),
         run_plot,
     ));
     r.register_node(FnNode::new(
@@ -269,12 +248,8 @@ pub fn register(r: &mut Registry) {
              (R,G,B), holding the linear exposure f⁻¹(z) = exp(g(z)) — OpenCV's debevec.csv \
              layout in RGB order, no header. The write is atomic.",
         )
-        .param(ParamSpec::required(
-            "path",
-            ParamType::Path(PathRole::Output),
-            "the CSV file",
-        ))
-        .input(PortSpec::one("response", ResponseArt::NAME, "the curve")),
+        .output_file_param("path", "the CSV file")
+        .input_of::<ResponseArt>("response", "the curve"),
         run_write_response,
     ));
     r.register_node(FnNode::new(
@@ -285,16 +260,8 @@ pub fn register(r: &mut Registry) {
              +y, centre column −z), bilinear (book 10.7). The rim (−z) is singular.",
         )
         .options::<ProbeOptions>()
-        .input(PortSpec::one(
-            "image",
-            ImageArt::NAME,
-            "the probe photograph, linear",
-        ))
-        .output(PortSpec::one(
-            "image",
-            ImageArt::NAME,
-            "equirectangular image",
-        )),
+        .input_of::<ImageArt>("image", "the probe photograph, linear")
+        .output_of::<ImageArt>("image", "equirectangular image"),
         run_probe,
     ));
     r.register_node(FnNode::new(
@@ -308,20 +275,12 @@ pub fn register(r: &mut Registry) {
         )
         .version(2)
         .options::<DomeOptions>()
-        .input(PortSpec::one(
-            "image",
-            ImageArt::NAME,
-            "equirectangular radiance map",
-        ))
-        .input(
-            PortSpec::one(
-                "camera",
-                CameraArt::NAME,
-                "the camera that photographed the probe (its R orients the dome)",
-            )
-            .optional(),
+        .input_of::<ImageArt>("image", "equirectangular radiance map")
+        .optional_input_of::<CameraArt>(
+            "camera",
+            "the camera that photographed the probe (its R orients the dome)",
         )
-        .output(PortSpec::one("dome", DomeArt::NAME, "the oriented dome")),
+        .output_of::<DomeArt>("dome", "the oriented dome"),
         run_dome,
     ));
 }

@@ -3,10 +3,7 @@
 //! Radiance .hdr (linear), chosen by the file extension.
 
 use vfxgraph_engine::node::has_frame_pattern;
-use vfxgraph_engine::{
-    ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, PathRole, PortSpec,
-    Registry, Threads,
-};
+use vfxgraph_engine::{Context, Mode, NodeError, NodeSpec, Registry, Threads};
 use vfxgraph_imaging::{read_image, write_image};
 
 use crate::artifacts::ImageArt;
@@ -25,16 +22,8 @@ pub fn register(r: &mut Registry) {
         .mode(Mode::Once)
         .threads(vfxgraph_engine::Threads::One)
         .uncached()
-        .param(ParamSpec::required(
-            "path",
-            ParamType::Path(PathRole::Input),
-            "the image file, relative to the graph file",
-        ))
-        .output(PortSpec::one(
-            "image",
-            ImageArt::NAME,
-            "the image, linear light",
-        )),
+        .input_file_param("path", "the image file, relative to the graph file")
+        .output_of::<ImageArt>("image", "the image, linear light"),
         run_read_image,
     ));
     r.register_node(FnNode::new(
@@ -44,12 +33,8 @@ pub fn register(r: &mut Registry) {
              encoded, EXR float ZIP, PFM, HDR RLE). The write is atomic.",
         )
         .threads(vfxgraph_engine::Threads::One)
-        .param(ParamSpec::required(
-            "path",
-            ParamType::Path(PathRole::Output),
-            FORMATS,
-        ))
-        .input(PortSpec::one("image", ImageArt::NAME, "the image to write")),
+        .output_file_param("path", FORMATS)
+        .input_of::<ImageArt>("image", "the image to write"),
         run_write_image,
     ));
     r.register_node(FnNode::new(
@@ -60,16 +45,8 @@ pub fn register(r: &mut Registry) {
         )
         .mode(Mode::PerFrame)
         .uncached()
-        .param(ParamSpec::required(
-            "path",
-            ParamType::Path(PathRole::Input),
-            "file pattern, e.g. plate/frame.%04d.png",
-        ))
-        .output(PortSpec::one(
-            "sequence",
-            ImageArt::NAME,
-            "the frame's image",
-        )),
+        .input_file_param("path", "file pattern, e.g. plate/frame.%04d.png")
+        .output_of::<ImageArt>("sequence", "the frame's image"),
         run_read_image,
     ));
     r.register_node(FnNode::new(
@@ -79,21 +56,14 @@ pub fn register(r: &mut Registry) {
         )
         .threads(Threads::One)
         .mode(Mode::PerFrame)
-        .param(ParamSpec::required(
-            "path",
-            ParamType::Path(PathRole::Output),
-            "file pattern, e.g. out/frame.%04d.exr",
-        ))
-        .input(PortSpec::one(
-            "sequence",
-            ImageArt::NAME,
-            "the frame's image",
-        )),
+        .output_file_param("path", "file pattern, e.g. out/frame.%04d.exr")
+        .input_of::<ImageArt>("sequence", "the frame's image"),
         run_write_image,
     ));
 }
 
-fn check_pattern(ctx: &Context<'_>) -> Result<(), NodeError> {
+/// Per frame, path param `path` must hold a frame pattern (else every frame would use one file).
+pub(crate) fn check_pattern(ctx: &Context<'_>) -> Result<(), NodeError> {
     if ctx.frame().is_some() && !has_frame_pattern(ctx.params().str("path")) {
         return Err(NodeError::msg(format!(
             "path `{}` has no frame pattern (`%04d` or `####`): every frame would use one file",

@@ -1,6 +1,6 @@
 //! Image operations: `exposure`, `tonemap`, and the `constant` image generator.
 
-use vfxgraph_engine::{ArtifactType, Context, NodeError, NodeSpec, PortSpec, Registry, Threads};
+use vfxgraph_engine::{Context, NodeError, NodeSpec, Registry, Threads};
 use vfxgraph_imaging::{
     constant, exposure, tonemap, ConstantOptions, ExposureOptions, TonemapOptions,
 };
@@ -17,8 +17,8 @@ pub fn register(r: &mut Registry) {
         )
         .threads(Threads::One)
         .options::<ExposureOptions>()
-        .input(PortSpec::one("image", ImageArt::NAME, "linear image"))
-        .output(PortSpec::one("image", ImageArt::NAME, "exposed image")),
+        .input_of::<ImageArt>("image", "linear image")
+        .output_of::<ImageArt>("image", "exposed image"),
         run_exposure,
     ));
     r.register_node(FnNode::new(
@@ -30,12 +30,8 @@ pub fn register(r: &mut Registry) {
         )
         .threads(Threads::One)
         .options::<TonemapOptions>()
-        .input(PortSpec::one("image", ImageArt::NAME, "linear HDR image"))
-        .output(PortSpec::one(
-            "image",
-            ImageArt::NAME,
-            "tone-mapped linear image",
-        )),
+        .input_of::<ImageArt>("image", "linear HDR image")
+        .output_of::<ImageArt>("image", "tone-mapped linear image"),
         run_tonemap,
     ));
     r.register_node(FnNode::new(
@@ -45,7 +41,7 @@ pub fn register(r: &mut Registry) {
              patterns, backgrounds, benchmarks.",
         )
         .options::<ConstantOptions>()
-        .output(PortSpec::one("image", ImageArt::NAME, "the image")),
+        .output_of::<ImageArt>("image", "the image"),
         run_constant,
     ));
 }

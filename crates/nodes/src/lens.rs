@@ -2,10 +2,7 @@
 //! `write_st_map` (the same warps as Nuke ST-maps). The algorithms and their options live in
 //! `vfxgraph_vision::undistort` and `vfxgraph_vision::st_map`.
 
-use vfxgraph_engine::{
-    ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, PathRole, PortSpec,
-    Registry, Threads,
-};
+use vfxgraph_engine::{Context, Mode, NodeError, NodeSpec, Registry, Threads};
 use vfxgraph_imaging::io::write_image;
 use vfxgraph_vision::st_map::{st_map, StMapOptions};
 use vfxgraph_vision::undistort::{LensWarp, UndistortOptions};
@@ -78,21 +75,13 @@ fn run_write_st_map(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 }
 
 fn lens_ports(spec: NodeSpec) -> NodeSpec {
-    spec.input(
-        PortSpec::one(
-            "intrinsics",
-            IntrinsicsArt::NAME,
-            "the plate's K with its lens (`distortion`) and image size",
-        )
-        .optional(),
+    spec.optional_input_of::<IntrinsicsArt>(
+        "intrinsics",
+        "the plate's K with its lens (`distortion`) and image size",
     )
-    .input(
-        PortSpec::one(
-            "cameras",
-            CameraPathArt::NAME,
-            "a solved camera path whose K carries the lens (when `intrinsics` is not connected)",
-        )
-        .optional(),
+    .optional_input_of::<CameraPathArt>(
+        "cameras",
+        "a solved camera path whose K carries the lens (when `intrinsics` is not connected)",
     )
 }
 
@@ -107,22 +96,13 @@ pub fn register(r: &mut Registry) {
                  output is as large as the plate's undistorted footprint, so nothing is lost; \
                  `intrinsics` out is K′ (no lens) with that size.",
             )
-            .input(PortSpec::one(
-                "image",
-                ImageArt::NAME,
-                "the plate (the lens's size)",
-            )),
+            .input_of::<ImageArt>("image", "the plate (the lens's size)"),
         )
-        .output(PortSpec::one(
-            "image",
-            ImageArt::NAME,
-            "the undistorted image",
-        ))
-        .output(PortSpec::one(
+        .output_of::<ImageArt>("image", "the undistorted image")
+        .output_of::<IntrinsicsArt>(
             "intrinsics",
-            IntrinsicsArt::NAME,
             "K′ of the undistorted image: the same focal lengths, no lens, its size",
-        ))
+        )
         .options::<UndistortOptions>(),
         run_undistort,
     ));
@@ -134,17 +114,9 @@ pub fn register(r: &mut Registry) {
                  options) seen through the lens again: each plate pixel x samples it at \
                  K′·undistort(K⁻¹x). The inverse of `undistort`.",
             )
-            .input(PortSpec::one(
-                "image",
-                ImageArt::NAME,
-                "the undistorted image (K′'s size)",
-            )),
+            .input_of::<ImageArt>("image", "the undistorted image (K′'s size)"),
         )
-        .output(PortSpec::one(
-            "image",
-            ImageArt::NAME,
-            "the image through the lens",
-        ))
+        .output_of::<ImageArt>("image", "the image through the lens")
         .options::<UndistortOptions>(),
         run_redistort,
     ));
@@ -160,11 +132,7 @@ pub fn register(r: &mut Registry) {
             )
             .mode(Mode::Once)
             .threads(Threads::One)
-            .param(ParamSpec::required(
-                "path",
-                ParamType::Path(PathRole::Output),
-                "output .exr file",
-            )),
+            .output_file_param("path", "output .exr file"),
         )
         .options::<StMapOptions>(),
         run_write_st_map,

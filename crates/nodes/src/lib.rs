@@ -97,6 +97,17 @@ pub(crate) fn output_path(ctx: &Context<'_>, param: &str) -> Result<std::path::P
     Ok(path)
 }
 
+/// Writes `bytes` to `path` atomically, naming the file in the error.
+pub(crate) fn write_atomic(path: &std::path::Path, bytes: &[u8]) -> Result<(), NodeError> {
+    vfxgraph_engine::fsutil::atomic_write(path, bytes)
+        .map_err(|e| NodeError::msg(format!("cannot write {}: {e}", path.display())))
+}
+
+/// Writes `bytes` atomically to the file of path param `param` (see [`output_path`]).
+pub(crate) fn write_output(ctx: &Context<'_>, param: &str, bytes: &[u8]) -> Result<(), NodeError> {
+    write_atomic(&output_path(ctx, param)?, bytes)
+}
+
 #[cfg(test)]
 mod tests {
     use crate::testing::check_defaults;

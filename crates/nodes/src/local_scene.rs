@@ -5,14 +5,13 @@
 //! ([`vfxgraph_render::proxy`]); `add_objects` puts the designed CG objects into that local scene last, so the local scene's
 //! nodes never see them and a change of an object reruns only what renders it.
 
-use vfxgraph_engine::{ArtifactType, Context, NodeError, NodeSpec, PortSpec, Registry};
+use vfxgraph_engine::{Context, NodeError, NodeSpec, Registry};
 use vfxgraph_render::catcher_texture::View;
 use vfxgraph_render::local_scene::{add_objects, texture_local_scene_report, LocalTextureOptions};
 use vfxgraph_render::proxy::{add_proxies, ProxyOptions};
-use vfxgraph_render::Vec3;
 
 use crate::artifacts::{ImageArt, Points3dArt, ReportArt};
-use crate::hdr::DomeArt;
+use crate::placement::measured;
 use crate::render::{camera_for, pick_light, SceneArt};
 use crate::shot::{light_and_camera_inputs, size_params};
 use crate::FnNode;
@@ -20,11 +19,7 @@ use crate::FnNode;
 fn run_proxy_from_points(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: ProxyOptions = ctx.options()?;
     let art = ctx.input::<SceneArt>("scene")?;
-    let pts: Vec<Vec3> = (ctx.input::<Points3dArt>("points3d")?.0 .0)
-        .iter()
-        .map(|p| Vec3::new(p.x, p.y, p.z))
-        .collect();
-    let (scene, report) = add_proxies(&art.scene, &pts, &o).map_err(NodeError::msg)?;
+    let (scene, report) = add_proxies(&art.scene, &measured(ctx)?, &o).map_err(NodeError::msg)?;
     let dome = art.dome.clone();
     ctx.output("scene", SceneArt { scene, dome });
     ctx.output("report", ReportArt(report));
@@ -51,17 +46,12 @@ pub fn register(r: &mut Registry) {
              from the set alone and add the objects last: a change of an object's material \
              then reruns only this node and the renders, never the catcher fit or texture.",
         )
-        .input(PortSpec::one("scene", SceneArt::NAME, "the local scene"))
-        .input(PortSpec::one(
+        .input_of::<SceneArt>("scene", "the local scene")
+        .input_of::<SceneArt>(
             "objects",
-            SceneArt::NAME,
             "the placed insert (its catchers, camera and dome are not used)",
-        ))
-        .output(PortSpec::one(
-            "scene",
-            SceneArt::NAME,
-            "the local scene with the objects",
-        )),
+        )
+        .output_of::<SceneArt>("scene", "the local scene with the objects"),
         run_add_objects,
     ));
     r.register_node(FnNode::new(
@@ -74,18 +64,10 @@ pub fn register(r: &mut Registry) {
              in their reflections and occludes the dome for their lighting.",
         )
         .options::<ProxyOptions>()
-        .input(PortSpec::one("scene", SceneArt::NAME, "the placed scene"))
-        .input(PortSpec::one(
-            "points3d",
-            Points3dArt::NAME,
-            "the measured points",
-        ))
-        .output(PortSpec::one(
-            "scene",
-            SceneArt::NAME,
-            "the scene with the proxies' faces as catchers",
-        ))
-        .output(PortSpec::one("report", ReportArt::NAME, "proxies made")),
+        .input_of::<SceneArt>("scene", "the placed scene")
+        .input_of::<Points3dArt>("points3d", "the measured points")
+        .output_of::<SceneArt>("scene", "the scene with the proxies' faces as catchers")
+        .output_of::<ReportArt>("report", "proxies made"),
         run_proxy_from_points,
     ));
     r.register_node(FnNode::new(
@@ -112,28 +94,15 @@ pub fn register(r: &mut Registry) {
             .version(3)
             .options::<LocalTextureOptions>(),
         ))
-        .input(PortSpec::sequence(
-            "plate",
-            ImageArt::NAME,
-            "the plate frames (linear radiance)",
-        ))
-        .output(PortSpec::one(
-            "scene",
-            SceneArt::NAME,
-            "the scene with the catcher's albedo texture",
-        ))
-        .output(PortSpec::one(
+        .sequence_input_of::<ImageArt>("plate", "the plate frames (linear radiance)")
+        .output_of::<SceneArt>("scene", "the scene with the catcher's albedo texture")
+        .output_of::<ImageArt>(
             "albedo",
-            ImageArt::NAME,
             "the estimated albedo, linear RGB; column i along the map's u edge, row j along v \
              (see the report's map corners)",
-        ))
-        .output(PortSpec::one(
-            "seen",
-            ImageArt::NAME,
-            "frames that saw each texel (one channel)",
-        ))
-        .output(PortSpec::one("report", ReportArt::NAME, "the estimate")),
+        )
+        .output_of::<ImageArt>("seen", "frames that saw each texel (one channel)")
+        .output_of::<ReportArt>("report", "the estimate"),
         run_catcher_texture,
     ));
 }
@@ -141,8 +110,7 @@ pub fn register(r: &mut Registry) {
 fn run_catcher_texture(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: LocalTextureOptions = ctx.options()?;
     let art = ctx.input::<SceneArt>("scene")?;
-    let input_dome = ctx.input_opt::<DomeArt>("dome")?.map(|d| &d.0);
-    let light = pick_light(input_dome, art)?;
+    let light = pick_light(ctx, art)?;
     let plates = ctx.sequence::<ImageArt>("plate")?;
     let range = match (plates.first(), plates.last()) {
         (Some(a), Some(b)) => format!("{}–{}", a.0, b.0),
@@ -183,14 +151,8 @@ fn run_catcher_texture(ctx: &mut Context<'_>) -> Result<(), NodeError> {
         Some(ctx.cancel_flag()),
     )
     .map_err(|e| NodeError::msg(e.to_string()))?;
-    let dome = art.dome.clone();
-    ctx.output(
-        "scene",
-        SceneArt {
-            scene: out.scene,
-            dome,
-        },
-    );
+    let (scene, dome) = (out.scene, art.dome.clone());
+    ctx.output("scene", SceneArt { scene, dome });
     ctx.output("albedo", ImageArt(out.albedo));
     ctx.output("seen", ImageArt(out.seen));
     ctx.output("report", ReportArt(out.report));

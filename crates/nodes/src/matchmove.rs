@@ -2,10 +2,7 @@
 //! `write_cameras`, `plot_solve_error`. The algorithms and their params (the book's values as
 //! defaults) live in `vfxgraph_vision::matchmove`.
 
-use vfxgraph_engine::{
-    ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, PathRole, PortSpec,
-    Registry,
-};
+use vfxgraph_engine::{Context, Mode, NodeError, NodeSpec, Registry};
 use vfxgraph_params::Options;
 use vfxgraph_vision::formats;
 use vfxgraph_vision::matchmove::{
@@ -50,56 +47,37 @@ pub(crate) struct RelaxParams {
 }
 
 fn solve_node(name: &'static str, doc: &'static str, cameras_in: bool) -> NodeSpec {
-    let intrinsics = PortSpec::one(
-        "intrinsics",
-        IntrinsicsArt::NAME,
-        "K, shared by every frame",
-    );
-    let intrinsics = if name == "matchmove" {
-        PortSpec::one(
+    let spec = NodeSpec::new(name, doc)
+        .mode(Mode::Once)
+        .input_of::<TracksArt>("tracks", "the feature tracks");
+    let spec = if name == "matchmove" {
+        spec.optional_input_of::<IntrinsicsArt>(
             "intrinsics",
-            IntrinsicsArt::NAME,
             "K and the lens shared by every frame: exact, or a start (focal: refine); optional \
              with focal: unknown and the image size",
         )
-        .optional()
     } else {
-        intrinsics
+        spec.input_of::<IntrinsicsArt>("intrinsics", "K, shared by every frame")
     };
-    let spec = NodeSpec::new(name, doc)
-        .mode(Mode::Once)
-        .input(PortSpec::one(
-            "tracks",
-            TracksArt::NAME,
-            "the feature tracks",
-        ))
-        .input(intrinsics);
     let spec = if cameras_in {
-        spec.input(PortSpec::one(
+        spec.input_of::<CameraPathArt>(
             "cameras",
-            CameraPathArt::NAME,
             "a solved path covering every frame of the tracks",
-        ))
+        )
     } else {
         spec
     };
-    spec.output(PortSpec::one(
-        "cameras",
-        CameraPathArt::NAME,
-        "K and [R|t] of every frame",
-    ))
-    .output(PortSpec::one(
-        "points",
-        PointCloudArt::NAME,
-        "the reconstructed points, with track ids, RMS errors over their inlier observations and \
-         the frames of those (the solve's final inliers, within the report's inlier_tolerance)",
-    ))
-    .output(PortSpec::one(
-        "report",
-        ReportArt::NAME,
-        "per-frame RMS and inliers, per-track error, overall RMS, stage times, the book-style \
-         score over all tracks",
-    ))
+    spec.output_of::<CameraPathArt>("cameras", "K and [R|t] of every frame")
+        .output_of::<PointCloudArt>(
+            "points",
+            "the reconstructed points, with track ids, RMS errors over their inlier observations and \
+             the frames of those (the solve's final inliers, within the report's inlier_tolerance)",
+        )
+        .output_of::<ReportArt>(
+            "report",
+            "per-frame RMS and inliers, per-track error, overall RMS, stage times, the book-style \
+             score over all tracks",
+        )
 }
 
 fn set_solve(ctx: &mut Context<'_>, solve: Solve) -> Result<(), NodeError> {
@@ -166,10 +144,6 @@ fn run_plot(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     Ok(())
 }
 
-fn output_file(doc: &'static str) -> ParamSpec {
-    ParamSpec::required("path", ParamType::Path(PathRole::Output), doc)
-}
-
 /// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
     let spec = solve_node(
@@ -212,13 +186,9 @@ pub fn register(r: &mut Registry) {
              when known). The write is atomic.",
         )
         .mode(Mode::Once)
-        .param(output_file("output file"))
+        .output_file_param("path", "output file")
         .options::<formats::WriteCamerasOptions>()
-        .input(PortSpec::one(
-            "cameras",
-            CameraPathArt::NAME,
-            "the path to write",
-        )),
+        .input_of::<CameraPathArt>("cameras", "the path to write"),
         run_write_cameras,
     ));
 
@@ -229,12 +199,11 @@ pub fn register(r: &mut Registry) {
              (what a tracker's solve panel shows).",
         )
         .mode(Mode::Once)
-        .param(output_file("output .svg file"))
-        .input(PortSpec::one(
+        .output_file_param("path", "output .svg file")
+        .input_of::<ReportArt>(
             "report",
-            ReportArt::NAME,
             "the report of matchmove, relax or global_bundle_adjust",
-        )),
+        ),
         run_plot,
     ));
 }

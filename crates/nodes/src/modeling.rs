@@ -1,32 +1,20 @@
 //! Modeling nodes (book chapter 8): `read_marks`, `point_cloud_calibrate`.
 
-use vfxgraph_engine::artifact::{decode_json, encode_json};
-use vfxgraph_engine::{
-    ArtifactType, Mode, NodeSpec, ParamSpec, ParamType, PathRole, PortSpec, Registry,
-};
+use vfxgraph_engine::{Mode, NodeSpec, Registry};
 use vfxgraph_vision::formats::marked_points::{
     read_marked_points, write_marked_points, MarkedPoints,
 };
 use vfxgraph_vision::modeling::point_cloud_calibrate;
 
-use crate::artifacts::{CameraPathArt, IntrinsicsArt, Points3dArt, ReportArt};
+use crate::artifacts::{json_artifact, CameraPathArt, IntrinsicsArt, Points3dArt, ReportArt};
 use crate::FnNode;
 
-/// Points marked by hand on several frames (`marks`).
-#[derive(Clone, Debug, PartialEq)]
-pub struct MarkedPointsArt(pub MarkedPoints);
-
-impl ArtifactType for MarkedPointsArt {
-    const NAME: &'static str = "marks";
-    const DOC: &'static str =
-        "The same n scene points marked, in the same order, on several frames (book chapter 8).";
-    fn encode(&self, out: &mut Vec<u8>) {
-        encode_json(&self.0, out);
-    }
-    fn decode(bytes: &[u8]) -> Result<Self, String> {
-        decode_json(bytes).map(MarkedPointsArt)
-    }
-}
+json_artifact!(
+    /// Points marked by hand on several frames (`marks`).
+    MarkedPointsArt(MarkedPoints),
+    "marks",
+    "The same n scene points marked, in the same order, on several frames (book chapter 8)."
+);
 
 /// Registers the artifact and nodes of this module.
 pub fn register(r: &mut Registry) {
@@ -40,12 +28,8 @@ pub fn register(r: &mut Registry) {
         .mode(Mode::Once)
         .threads(vfxgraph_engine::Threads::One)
         .memory(vfxgraph_engine::Memory::Fixed(256))
-        .param(ParamSpec::required(
-            "path",
-            ParamType::Path(PathRole::Input),
-            "marked-points file",
-        ))
-        .output(PortSpec::one("marks", MarkedPointsArt::NAME, "the marks")),
+        .input_file_param("path", "marked-points file")
+        .output_of::<MarkedPointsArt>("marks", "the marks"),
         |ctx| {
             let path = ctx.path("path");
             let marks = if vfxgraph_vision::formats::is_json(&path) {
@@ -63,12 +47,8 @@ pub fn register(r: &mut Registry) {
             "Writes marked points as the book's `points2d.txt`, or JSON when the name ends \
              in .json; what `read_marks` reads.",
         )
-        .param(ParamSpec::required(
-            "path",
-            ParamType::Path(PathRole::Output),
-            "marked-points file",
-        ))
-        .input(PortSpec::one("marks", MarkedPointsArt::NAME, "the marks")),
+        .output_file_param("path", "marked-points file")
+        .input_of::<MarkedPointsArt>("marks", "the marks"),
         |ctx| {
             let marks = &ctx.input::<MarkedPointsArt>("marks")?.0;
             Ok(write_marked_points(
@@ -85,31 +65,17 @@ pub fn register(r: &mut Registry) {
              Levenberg–Marquardt over all its marks with the cameras fixed.",
         )
         .mode(Mode::Once)
-        .input(PortSpec::one(
-            "marks",
-            MarkedPointsArt::NAME,
-            "the marked points",
-        ))
-        .input(PortSpec::one(
+        .input_of::<MarkedPointsArt>("marks", "the marked points")
+        .input_of::<CameraPathArt>(
             "cameras",
-            CameraPathArt::NAME,
             "the solved cameras (K from the path unless `intrinsics` is connected)",
-        ))
-        .input(PortSpec::optional(PortSpec::one(
-            "intrinsics",
-            IntrinsicsArt::NAME,
-            "K, when the path carries none",
-        )))
-        .output(PortSpec::one(
-            "points3d",
-            Points3dArt::NAME,
-            "one world point per marked point",
-        ))
-        .output(PortSpec::one(
+        )
+        .optional_input_of::<IntrinsicsArt>("intrinsics", "K, when the path carries none")
+        .output_of::<Points3dArt>("points3d", "one world point per marked point")
+        .output_of::<ReportArt>(
             "report",
-            ReportArt::NAME,
             "frames used, the pair each point came from, per-point RMS and per-mark errors",
-        )),
+        ),
         |ctx| {
             let marks = &ctx.input::<MarkedPointsArt>("marks")?.0;
             let path = &ctx.input::<CameraPathArt>("cameras")?.0;

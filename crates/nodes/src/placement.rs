@@ -5,7 +5,7 @@
 //! the measured ground points and sets objects designed in the catcher's own frame on it. The
 //! algorithms and their options are in the render crate's `placement` module.
 
-use vfxgraph_engine::{ArtifactType, Context, Mode, NodeError, NodeSpec, PortSpec, Registry};
+use vfxgraph_engine::{Context, Mode, NodeError, NodeSpec, Registry};
 use vfxgraph_render::placement::place::{
     catcher_from_points, place_scene, CatcherOptions, Design, PlaceOptions, Viewers,
 };
@@ -13,11 +13,11 @@ use vfxgraph_render::{Camera, Vec3};
 use vfxgraph_vision::formats::CameraPath;
 
 use crate::artifacts::{CameraPathArt, ImageArt, Points3dArt, ReportArt};
-use crate::render::SceneArt;
+use crate::render::{rows, SceneArt};
 use crate::FnNode;
 
 /// The `points3d` input as render points.
-fn measured(ctx: &Context<'_>) -> Result<Vec<Vec3>, NodeError> {
+pub(crate) fn measured(ctx: &Context<'_>) -> Result<Vec<Vec3>, NodeError> {
     let pts = &ctx.input::<Points3dArt>("points3d")?.0 .0;
     Ok(pts.iter().map(|p| Vec3::new(p.x, p.y, p.z)).collect())
 }
@@ -34,20 +34,13 @@ fn viewers(path: &CameraPath, with_view: bool) -> Result<Viewers, NodeError> {
         })
         .collect();
     let first = match (path.frames.first(), &path.intrinsics) {
-        (Some(f), Some(k)) if with_view => {
-            let r = &f.pose.r;
-            Some(Camera::from_krt(
-                [[k.f1, k.s, k.u0], [0.0, k.f2, k.v0], [0.0, 0.0, 1.0]],
-                [
-                    [r[(0, 0)], r[(0, 1)], r[(0, 2)]],
-                    [r[(1, 0)], r[(1, 1)], r[(1, 2)]],
-                    [r[(2, 0)], r[(2, 1)], r[(2, 2)]],
-                ],
-                [f.pose.t.x, f.pose.t.y, f.pose.t.z],
-                k.width.unwrap_or(1280) as usize,
-                k.height.unwrap_or(720) as usize,
-            )?)
-        }
+        (Some(f), Some(k)) if with_view => Some(Camera::from_krt(
+            rows(&k.k()),
+            rows(&f.pose.r),
+            [f.pose.t.x, f.pose.t.y, f.pose.t.z],
+            k.width.unwrap_or(1280) as usize,
+            k.height.unwrap_or(720) as usize,
+        )?),
         _ => None,
     };
     Ok(Viewers { centres, first })
@@ -71,32 +64,19 @@ pub fn register(r: &mut Registry) {
         )
         .mode(Mode::Once)
         .options::<PlaceOptions>()
-        .input(PortSpec::one("scene", SceneArt::NAME, "the designed scene"))
-        .input(PortSpec::one(
-            "points3d",
-            Points3dArt::NAME,
-            "the same points measured in the solve's frame",
-        ))
-        .input(
-            PortSpec::one(
-                "dome_image",
-                ImageArt::NAME,
-                "an equirectangular image for the scene's dome (when its own, e.g. the book's \
-                 dome.pfm, is not available)",
-            )
-            .optional(),
+        .input_of::<SceneArt>("scene", "the designed scene")
+        .input_of::<Points3dArt>("points3d", "the same points measured in the solve's frame")
+        .optional_input_of::<ImageArt>(
+            "dome_image",
+            "an equirectangular image for the scene's dome (when its own, e.g. the book's \
+             dome.pfm, is not available)",
         )
-        .output(PortSpec::one(
-            "scene",
-            SceneArt::NAME,
-            "the scene in the solve's frame",
-        ))
-        .output(PortSpec::one(
+        .output_of::<SceneArt>("scene", "the scene in the solve's frame")
+        .output_of::<ReportArt>(
             "report",
-            ReportArt::NAME,
             "the similarity (scale, rotation, angle, translation), anchors, measured points, \
              residuals and the relative RMS",
-        )),
+        ),
         run_place_scene,
     ));
     r.register_node(FnNode::new(
@@ -113,46 +93,28 @@ pub fn register(r: &mut Registry) {
         )
         .mode(Mode::Once)
         .options::<CatcherOptions>()
-        .input(PortSpec::one(
-            "points3d",
-            Points3dArt::NAME,
-            "measured points (point_cloud_calibrate)",
-        ))
-        .input(
-            PortSpec::one(
-                "scene",
-                SceneArt::NAME,
-                "objects (and dome, lights) designed in the catcher's frame (y up, unit |AB|)",
-            )
-            .optional(),
-        )
-        .input(
-            PortSpec::one(
-                "cameras",
-                CameraPathArt::NAME,
-                "the solved cameras: the ground's normal faces them; the first one is the \
-                 output scene's camera when no scene is connected",
-            )
-            .optional(),
-        )
-        .input(
-            PortSpec::one(
-                "dome_image",
-                ImageArt::NAME,
-                "an equirectangular image for the designed scene's dome",
-            )
-            .optional(),
-        )
-        .output(PortSpec::one(
+        .input_of::<Points3dArt>("points3d", "measured points (point_cloud_calibrate)")
+        .optional_input_of::<SceneArt>(
             "scene",
-            SceneArt::NAME,
+            "objects (and dome, lights) designed in the catcher's frame (y up, unit |AB|)",
+        )
+        .optional_input_of::<CameraPathArt>(
+            "cameras",
+            "the solved cameras: the ground's normal faces them; the first one is the \
+             output scene's camera when no scene is connected",
+        )
+        .optional_input_of::<ImageArt>(
+            "dome_image",
+            "an equirectangular image for the designed scene's dome",
+        )
+        .output_of::<SceneArt>(
+            "scene",
             "the catcher and the placed objects in the solve's frame",
-        ))
-        .output(PortSpec::one(
+        )
+        .output_of::<ReportArt>(
             "report",
-            ReportArt::NAME,
             "the catcher's corners, frame (origin, axes, unit), planarity and the placed objects",
-        )),
+        ),
         run_catcher_from_points,
     ));
 }
@@ -168,13 +130,8 @@ fn run_place_scene(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let p = place_scene(design, image, &measured(ctx)?, &o)
         .map_err(|e| NodeError::msg(format!("place_scene: {e}")))?;
     let report = p.report();
-    ctx.output(
-        "scene",
-        SceneArt {
-            scene: p.scene,
-            dome: p.dome,
-        },
-    );
+    let (scene, dome) = (p.scene, p.dome);
+    ctx.output("scene", SceneArt { scene, dome });
     ctx.output("report", ReportArt(report));
     Ok(())
 }
@@ -195,13 +152,8 @@ fn run_catcher_from_points(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let c = catcher_from_points(&pts, &viewers, design, image, &o)
         .map_err(|e| NodeError::msg(format!("catcher_from_points: {e}")))?;
     let report = c.report();
-    ctx.output(
-        "scene",
-        SceneArt {
-            scene: c.scene,
-            dome: c.dome,
-        },
-    );
+    let (scene, dome) = (c.scene, c.dome);
+    ctx.output("scene", SceneArt { scene, dome });
     ctx.output("report", ReportArt(report));
     Ok(())
 }

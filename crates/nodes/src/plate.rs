@@ -5,8 +5,7 @@
 //! book's marked-points form of chapter 8).
 
 use vfxgraph_engine::{
-    ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, PortSpec, Registry,
-    Threads,
+    Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, Registry, Threads,
 };
 use vfxgraph_vision::camera_path::{
     project_marks, synthetic_path, ProjectMarksOptions, SyntheticPathOptions,
@@ -31,16 +30,8 @@ pub fn register(r: &mut Registry) {
         .threads(Threads::One)
         .mode(Mode::Once)
         .options::<SyntheticPathOptions>()
-        .output(PortSpec::one(
-            "cameras",
-            CameraPathArt::NAME,
-            "the true cameras, with K",
-        ))
-        .output(PortSpec::one(
-            "intrinsics",
-            IntrinsicsArt::NAME,
-            "K and the image size",
-        )),
+        .output_of::<CameraPathArt>("cameras", "the true cameras, with K")
+        .output_of::<IntrinsicsArt>("intrinsics", "K and the image size"),
         run_synthetic_camera_path,
     ));
     r.register_node(FnNode::new(
@@ -62,12 +53,8 @@ pub fn register(r: &mut Registry) {
             "the frames marked (whole numbers)",
         ))
         .options::<ProjectMarksOptions>()
-        .input(PortSpec::one(
-            "cameras",
-            CameraPathArt::NAME,
-            "the true cameras (with K)",
-        ))
-        .output(PortSpec::one("marks", MarkedPointsArt::NAME, "the marks")),
+        .input_of::<CameraPathArt>("cameras", "the true cameras (with K)")
+        .output_of::<MarkedPointsArt>("marks", "the marks"),
         run_project_marks,
     ));
 }

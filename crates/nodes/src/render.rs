@@ -6,12 +6,11 @@
 
 use std::sync::Mutex;
 
+use nalgebra::Matrix3;
+
 use vfxgraph_engine::artifact::codec::{put_bytes, put_u64, Reader};
 use vfxgraph_engine::artifact::{decode_json, encode_json};
-use vfxgraph_engine::{
-    ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, PathRole, PortSpec,
-    Registry, Threads,
-};
+use vfxgraph_engine::{ArtifactType, Context, Mode, NodeError, NodeSpec, Registry, Threads};
 use vfxgraph_render::dome::{Dome, Light};
 use vfxgraph_render::{
     camera_for_frame, read_scene_file, render, Camera, ImageSize, PathPose, RenderOptions, Scene,
@@ -75,10 +74,10 @@ impl ArtifactType for SceneArt {
 pub(crate) fn scene_inputs(spec: NodeSpec, docs: [&'static str; 3]) -> NodeSpec {
     let [scene, cameras, intrinsics] = docs;
     let dome = "a light dome replacing the scene's dome or background";
-    spec.input(PortSpec::one("scene", SceneArt::NAME, scene))
-        .input(PortSpec::one("dome", DomeArt::NAME, dome).optional())
-        .input(PortSpec::one("cameras", CameraPathArt::NAME, cameras).optional())
-        .input(PortSpec::one("intrinsics", IntrinsicsArt::NAME, intrinsics).optional())
+    spec.input_of::<SceneArt>("scene", scene)
+        .optional_input_of::<DomeArt>("dome", dome)
+        .optional_input_of::<CameraPathArt>("cameras", cameras)
+        .optional_input_of::<IntrinsicsArt>("intrinsics", intrinsics)
 }
 
 /// Registers the artifact and nodes of this module.
@@ -102,12 +101,11 @@ pub fn register(r: &mut Registry) {
         .threads(Threads::One)
         .mode(Mode::Once)
         .memory(vfxgraph_engine::Memory::Fixed(512))
-        .param(ParamSpec::required(
+        .input_file_param(
             "path",
-            ParamType::Path(PathRole::Input),
             "the .scn or .yaml scene file, relative to the graph file",
-        ))
-        .output(PortSpec::one("scene", SceneArt::NAME, "the scene")),
+        )
+        .output_of::<SceneArt>("scene", "the scene"),
         run_read_scene,
     ));
     r.register_node(FnNode::new(
@@ -138,16 +136,8 @@ pub fn register(r: &mut Registry) {
                 "K (and image size, if known) replacing the scene camera's",
             ],
         )
-        .output(PortSpec::one(
-            "image",
-            ImageArt::NAME,
-            "radiance, linear RGB",
-        ))
-        .output(PortSpec::one(
-            "variance",
-            ImageArt::NAME,
-            "per-pixel variance of the mean, linear RGB",
-        )),
+        .output_of::<ImageArt>("image", "radiance, linear RGB")
+        .output_of::<ImageArt>("variance", "per-pixel variance of the mean, linear RGB"),
         run_render,
     ));
 }
@@ -182,7 +172,7 @@ pub(crate) fn camera_for(
         None => path.and_then(|p| p.intrinsics.as_ref()),
     };
     let k = k.map(|k| SolvedK {
-        k: [[k.f1, k.s, k.u0], [0.0, k.f2, k.v0], [0.0, 0.0, 1.0]],
+        k: rows(&k.k()),
         size: k.width.zip(k.height).map(|(w, h)| (w as usize, h as usize)),
         distortion: k.distortion,
     });
@@ -198,16 +188,17 @@ pub(crate) fn camera_for(
     .map_err(|e| NodeError::msg(e.to_string()))
 }
 
+/// A matrix as the render crate takes it: an array of its rows.
+pub(crate) fn rows(m: &Matrix3<f64>) -> [[f64; 3]; 3] {
+    m.transpose().into()
+}
+
 /// A camera path's frame as render's pose.
 pub(crate) fn path_pose(f: &FramePose) -> PathPose {
     let (r, t) = (&f.pose.r, &f.pose.t);
     PathPose {
         frame: f.frame as i64,
-        r: [
-            [r[(0, 0)], r[(0, 1)], r[(0, 2)]],
-            [r[(1, 0)], r[(1, 1)], r[(1, 2)]],
-            [r[(2, 0)], r[(2, 1)], r[(2, 2)]],
-        ],
+        r: rows(r),
         t: [t.x, t.y, t.z],
         focal: f.focal,
     }
@@ -216,9 +207,10 @@ pub(crate) fn path_pose(f: &FramePose) -> PathPose {
 /// The light of a render: the `dome` input if connected, else the scene's loaded dome, else its
 /// background colour.
 pub(crate) fn pick_light<'a>(
-    input_dome: Option<&'a Dome>,
+    ctx: &'a Context<'_>,
     art: &'a SceneArt,
 ) -> Result<Light<'a>, NodeError> {
+    let input_dome = ctx.input_opt::<DomeArt>("dome")?.map(|d| &d.0);
     Light::pick(input_dome, art.dome.as_ref(), &art.scene).map_err(NodeError::msg)
 }
 
@@ -249,8 +241,7 @@ pub(crate) fn check_finite(nonfinite: u64) -> Result<(), NodeError> {
 fn run_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: RenderOptions = ctx.options()?;
     let art = ctx.input::<SceneArt>("scene")?;
-    let input_dome = ctx.input_opt::<DomeArt>("dome")?.map(|d| &d.0);
-    let light = pick_light(input_dome, art)?;
+    let light = pick_light(ctx, art)?;
     let camera = instance_camera(ctx, &art.scene)?;
     let (world, settings) = (o.world(&art.scene), o.settings(ctx.seed()));
     let out = with_sync_progress(ctx, |progress| {

@@ -4,8 +4,7 @@
 
 use vfxgraph_engine::artifact::codec::{put_bytes, put_u64, Reader};
 use vfxgraph_engine::{
-    ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, PathRole, PortSpec,
-    Registry,
+    ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, Registry,
 };
 use vfxgraph_imaging::io::{encode_exr_layers, LayersOptions};
 use vfxgraph_imaging::{read_image, Image};
@@ -17,7 +16,6 @@ use vfxgraph_render::differential::{
 use vfxgraph_render::ImageSize;
 
 use crate::artifacts::{ImageArt, ReportArt};
-use crate::hdr::DomeArt;
 use crate::render::{
     camera_for, check_finite, instance_camera, pick_light, scene_inputs, with_sync_progress,
     SceneArt,
@@ -98,17 +96,12 @@ pub fn register(r: &mut Registry) {
             ))
             .options::<FitCatcherOptions>(),
         )
-        .input(PortSpec::sequence(
+        .sequence_input_of::<ImageArt>(
             "plate",
-            ImageArt::NAME,
             "the plate frames (linear radiance); frame `frame` is used",
-        ))
-        .output(PortSpec::one(
-            "scene",
-            SceneArt::NAME,
-            "the scene with the fitted catcher colour",
-        ))
-        .output(PortSpec::one("report", ReportArt::NAME, "the fit")),
+        )
+        .output_of::<SceneArt>("scene", "the scene with the fitted catcher colour")
+        .output_of::<ReportArt>("report", "the fit"),
         run_fit_catcher,
     ));
     r.register_node(FnNode::new(
@@ -135,40 +128,22 @@ pub fn register(r: &mut Registry) {
             })
             .options::<DifferentialOptions>(),
         )
-        .input(
-            PortSpec::one(
-                "plate",
-                ImageArt::NAME,
-                "this frame's plate (linear radiance)",
-            )
-            .optional(),
-        )
-        .output(PortSpec::one(
-            "image",
-            ImageArt::NAME,
-            "the composite (linear RGB)",
-        ))
-        .output(PortSpec::one(
+        .optional_input_of::<ImageArt>("plate", "this frame's plate (linear radiance)")
+        .output_of::<ImageArt>("image", "the composite (linear RGB)")
+        .output_of::<ImageArt>(
             "beauty",
-            ImageArt::NAME,
             "the synthetic objects, RGBA premultiplied (alpha = coverage)",
-        ))
-        .output(PortSpec::one(
+        )
+        .output_of::<ImageArt>(
             "shadow",
-            ImageArt::NAME,
             "the shadow/light matte: catcher with / without objects (1 = unchanged), RGB",
-        ))
-        .output(PortSpec::one(
+        )
+        .output_of::<LayersArt>(
             "layers",
-            LayersArt::NAME,
             "composite, beauty, shadow, shadow_difference, catcher_with, catcher_without, \
              variance, samples",
-        ))
-        .output(PortSpec::one(
-            "report",
-            ReportArt::NAME,
-            "counters and time",
-        )),
+        )
+        .output_of::<ReportArt>("report", "counters and time"),
         run_differential_render,
     ));
     r.register_node(FnNode::new(
@@ -183,17 +158,9 @@ pub fn register(r: &mut Registry) {
         .mode(Mode::Either)
         .threads(vfxgraph_engine::Threads::One)
         .options::<CompositeOptions>()
-        .input(PortSpec::one(
-            "layers",
-            LayersArt::NAME,
-            "from differential_render",
-        ))
-        .input(PortSpec::one("plate", ImageArt::NAME, "the frame's plate").optional())
-        .output(PortSpec::one(
-            "image",
-            ImageArt::NAME,
-            "the composite, linear RGB",
-        )),
+        .input_of::<LayersArt>("layers", "from differential_render")
+        .optional_input_of::<ImageArt>("plate", "the frame's plate")
+        .output_of::<ImageArt>("image", "the composite, linear RGB"),
         run_composite,
     ));
     r.register_node(FnNode::new(
@@ -205,13 +172,9 @@ pub fn register(r: &mut Registry) {
         )
         .mode(Mode::Either)
         .threads(vfxgraph_engine::Threads::One)
-        .param(ParamSpec::required(
-            "path",
-            ParamType::Path(PathRole::Output),
-            "output file, e.g. out/shot.%04d.exr",
-        ))
+        .output_file_param("path", "output file, e.g. out/shot.%04d.exr")
         .options::<LayersOptions>()
-        .input(PortSpec::one("layers", LayersArt::NAME, "the layers")),
+        .input_of::<LayersArt>("layers", "the layers"),
         run_write_layers,
     ));
 }
@@ -219,8 +182,7 @@ pub fn register(r: &mut Registry) {
 fn run_fit_catcher(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: FitCatcherOptions = ctx.options()?;
     let art = ctx.input::<SceneArt>("scene")?;
-    let input_dome = ctx.input_opt::<DomeArt>("dome")?.map(|d| &d.0);
-    let light = pick_light(input_dome, art)?;
+    let light = pick_light(ctx, art)?;
     let frame = ctx.params().i64("frame");
     let plates = ctx.sequence::<ImageArt>("plate")?;
     let plate = plates
@@ -263,8 +225,7 @@ fn run_fit_catcher(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 fn run_differential_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: DifferentialOptions = ctx.options()?;
     let art = ctx.input::<SceneArt>("scene")?;
-    let input_dome = ctx.input_opt::<DomeArt>("dome")?.map(|d| &d.0);
-    let light = pick_light(input_dome, art)?;
+    let light = pick_light(ctx, art)?;
     let camera = instance_camera(ctx, &art.scene)?;
     let plate = plate_of(ctx)?;
     let plate = plate.as_ref();
@@ -344,12 +305,7 @@ fn run_composite(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 
 fn run_write_layers(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: LayersOptions = ctx.options()?;
-    let path_text = ctx.params().str("path").to_string();
-    if ctx.frame().is_some() && !vfxgraph_engine::node::has_frame_pattern(&path_text) {
-        return Err(NodeError::msg(format!(
-            "path `{path_text}` has no frame pattern (`%04d` or `####`): every frame would use one file"
-        )));
-    }
+    crate::image_io::check_pattern(ctx)?;
     let layers = &ctx.input::<LayersArt>("layers")?.0;
     if layers.is_empty() {
         return Err(NodeError::msg("no layers to write"));

@@ -2,11 +2,7 @@
 //! `draw_tracks`, and the `tracks` artifact.
 
 use vfxgraph_engine::artifact::{decode_json, encode_json};
-use vfxgraph_engine::fsutil::atomic_write;
-use vfxgraph_engine::{
-    ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, PathRole, PortSpec,
-    Registry,
-};
+use vfxgraph_engine::{ArtifactType, Context, Mode, NodeError, NodeSpec, Registry};
 use vfxgraph_vision::klt::{
     draw_tracks, track_sequence, DrawTracksOptions, GrayImage, TrackerParams, Tracks,
     WriteTracksOptions,
@@ -62,12 +58,8 @@ pub fn register(r: &mut Registry) {
         .mode(Mode::Once)
         .threads(vfxgraph_engine::Threads::One)
         .memory(vfxgraph_engine::Memory::Fixed(512))
-        .param(ParamSpec::required(
-            "path",
-            ParamType::Path(PathRole::Input),
-            "the tracks file",
-        ))
-        .output(PortSpec::one("tracks", TracksArt::NAME, "the tracks")),
+        .input_file_param("path", "the tracks file")
+        .output_of::<TracksArt>("tracks", "the tracks"),
         run_read_tracks,
     ));
     r.register_node(FnNode::new(
@@ -77,13 +69,9 @@ pub fn register(r: &mut Registry) {
              slots reused), `native` = JSON with ids and loss reasons.",
         )
         .mode(Mode::Once)
-        .param(ParamSpec::required(
-            "path",
-            ParamType::Path(PathRole::Output),
-            "the file to write",
-        ))
+        .output_file_param("path", "the file to write")
         .options::<WriteTracksOptions>()
-        .input(PortSpec::one("tracks", TracksArt::NAME, "the tracks")),
+        .input_of::<TracksArt>("tracks", "the tracks"),
         run_write_tracks,
     ));
     r.register_node(FnNode::new(
@@ -95,13 +83,9 @@ pub fn register(r: &mut Registry) {
         )
         .mode(Mode::PerFrame)
         .options::<DrawTracksOptions>()
-        .input(PortSpec::one("frames", ImageArt::NAME, "the frame"))
-        .input(PortSpec::one("tracks", TracksArt::NAME, "the tracks"))
-        .output(PortSpec::one(
-            "image",
-            ImageArt::NAME,
-            "the frame with tracks drawn (RGB)",
-        )),
+        .input_of::<ImageArt>("frames", "the frame")
+        .input_of::<TracksArt>("tracks", "the tracks")
+        .output_of::<ImageArt>("image", "the frame with tracks drawn (RGB)"),
         run_draw_tracks,
     ));
 }
@@ -117,12 +101,8 @@ pub(crate) fn klt_spec(
     NodeSpec::new(name, doc)
         .mode(Mode::Once)
         .options_from(defaults)
-        .input(PortSpec::sequence(
-            "frames",
-            ImageArt::NAME,
-            "the frames, in order",
-        ))
-        .output(PortSpec::one("tracks", TracksArt::NAME, "the tracks"))
+        .sequence_input_of::<ImageArt>("frames", "the frames, in order")
+        .output_of::<TracksArt>("tracks", "the tracks")
 }
 
 /// The frames of input `frames` as gray images (the trackers' input).
@@ -156,9 +136,7 @@ fn run_read_tracks(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 fn run_write_tracks(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: WriteTracksOptions = ctx.options()?;
     let text = o.format.text(&ctx.input::<TracksArt>("tracks")?.0);
-    let path = crate::output_path(ctx, "path")?;
-    atomic_write(&path, text.as_bytes())
-        .map_err(|e| NodeError::msg(format!("cannot write {}: {e}", path.display())))
+    crate::write_output(ctx, "path", text.as_bytes())
 }
 
 fn run_draw_tracks(ctx: &mut Context<'_>) -> Result<(), NodeError> {

@@ -3,10 +3,7 @@
 //! bundled, no system library); with `backend: opencv` (a build with the `opencv` cargo
 //! feature) any file OpenCV's VideoCapture opens, into the same frames.
 
-use vfxgraph_engine::{
-    ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, PathRole, PortSpec,
-    Registry, Threads,
-};
+use vfxgraph_engine::{Context, Mode, NodeError, NodeSpec, Registry, Threads};
 use vfxgraph_video::{open_shared, write_video, ReadVideoOptions, WriteVideoOptions};
 
 use crate::artifacts::ImageArt;
@@ -23,17 +20,9 @@ pub fn register(r: &mut Registry) {
              with the sRGB curve as PNG frames are.",
         )
         .mode(Mode::PerFrame)
-        .param(ParamSpec::required(
-            "path",
-            ParamType::Path(PathRole::Input),
-            "the video file, relative to the graph file",
-        ))
+        .input_file_param("path", "the video file, relative to the graph file")
         .options::<ReadVideoOptions>()
-        .output(PortSpec::one(
-            "sequence",
-            ImageArt::NAME,
-            "the frame's image",
-        )),
+        .output_of::<ImageArt>("sequence", "the frame's image"),
         run_read_video,
     ));
     r.register_node(FnNode::new(
@@ -47,17 +36,9 @@ pub fn register(r: &mut Registry) {
         )
         .threads(Threads::One)
         .mode(Mode::Once)
-        .param(ParamSpec::required(
-            "path",
-            ParamType::Path(PathRole::Output),
-            "the .mp4 file, relative to the graph file",
-        ))
+        .output_file_param("path", "the .mp4 file, relative to the graph file")
         .options::<WriteVideoOptions>()
-        .input(PortSpec::sequence(
-            "sequence",
-            ImageArt::NAME,
-            "the frames, in order",
-        )),
+        .sequence_input_of::<ImageArt>("sequence", "the frames, in order"),
         run_write_video,
     ));
 }
