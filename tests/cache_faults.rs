@@ -3,8 +3,9 @@
 //!
 //! The full disk is a small tmpfs mounted for the test (root only: CI runs as root; under
 //! `CI=true` a failed mount fails the test, elsewhere it prints a notice and passes). The graph
-//! is `graphs/tonemap_hdri.yaml` on its embedded dome: cache objects of 3.1 (the dome), 3.0
-//! (exposed), 5.3 and 2.8 MB (tone-mapped); output files of 2.2 MB (EXR) and 0.5 MB (each PNG).
+//! is `graphs/tonemap_hdri.yaml` on its embedded dome: cache objects of 3.0 (exposed), 5.3 and
+//! 2.8 MB (tone-mapped) — the dome's reader is uncached, so only its action entry is stored;
+//! output files of 2.2 MB (EXR) and 0.5 MB (each PNG).
 
 use std::collections::BTreeMap;
 use std::fs;
@@ -192,10 +193,11 @@ fn a_full_disk_fails_clearly_and_leaves_the_cache_readable() {
     assert_eq!(want.len(), 3);
     let want_digests = cache_digests(&tmp.path().join("reference_cache"));
 
-    // The cache on 4 MB: the dome's image fits, the exposed image after it does not.
+    // The cache on 2 MB: the dome's entry fits (an uncached reader stores no object), the
+    // exposed image after it does not.
     let mnt = tmp.path().join("small");
     fs::create_dir_all(&mnt).unwrap();
-    let Some(fs_small) = Tmpfs::mount(&mnt, "4m") else {
+    let Some(fs_small) = Tmpfs::mount(&mnt, "2m") else {
         return;
     };
     let cache = mnt.join("cache");
