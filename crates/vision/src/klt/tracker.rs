@@ -157,6 +157,8 @@ pub struct Tracker {
     /// Drift correction aligns smoothed frames (the first frame's noise is above
     /// [`GRAINY_SIGMA`]).
     smooth: bool,
+    /// The refill's mask of the pixels inside the border, built once for the frame size.
+    border_mask: Option<(usize, usize, Vec<bool>)>,
 }
 
 impl Tracker {
@@ -189,6 +191,7 @@ impl Tracker {
             templates: Vec::new(),
             prev_sigma: 0.0,
             smooth: false,
+            border_mask: None,
         })
     }
 
@@ -220,16 +223,22 @@ impl Tracker {
             ..self.params.corners.clone()
         };
         let b = self.params.border.ceil() as usize;
-        let mask: Option<Vec<bool>> = (b > 1).then(|| {
-            let (w, h) = (img.width, img.height);
-            (0..w * h)
+        let (w, h) = (img.width, img.height);
+        if b > 1 && !matches!(&self.border_mask, Some((mw, mh, _)) if (*mw, *mh) == (w, h)) {
+            let mask = (0..w * h)
                 .map(|i| {
                     let (x, y) = (i % w, i / w);
                     x >= b && y >= b && x + b < w && y + b < h
                 })
-                .collect()
-        });
-        let corners = good_features_to_track(img, &cp, mask.as_deref(), &existing)?;
+                .collect();
+            self.border_mask = Some((w, h, mask));
+        }
+        let mask = self
+            .border_mask
+            .as_ref()
+            .filter(|_| b > 1)
+            .map(|m| &m.2[..]);
+        let corners = good_features_to_track(img, &cp, mask, &existing)?;
         for (slot, c) in free.into_iter().zip(corners) {
             self.templates
                 .push(self.params.drift_correction.and_then(|_| {
