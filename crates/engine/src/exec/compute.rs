@@ -3,16 +3,17 @@
 //! entry).
 
 use std::collections::BTreeMap;
-
-use rayon::prelude::*;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+
+use rayon::prelude::*;
 
 use super::instances::DepKind;
 use super::schedule::Runner;
 use super::seed_for;
 use crate::artifact::{Digest, Value};
-use crate::graph::GraphNode;
+use crate::graph::{Graph, GraphNode};
 use crate::node::{Context, InputValue, NodeSpec};
 use crate::store::{ActionEntry, ActionOutput, WrittenFile};
 
@@ -34,22 +35,7 @@ impl Runner<'_> {
         let inputs = self.gather_inputs(i)?;
         let (node_idx, frame) = (inst.node, inst.frame);
         let progress = move |f: f32| self.observer.progress(node_idx, frame, f);
-        let mut ctx = Context {
-            node_id: &gn.id,
-            frame: inst.frame,
-            params: &gn.params,
-            spec: gn.spec(),
-            graph_dir: &graph.dir,
-            inputs,
-            seed: seed_for(graph.seed, &gn.id, inst.frame),
-            progress: &progress,
-            cancel: &self.cancel,
-            outputs: BTreeMap::new(),
-            read_files: Vec::new(),
-            written_files: Vec::new(),
-        };
-        run_node(gn, &mut ctx)?;
-        collect_outputs(gn.spec(), &mut ctx)
+        run_on(graph, gn, frame, inputs, &progress, &self.cancel)
     }
 
     /// The input values of instance `i`, by port.
@@ -150,6 +136,33 @@ impl Runner<'_> {
     }
 }
 
+/// Runs node `gn` of `graph` for `frame` on `inputs`: what it computed.
+fn run_on(
+    graph: &Graph,
+    gn: &GraphNode,
+    frame: Option<i64>,
+    inputs: BTreeMap<&'static str, InputValue>,
+    progress: &(dyn Fn(f32) + Sync),
+    cancel: &AtomicBool,
+) -> Result<Computed, String> {
+    let mut ctx = Context {
+        node_id: &gn.id,
+        frame,
+        params: &gn.params,
+        spec: gn.spec(),
+        graph_dir: &graph.dir,
+        inputs,
+        seed: seed_for(graph.seed, &gn.id, frame),
+        progress,
+        cancel,
+        outputs: BTreeMap::new(),
+        read_files: Vec::new(),
+        written_files: Vec::new(),
+    };
+    run_node(gn, &mut ctx)?;
+    collect_outputs(gn.spec(), &mut ctx)
+}
+
 /// Runs `gn`'s node on `ctx`; a panic becomes an error.
 fn run_node(gn: &GraphNode, ctx: &mut Context) -> Result<(), String> {
     match catch_unwind(AssertUnwindSafe(|| gn.node.run(ctx))) {
@@ -189,12 +202,12 @@ fn collect_outputs(spec: &NodeSpec, ctx: &mut Context) -> Result<Computed, Strin
 /// [`NodeSpec::uncached`]), recomputed outside a run — for a viewer showing what the last run
 /// produced — and checked against the `digest` that run recorded.
 pub fn recompute_uncached(
-    graph: &crate::Graph,
+    graph: &Graph,
     node: usize,
     frame: Option<i64>,
     port: &str,
-    digest: &crate::Digest,
-) -> Result<crate::Value, String> {
+    digest: &Digest,
+) -> Result<Value, String> {
     let gn = graph
         .nodes
         .get(node)
@@ -202,23 +215,8 @@ pub fn recompute_uncached(
     if gn.spec().cache_outputs || !gn.spec().inputs.is_empty() {
         return Err(format!("`{}` is not an uncached reader", gn.id));
     }
-    let cancel = std::sync::atomic::AtomicBool::new(false);
-    let mut ctx = Context {
-        node_id: &gn.id,
-        frame,
-        params: &gn.params,
-        spec: gn.spec(),
-        graph_dir: &graph.dir,
-        inputs: BTreeMap::new(),
-        seed: super::seed_for(graph.seed, &gn.id, frame),
-        progress: &|_| {},
-        cancel: &cancel,
-        outputs: BTreeMap::new(),
-        read_files: Vec::new(),
-        written_files: Vec::new(),
-    };
-    run_node(gn, &mut ctx)?;
-    let (v, _) = collect_outputs(gn.spec(), &mut ctx)?
+    let cancel = AtomicBool::new(false);
+    let (v, _) = run_on(graph, gn, frame, BTreeMap::new(), &|_| {}, &cancel)?
         .outputs
         .remove(port)
         .ok_or_else(|| format!("`{}` has no output `{port}`", gn.id))?;

@@ -90,19 +90,20 @@ impl Runner<'_> {
             .outputs
             .get(port)
             .ok_or_else(|| format!("internal: no output `{port}`"))?;
-        if v.digest() != digest && !cached {
-            return Err(format!(
-                "`{id}`'s files changed during the run (recomputing its output gave different \
-                 bytes); run again"
-            ));
-        }
         if v.digest() != digest {
-            return Err(format!(
-                "the cached output of `{id}` was lost, and recomputing it gave different bytes \
-                 (is the node deterministic?); run again"
-            ));
+            return Err(if cached {
+                format!(
+                    "the cached output of `{id}` was lost, and recomputing it gave different \
+                     bytes (is the node deterministic?); run again"
+                )
+            } else {
+                format!(
+                    "`{id}`'s files changed during the run (recomputing its output gave \
+                     different bytes); run again"
+                )
+            });
         }
-        if let (Some(store), true) = (&self.c.store, cached) {
+        if let Some(store) = self.c.store.as_ref().filter(|_| cached) {
             let _ = store.put_object(&digest, v.type_name(), bytes);
         }
         self.keep(j, port, v);

@@ -358,9 +358,10 @@ pub fn best_pair(
         for (n, r) in results {
             match r {
                 Ok(points) => {
-                    if best.as_ref().is_none_or(|b| {
-                        (points.len(), std::cmp::Reverse(n)) > (b.1.len(), std::cmp::Reverse(b.0))
-                    }) {
+                    if best
+                        .as_ref()
+                        .is_none_or(|b| !beaten(points.len(), n, Some((b.1.len(), b.0))))
+                    {
                         best = Some((n, points));
                     }
                 }
