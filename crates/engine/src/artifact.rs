@@ -61,14 +61,6 @@ pub trait ArtifactType: Any + Send + Sync + Sized + 'static {
     fn encode(&self, out: &mut Vec<u8>);
     /// Decodes what [`ArtifactType::encode`] wrote.
     fn decode(bytes: &[u8]) -> Result<Self, String>;
-    /// Feeds exactly the bytes of [`ArtifactType::encode`] to `h`. The default encodes; a large
-    /// type may stream its parts instead, so that the digest of a value that is not stored
-    /// (an uncached reader's) costs no copy.
-    fn hash_into(&self, h: &mut blake3::Hasher) {
-        let mut bytes = Vec::new();
-        self.encode(&mut bytes);
-        h.update(&bytes);
-    }
 }
 
 /// Object-safe view of an artifact value.
@@ -127,16 +119,20 @@ impl Value {
         Self::new_encoded(value).0
     }
 
-    /// Wraps a value, computing its digest through [`ArtifactType::hash_into`] without keeping
-    /// the encoding (for values that are not stored).
-    pub fn new_hashed<T: ArtifactType>(value: T) -> Value {
-        let mut h = blake3::Hasher::new();
-        h.update(T::NAME.as_bytes());
-        h.update(&[0]);
-        value.hash_into(&mut h);
+    /// A value whose digest the run sets later ([`Value::named`]): an uncached reader's
+    /// output, named by its instance's key rather than by its content.
+    pub(crate) fn unnamed<T: ArtifactType>(value: T) -> Value {
         Value {
             data: Arc::new(value),
-            digest: Digest(*h.finalize().as_bytes()),
+            digest: Digest([0; 32]),
+        }
+    }
+
+    /// The same value under `digest`.
+    pub(crate) fn named(self, digest: Digest) -> Value {
+        Value {
+            data: self.data,
+            digest,
         }
     }
 
@@ -201,9 +197,6 @@ pub(crate) fn decoder<T: ArtifactType>() -> DecodeFn {
 
 /// Helpers for writing canonical encodings by hand: little-endian, length-prefixed.
 pub mod codec {
-    /// The content hasher, for [`ArtifactType::hash_into`](super::ArtifactType::hash_into).
-    pub use blake3::Hasher;
-
     /// Appends a u64, little endian.
     pub fn put_u64(out: &mut Vec<u8>, v: u64) {
         out.extend_from_slice(&v.to_le_bytes());
@@ -227,23 +220,6 @@ pub mod codec {
         out.reserve(v.len() * 4);
         for x in v {
             out.extend_from_slice(&x.to_bits().to_le_bytes());
-        }
-    }
-
-    /// Feeds `h` the bytes [`put_u64`] appends.
-    pub fn hash_u64(h: &mut blake3::Hasher, v: u64) {
-        h.update(&v.to_le_bytes());
-    }
-
-    /// Feeds `h` the bytes [`put_f32s`] appends, a block at a time (no copy of the whole).
-    pub fn hash_f32s(h: &mut blake3::Hasher, v: &[f32]) {
-        hash_u64(h, v.len() as u64);
-        let mut block = [0u8; 16384];
-        for chunk in v.chunks(block.len() / 4) {
-            for (b, x) in block.chunks_exact_mut(4).zip(chunk) {
-                b.copy_from_slice(&x.to_bits().to_le_bytes());
-            }
-            h.update(&block[..chunk.len() * 4]);
         }
     }
 

@@ -21,6 +21,7 @@ pub mod options;
 pub mod param;
 pub mod registry;
 pub mod store;
+pub mod stream;
 pub mod yaml;
 
 pub use artifact::{ArtifactType, Digest, Value};

@@ -12,6 +12,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use crate::artifact::{ArtifactType, Digest, Value};
 use crate::param::{ParamSpec, ParamType, Params, PathRole};
+use crate::stream::{Deferred, Items, Stream};
 
 /// Whether a node type runs once, once per frame, or either (chosen by the graph).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -37,6 +38,10 @@ pub struct PortSpec {
     pub sequence: bool,
     /// For inputs: may be left unconnected.
     pub optional: bool,
+    /// For sequence inputs: the node reads the frames one at a time with
+    /// [`Context::stream`], so they are computed or loaded when asked and never all held
+    /// in memory (a long plate).
+    pub streamed: bool,
     /// One line of documentation.
     pub doc: &'static str,
 }
@@ -49,6 +54,7 @@ impl PortSpec {
             ty,
             sequence: false,
             optional: false,
+            streamed: false,
             doc,
         }
     }
@@ -60,6 +66,7 @@ impl PortSpec {
             ty,
             sequence: true,
             optional: false,
+            streamed: false,
             doc,
         }
     }
@@ -77,6 +84,12 @@ impl PortSpec {
     /// Marks an input optional.
     pub fn optional(mut self) -> Self {
         self.optional = true;
+        self
+    }
+
+    /// Marks a sequence input streamed (see [`PortSpec::streamed`]).
+    pub fn streamed(mut self) -> Self {
+        self.streamed = true;
         self
     }
 
@@ -246,6 +259,11 @@ impl NodeSpec {
     pub fn sequence_input_of<T: ArtifactType>(self, name: &'static str, doc: &'static str) -> Self {
         self.input(PortSpec::sequence_of::<T>(name, doc))
     }
+    /// Adds a streamed sequence input of `T`: the node reads its frames one at a time with
+    /// [`Context::stream`].
+    pub fn streamed_input_of<T: ArtifactType>(self, name: &'static str, doc: &'static str) -> Self {
+        self.input(PortSpec::sequence_of::<T>(name, doc).streamed())
+    }
     /// Adds an output carrying one `T` (the typed short form of
     /// `.output(PortSpec::one(name, T::NAME, doc))`).
     pub fn output_of<T: ArtifactType>(self, name: &'static str, doc: &'static str) -> Self {
@@ -344,11 +362,13 @@ impl<E: std::error::Error> From<E> for NodeError {
 
 /// An input as handed to a running node.
 #[derive(Clone, Debug)]
-pub enum InputValue {
+pub enum InputValue<'a> {
     /// One value.
     One(Value),
     /// A whole sequence: (frame, value) in frame order.
     Sequence(Vec<(i64, Value)>),
+    /// A streamed sequence ([`PortSpec::streamed`]): (frame, value when read), in frame order.
+    Streamed(Vec<(i64, Deferred<'a>)>),
 }
 
 static NEVER_CANCELLED: AtomicBool = AtomicBool::new(false);
@@ -360,7 +380,7 @@ pub struct Context<'a> {
     pub(crate) params: &'a Params,
     pub(crate) spec: &'a NodeSpec,
     pub(crate) graph_dir: &'a Path,
-    pub(crate) inputs: BTreeMap<&'static str, InputValue>,
+    pub(crate) inputs: BTreeMap<&'static str, InputValue<'a>>,
     pub(crate) seed: u64,
     pub(crate) progress: &'a (dyn Fn(f32) + Sync),
     pub(crate) cancel: &'a AtomicBool,
@@ -376,7 +396,7 @@ impl<'a> Context<'a> {
         params: &'a Params,
         graph_dir: &'a Path,
         frame: Option<i64>,
-        inputs: Vec<(&'static str, InputValue)>,
+        inputs: Vec<(&'static str, InputValue<'a>)>,
     ) -> Self {
         Context {
             node_id: "test",
@@ -453,6 +473,14 @@ impl<'a> Context<'a> {
     /// the node (and, if its outputs change, everything downstream). An edit racing the read is
     /// caught on the next run. Errors name the file (missing, unreadable, not a file).
     pub fn declare_input_file(&mut self, path: &Path) -> Result<(), NodeError> {
+        if !self.spec.cache_outputs {
+            return Err(NodeError::msg(format!(
+                "internal: the uncached reader `{}` declares {}: an uncached reader's files \
+                 must be path params (they name its output)",
+                self.spec.name,
+                path.display()
+            )));
+        }
         let meta = std::fs::metadata(path)
             .map_err(|e| NodeError::msg(format!("{}: {e}", path.display())))?;
         if !meta.is_file() {
@@ -515,9 +543,9 @@ impl<'a> Context<'a> {
                     T::NAME
                 ))
             }),
-            Some(InputValue::Sequence(_)) => Err(NodeError::msg(format!(
-                "input `{port}` is a sequence; use Context::sequence"
-            ))),
+            Some(InputValue::Sequence(_) | InputValue::Streamed(_)) => Err(NodeError::msg(
+                format!("input `{port}` is a sequence; use Context::sequence"),
+            )),
         }
     }
 
@@ -536,11 +564,34 @@ impl<'a> Context<'a> {
                     })
                 })
                 .collect(),
+            Some(InputValue::Streamed(_)) => Err(NodeError::msg(format!(
+                "input `{port}` is streamed; read it with Context::stream"
+            ))),
             Some(InputValue::One(_)) => Err(NodeError::msg(format!(
                 "input `{port}` is one value, not a sequence"
             ))),
             None => Err(NodeError::msg(format!("input `{port}` is not connected"))),
         }
+    }
+
+    /// The streamed sequence on input `port` ([`PortSpec::streamed`]), its frames read when
+    /// asked for. A sequence handed over whole (a node's unit test) streams too.
+    pub fn stream<T: ArtifactType>(&self, port: &str) -> Result<Stream<'_, T>, NodeError> {
+        let items = match self.inputs.get(port) {
+            Some(InputValue::Streamed(items)) => Items::Deferred(items),
+            Some(InputValue::Sequence(items)) => Items::Ready(items),
+            Some(InputValue::One(_)) => {
+                return Err(NodeError::msg(format!(
+                    "input `{port}` is one value, not a sequence"
+                )))
+            }
+            None => return Err(NodeError::msg(format!("input `{port}` is not connected"))),
+        };
+        Ok(Stream {
+            port: port.to_string(),
+            items,
+            _t: std::marker::PhantomData,
+        })
     }
 
     /// Sets output `port`. Panics if the port is not declared or has another type (a bug in
@@ -558,11 +609,12 @@ impl<'a> Context<'a> {
             "node {} output `{port}` type",
             self.spec.name
         );
-        // An uncached node's outputs are never stored: only their digest is needed.
+        // An uncached node's outputs are neither stored nor hashed: they are named by the
+        // instance's key (the run sets the digest).
         let v = if self.spec.cache_outputs {
             Value::new_encoded(value)
         } else {
-            (Value::new_hashed(value), Vec::new())
+            (Value::unnamed(value), Vec::new())
         };
         self.outputs.insert(spec.name, v);
     }

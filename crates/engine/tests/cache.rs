@@ -604,8 +604,8 @@ fn uncached_readers_store_entries_not_objects() {
     let r = exec::run(&g, &registry(), &o, &exec::Quiet).unwrap();
     assert!(!r.failed(), "{r:?}");
     assert_eq!(r.count("twice", Status::Ran), 1);
-    // The same entries (keys and output digests) as with a cached reader, read's node type
-    // aside.
+    // The same output digests as with a cached reader, read's entries aside (an uncached
+    // reader's outputs are named by its key).
     let cached = Scratch::new();
     write_inputs(&cached);
     cached.run(FILES);
@@ -629,6 +629,57 @@ fn uncached_readers_store_entries_not_objects() {
     let r = s.run(&uncached);
     assert_eq!(ran_cached(&r, "read"), (1, 3));
     assert_eq!(ran_cached(&r, "twice"), (1, 3));
+}
+
+/// An uncached reader is not computed when the run resolves it: a streamed consumer computes
+/// the frames it reads, when it reads them, and no others; a rerun computes nothing; an
+/// edited frame reruns alone; a frame that does not parse fails the consumer with the reader's
+/// name, frame and file.
+#[test]
+fn uncached_readers_are_computed_when_a_streamed_consumer_reads_them() {
+    use std::sync::atomic::Ordering::SeqCst;
+    let graph = "version: 1
+frames: 1-4
+nodes:
+  read: {type: read_num_counted, params: {path: \"in/####.txt\"}}
+  total: {type: sum_every_other, inputs: {items: read.out}}
+";
+    let counted = || common::COUNTED_READS.load(SeqCst);
+    let s = Scratch::new();
+    write_inputs(&s);
+    let r = s.run(graph);
+    assert!(!r.failed(), "{r:?}");
+    assert_eq!(ran_cached(&r, "read"), (4, 0));
+    assert_eq!(counted(), 2, "frames 1 and 3 read, 2 and 4 never computed");
+    let total_is = |v: f64| {
+        let store = vfxgraph_engine::store::Store::open(&s.path(".vfxgraph")).unwrap();
+        let want = vfxgraph_engine::Value::new(v).digest().to_hex();
+        store
+            .list()
+            .iter()
+            .any(|e| e.entry.node_id == "total" && e.entry.outputs[0].digest == want)
+    };
+    assert!(total_is(1.0 + 3.0));
+    let r = s.run(graph);
+    assert!(r.nodes.iter().all(|n| n.status == Status::Cached), "{r:?}");
+    assert_eq!(counted(), 2, "a rerun computes nothing");
+    s.write("in/0003.txt", "30\n");
+    let r = s.run(graph);
+    assert_eq!(ran_cached(&r, "read"), (1, 3));
+    assert_eq!(ran_cached(&r, "total"), (1, 0));
+    assert_eq!(counted(), 4);
+    assert!(total_is(1.0 + 30.0));
+    s.write("in/0001.txt", "one\n");
+    let r = s.run(graph);
+    let failed = r.nodes.iter().find(|n| n.id == "total").unwrap();
+    assert_eq!(failed.status, Status::Failed);
+    assert!(
+        failed.reason.contains("frame 1")
+            && failed.reason.contains("`read`")
+            && failed.reason.contains("0001.txt"),
+        "{}",
+        failed.reason
+    );
 }
 
 /// Only input-less nodes may be uncached: a recompute must need nothing but the graph.

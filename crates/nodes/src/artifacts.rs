@@ -1,7 +1,7 @@
 //! Artifact types that flow between nodes, as newtypes over the algorithm crates' types (the
 //! engine's `ArtifactType` is implemented here so the algorithm crates stay engine-free).
 
-use vfxgraph_engine::artifact::codec::{hash_f32s, hash_u64, put_f32s, put_u64, Hasher, Reader};
+use vfxgraph_engine::artifact::codec::{put_f32s, put_u64, Reader};
 use vfxgraph_engine::{ArtifactType, Registry};
 use vfxgraph_imaging::Image;
 
@@ -19,13 +19,6 @@ impl ArtifactType for ImageArt {
         put_u64(out, img.height as u64);
         put_u64(out, img.channels as u64);
         put_f32s(out, &img.data);
-    }
-    fn hash_into(&self, h: &mut Hasher) {
-        let img = &self.0;
-        hash_u64(h, img.width as u64);
-        hash_u64(h, img.height as u64);
-        hash_u64(h, img.channels as u64);
-        hash_f32s(h, &img.data);
     }
     fn decode(bytes: &[u8]) -> Result<Self, String> {
         let mut r = Reader::new(bytes);
@@ -141,25 +134,5 @@ mod tests {
         put_u64(&mut bad, 3);
         put_f32s(&mut bad, &[1.0]);
         assert!(ImageArt::decode(&bad).is_err());
-    }
-
-    /// The streamed digest of an image is the digest of its encoding (an uncached reader's
-    /// frames key their consumers exactly as stored ones did), across the hasher's block
-    /// boundary.
-    #[test]
-    fn image_hash_is_the_encodings_digest() {
-        use vfxgraph_engine::artifact::content_digest;
-        use vfxgraph_engine::Value;
-        for (w, h) in [(2, 1), (97, 53), (64, 64)] {
-            let data = (0..w * h * 3)
-                .map(|i| (i as f32 * 0.37).sin() * 3.0)
-                .collect();
-            let img = ImageArt(Image::from_vec(w, h, 3, data).unwrap());
-            let mut bytes = Vec::new();
-            img.encode(&mut bytes);
-            let want = content_digest(ImageArt::NAME, &bytes);
-            assert_eq!(Value::new_hashed(img.clone()).digest(), want);
-            assert_eq!(Value::new(img).digest(), want);
-        }
     }
 }

@@ -254,7 +254,7 @@ mod tests {
     fn run(
         name: &str,
         set: &[(&str, ParamValue)],
-        inputs: Vec<(&'static str, InputValue)>,
+        inputs: Vec<(&'static str, InputValue<'static>)>,
         dir: &Path,
     ) -> Result<Context<'static>, NodeError> {
         let s: &'static _ = Box::leak(Box::new(spec(name)));

@@ -200,7 +200,7 @@ mod tests {
         f(&mut ctx)
     }
 
-    fn plate() -> InputValue {
+    fn plate() -> InputValue<'static> {
         InputValue::Sequence(vec![
             (3, Value::new(ImageArt(Image::new(16, 12, 3)))),
             (4, Value::new(ImageArt(Image::new(16, 12, 3)))),

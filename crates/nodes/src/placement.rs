@@ -240,7 +240,7 @@ mod tests {
         }
     }
 
-    fn points(p: &[Vec3]) -> InputValue {
+    fn points(p: &[Vec3]) -> InputValue<'static> {
         InputValue::One(Value::new(Points3dArt(Points3d(
             p.iter().map(|v| Point3::new(v.x, v.y, v.z)).collect(),
         ))))

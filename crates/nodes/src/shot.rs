@@ -379,7 +379,7 @@ mod tests {
         ))
     }
 
-    fn one<T: ArtifactType + Clone>(v: &T) -> InputValue {
+    fn one<T: ArtifactType + Clone>(v: &T) -> InputValue<'static> {
         InputValue::One(Value::new(v.clone()))
     }
 

@@ -2,9 +2,10 @@
 //! `draw_tracks`, and the `tracks` artifact.
 
 use vfxgraph_engine::artifact::{decode_json, encode_json};
+use vfxgraph_engine::stream::Stream;
 use vfxgraph_engine::{ArtifactType, Context, Mode, NodeError, NodeSpec, Registry};
 use vfxgraph_vision::klt::{
-    draw_tracks, track_sequence, DrawTracksOptions, GrayImage, TrackerParams, Tracks,
+    draw_tracks, track_loaded, DrawTracksOptions, GrayImage, TrackerParams, Tracks,
     WriteTracksOptions,
 };
 
@@ -101,24 +102,35 @@ pub(crate) fn klt_spec(
     NodeSpec::new(name, doc)
         .mode(Mode::Once)
         .options_from(defaults)
-        .sequence_input_of::<ImageArt>("frames", "the frames, in order")
+        .streamed_input_of::<ImageArt>("frames", "the frames, in order")
         .output_of::<TracksArt>("tracks", "the tracks")
 }
 
-/// The frames of input `frames` as gray images (the trackers' input).
+/// The frames of input `frames` as gray images (the trackers' input), read in parallel.
+#[cfg(feature = "opencv")]
 pub(crate) fn gray_frames(ctx: &Context<'_>) -> Result<Vec<(i64, GrayImage)>, NodeError> {
-    let frames = ctx.sequence::<ImageArt>("frames")?;
-    let images: Vec<_> = frames.iter().map(|(_, img)| &img.0).collect();
-    let grays = GrayImage::from_images(&images);
-    Ok(frames.iter().map(|(f, _)| *f).zip(grays).collect())
+    use rayon::prelude::*;
+    let frames = ctx.stream::<ImageArt>("frames")?;
+    (0..frames.len())
+        .into_par_iter()
+        .map(|k| gray_frame(&frames, k))
+        .collect()
 }
 
+/// Frame `k` of a stream as a gray image.
+fn gray_frame(frames: &Stream<'_, ImageArt>, k: usize) -> Result<(i64, GrayImage), NodeError> {
+    Ok((frames.frame(k), GrayImage::from_image(&frames.get(k)?.0)))
+}
+
+/// Tracks the plate a frame at a time: each frame is read (an uncached reader decodes it)
+/// while the one before is tracked.
 pub(crate) fn run_klt_track(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let params: TrackerParams = ctx.options()?;
-    let grays = gray_frames(ctx)?;
-    let refs: Vec<(i64, &GrayImage)> = grays.iter().map(|(f, g)| (*f, g)).collect();
-    let tracks = track_sequence(&refs, &params, |x| ctx.progress(x))
-        .map_err(|e| NodeError::msg(format!("klt_track: {e}")))?;
+    let tracks = {
+        let frames = ctx.stream::<ImageArt>("frames")?;
+        let load = |k| gray_frame(&frames, k);
+        track_loaded(frames.len(), load, &params, |x| ctx.progress(x))?
+    };
     ctx.output("tracks", TracksArt(tracks));
     Ok(())
 }

@@ -9,13 +9,17 @@ use std::sync::atomic::AtomicBool;
 
 use rayon::prelude::*;
 
-use super::instances::DepKind;
+use super::common::Common;
+use super::instances::{frame_suffix, DepKind};
+use super::keys::uncached_digest;
 use super::schedule::Runner;
 use super::seed_for;
+use super::RunOptions;
 use crate::artifact::{Digest, Value};
 use crate::graph::{Graph, GraphNode};
 use crate::node::{Context, InputValue, NodeSpec};
 use crate::store::{ActionEntry, ActionOutput, WrittenFile};
+use crate::stream::Deferred;
 
 /// What a node computed.
 pub(super) struct Computed {
@@ -38,12 +42,23 @@ impl Runner<'_> {
         run_on(graph, gn, frame, inputs, &progress, &self.cancel)
     }
 
-    /// The input values of instance `i`, by port.
-    fn gather_inputs(&self, i: usize) -> Result<BTreeMap<&'static str, InputValue>, String> {
+    /// The input values of instance `i`, by port: a streamed port's frames are read when
+    /// the node asks for them, the others' now.
+    fn gather_inputs(&self, i: usize) -> Result<BTreeMap<&'static str, InputValue<'_>>, String> {
         let mut inputs = BTreeMap::new();
+        let spec = self.c.graph.nodes[self.c.insts[i].node].spec();
         for d in &self.c.insts[i].deps {
+            let streamed = spec.inputs.iter().any(|p| p.name == d.port && p.streamed);
             let v = match &d.kind {
                 DepKind::One(j) => InputValue::One(self.value(*j, d.from_port)?),
+                DepKind::Seq(r) if streamed => InputValue::Streamed(
+                    r.clone()
+                        .map(|j| {
+                            let read = move || self.value(j, d.from_port);
+                            (self.c.insts[j].frame.unwrap_or(0), Deferred::new(read))
+                        })
+                        .collect(),
+                ),
                 // In parallel: values not in memory are loaded or recomputed (an uncached
                 // reader's frames are decoded again).
                 DepKind::Seq(r) => InputValue::Sequence(
@@ -77,9 +92,7 @@ impl Runner<'_> {
         let gn = &self.c.graph.nodes[inst.node];
         let mut outs = Vec::new();
         for (port, (v, bytes)) in &computed.outputs {
-            if gn.spec().cache_outputs {
-                store.put_object(&v.digest(), v.type_name(), bytes)?;
-            }
+            store.put_object(&v.digest(), v.type_name(), bytes)?;
             outs.push(ActionOutput {
                 port: port.to_string(),
                 ty: v.type_name().to_string(),
@@ -115,6 +128,42 @@ impl Runner<'_> {
         )
     }
 
+    /// Stores the action entry of an uncached instance, its outputs named `digests` (no
+    /// objects, no files: an uncached node writes none).
+    pub(super) fn store_uncached(
+        &self,
+        i: usize,
+        key: &Digest,
+        digests: &BTreeMap<&'static str, Digest>,
+    ) -> std::io::Result<()> {
+        let Some(store) = &self.c.store else {
+            return Ok(());
+        };
+        let inst = &self.c.insts[i];
+        let gn = &self.c.graph.nodes[inst.node];
+        let outputs = gn
+            .spec()
+            .outputs
+            .iter()
+            .map(|p| ActionOutput {
+                port: p.name.to_string(),
+                ty: p.ty.to_string(),
+                digest: digests[p.name].to_hex(),
+            })
+            .collect();
+        let entry = ActionEntry {
+            node_type: gn.spec().name.to_string(),
+            node_id: gn.id.clone(),
+            frame: inst.frame,
+            outputs,
+            files: Vec::new(),
+            read_files: Vec::new(),
+            node_files: Vec::new(),
+            seconds: 0.0,
+        };
+        store.put_action(key, &entry)
+    }
+
     /// The files of instance `i`'s output path params, with their digests.
     fn written_files(&self, i: usize) -> std::io::Result<Vec<WrittenFile>> {
         self.c
@@ -141,7 +190,7 @@ fn run_on(
     graph: &Graph,
     gn: &GraphNode,
     frame: Option<i64>,
-    inputs: BTreeMap<&'static str, InputValue>,
+    inputs: BTreeMap<&'static str, InputValue<'_>>,
     progress: &(dyn Fn(f32) + Sync),
     cancel: &AtomicBool,
 ) -> Result<Computed, String> {
@@ -199,8 +248,8 @@ fn collect_outputs(spec: &NodeSpec, ctx: &mut Context) -> Result<Computed, Strin
 }
 
 /// Output `port` of instance `frame` of the uncached node `node` (see
-/// [`NodeSpec::uncached`]), recomputed outside a run — for a viewer showing what the last run
-/// produced — and checked against the `digest` that run recorded.
+/// [`NodeSpec::uncached`]), computed outside a run — for a viewer showing what the last run
+/// read — after checking that its files still name the output `digest` that run recorded.
 pub fn recompute_uncached(
     graph: &Graph,
     node: usize,
@@ -215,16 +264,21 @@ pub fn recompute_uncached(
     if gn.spec().cache_outputs || !gn.spec().inputs.is_empty() {
         return Err(format!("`{}` is not an uncached reader", gn.id));
     }
+    let c = Common::new(graph, &RunOptions::default()).map_err(|e| e.to_string())?;
+    let i = (0..c.insts.len())
+        .find(|&i| c.insts[i].node == node && c.insts[i].frame == frame)
+        .ok_or_else(|| format!("`{}` has no instance{}", gn.id, frame_suffix(frame)))?;
+    let key = c.key(i, |_, _| None)?.key;
+    if uncached_digest(&key, port) != *digest {
+        return Err(format!(
+            "`{}`'s files changed since the run; run again",
+            gn.id
+        ));
+    }
     let cancel = AtomicBool::new(false);
     let (v, _) = run_on(graph, gn, frame, BTreeMap::new(), &|_| {}, &cancel)?
         .outputs
         .remove(port)
         .ok_or_else(|| format!("`{}` has no output `{port}`", gn.id))?;
-    if v.digest() != *digest {
-        return Err(format!(
-            "`{}`'s files changed since the run (recomputing it gave different bytes); run again",
-            gn.id
-        ));
-    }
-    Ok(v)
+    Ok(v.named(*digest))
 }

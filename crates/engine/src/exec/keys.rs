@@ -140,6 +140,20 @@ impl Common<'_> {
     }
 }
 
+/// The digest of output `port` of an uncached node's instance with key `key`: its name,
+/// not its content's hash. An uncached node has no inputs and is deterministic, so its key
+/// (type, version, params, the content of its files, frame, seed) fixes its outputs, and
+/// naming them by it lets the run resolve the instance without computing it: the values are
+/// computed when a consumer reads them (Gaffer names a file reader's output by its file name
+/// and params in the same way).
+pub(crate) fn uncached_digest(key: &Digest, port: &str) -> Digest {
+    let mut h = blake3::Hasher::new();
+    h.update(b"vfxgraph-uncached-output-v1\0");
+    h.update(&key.0);
+    h.update(port.as_bytes());
+    Digest(*h.finalize().as_bytes())
+}
+
 /// The key's header: format tag, node type, version and the output-affecting params.
 fn hash_node(h: &mut blake3::Hasher, spec: &NodeSpec, gn: &GraphNode) {
     h.update(b"vfxgraph-key-v1\0");

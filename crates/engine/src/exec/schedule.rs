@@ -9,7 +9,7 @@ use std::time::Instant;
 use super::common::Common;
 use super::compute::Computed;
 use super::instances::{frame_suffix, Role};
-use super::keys::KeyParts;
+use super::keys::{uncached_digest, KeyParts};
 use super::records::InstRecord;
 use super::report::{InstanceReport, Observer, RunReport, Status};
 use super::{ExecError, RunOptions};
@@ -177,6 +177,12 @@ impl<'a> Runner<'a> {
             Ok(p) => p,
             Err(e) => return self.finish(i, Done::empty(Status::Failed, e, 0.0)),
         };
+        if !self.c.graph.nodes[self.c.insts[i].node]
+            .spec()
+            .cache_outputs
+        {
+            return self.resolve_uncached(i, parts);
+        }
         let miss = match self.c.lookup(i, &parts.key) {
             Ok(entry) => return self.serve_cached(i, parts, &entry),
             Err(m) => m,
@@ -236,6 +242,42 @@ impl<'a> Runner<'a> {
                 digests,
             },
         );
+    }
+
+    /// Resolves an instance of an uncached node without computing it: its outputs are named
+    /// by its key ([`uncached_digest`]) and computed when a consumer reads them. Its action
+    /// entry (no objects) is what makes the next run report it cached.
+    fn resolve_uncached(&self, i: usize, parts: KeyParts) {
+        let spec = self.c.graph.nodes[self.c.insts[i].node].spec();
+        let digests: BTreeMap<_, _> = spec
+            .outputs
+            .iter()
+            .map(|p| (p.name, uncached_digest(&parts.key, p.name)))
+            .collect();
+        let (status, reason) = match self.c.lookup(i, &parts.key) {
+            Ok(_) => {
+                if let Some(store) = &self.c.store {
+                    store.touch_action(&parts.key);
+                }
+                (Status::Cached, "cache hit".to_string())
+            }
+            Err(miss) => {
+                let reason = self.c.explain(i, &parts, &miss);
+                if let Err(e) = self.store_uncached(i, &parts.key, &digests) {
+                    let reason = format!("its entry could not be cached: {e}");
+                    return self.finish(i, Done::empty(Status::Failed, reason, 0.0));
+                }
+                (Status::Ran, format!("{reason} (read when a consumer runs)"))
+            }
+        };
+        self.remember(i, parts.record);
+        let done = Done {
+            status,
+            reason,
+            seconds: 0.0,
+            digests,
+        };
+        self.finish(i, done);
     }
 
     /// Computes instance `i` (a cache miss for reason `miss`) and stores its result.

@@ -1,11 +1,12 @@
 //! Lazy loading: the value of a resolved instance's output, read when a consumer runs — from
-//! memory, else from the store (verified), else recomputed: an uncached node's always
-//! ([`NodeSpec::uncached`](crate::NodeSpec::uncached)), anything else's if it was lost from
-//! the cache.
+//! memory, else from the store (verified), else recomputed if it was lost from the cache; an
+//! uncached node's ([`NodeSpec::uncached`](crate::NodeSpec::uncached)) is computed for each
+//! read and never kept.
 
 use std::sync::atomic::Ordering;
 
 use super::instances::{frame_suffix, Role};
+use super::keys::uncached_digest;
 use super::schedule::Runner;
 use crate::artifact::{Digest, Value};
 
@@ -31,10 +32,11 @@ impl Runner<'_> {
             .find(|p| p.name == port)
             .map(|p| p.name)
             .ok_or_else(|| format!("internal: unknown port `{port}`"))?;
-        if spec.cache_outputs {
-            if let Some(v) = self.load_stored(j, static_port, &digest) {
-                return Ok(v);
-            }
+        if !spec.cache_outputs {
+            return self.compute_uncached(j, static_port, digest);
+        }
+        if let Some(v) = self.load_stored(j, static_port, &digest) {
+            return Ok(v);
         }
         self.recompute(j, static_port, digest)
     }
@@ -67,46 +69,57 @@ impl Runner<'_> {
         }
     }
 
-    /// Output `port` of instance `j` recomputed: an uncached node's, or one lost from the
-    /// cache (deleted or corrupt). Deterministic nodes give the same bytes; anything else is
-    /// reported rather than silently mixed. An uncached node is recomputed even where only
-    /// the selected instances may run (a farm task): it reads nothing but its files.
+    /// Output `port` of instance `j`, lost from the cache (deleted or corrupt), recomputed.
+    /// Deterministic nodes give the same bytes; anything else is reported rather than
+    /// silently mixed.
     fn recompute(&self, j: usize, port: &'static str, digest: Digest) -> Result<Value, String> {
         let up = &self.c.insts[j];
-        let gn = &self.c.graph.nodes[up.node];
-        let (id, cached) = (&gn.id, gn.spec().cache_outputs);
-        if cached && self.c.role[j] == Role::CacheOnly {
+        let id = &self.c.graph.nodes[up.node].id;
+        if self.c.role[j] == Role::CacheOnly {
             return Err(format!(
                 "the cached output `{port}` of `{id}`{} is missing from the cache, and only the \
                  selected instances may run",
                 frame_suffix(up.frame)
             ));
         }
-        if cached {
-            tracing::info!("recomputing `{id}` (its cached output was lost)");
-        }
+        tracing::info!("recomputing `{id}` (its cached output was lost)");
         let outputs = self.compute(j)?;
         let (v, bytes) = outputs
             .outputs
             .get(port)
             .ok_or_else(|| format!("internal: no output `{port}`"))?;
         if v.digest() != digest {
-            return Err(if cached {
-                format!(
-                    "the cached output of `{id}` was lost, and recomputing it gave different \
-                     bytes (is the node deterministic?); run again"
-                )
-            } else {
-                format!(
-                    "`{id}`'s files changed during the run (recomputing its output gave \
-                     different bytes); run again"
-                )
-            });
+            return Err(format!(
+                "the cached output of `{id}` was lost, and recomputing it gave different bytes \
+                 (is the node deterministic?); run again"
+            ));
         }
-        if let Some(store) = self.c.store.as_ref().filter(|_| cached) {
+        if let Some(store) = self.c.store.as_ref() {
             let _ = store.put_object(&digest, v.type_name(), bytes);
         }
         self.keep(j, port, v);
         Ok(v.clone())
+    }
+
+    /// Output `port` of instance `j` of an uncached node, computed now for the consumer that
+    /// reads it and not kept (every reader computes it again: the node's policy). Its files
+    /// are checked against the key that named the output, so a file changed during the run
+    /// is an error, not a mix of two versions. An error names the node and frame.
+    fn compute_uncached(&self, j: usize, port: &str, digest: Digest) -> Result<Value, String> {
+        let up = &self.c.insts[j];
+        let at = format!(
+            "`{}`{}",
+            self.c.graph.nodes[up.node].id,
+            frame_suffix(up.frame)
+        );
+        let mut outputs = self.compute(j).map_err(|e| format!("{at}: {e}"))?.outputs;
+        let (v, _) = outputs
+            .remove(port)
+            .ok_or_else(|| format!("internal: no output `{port}`"))?;
+        let now = self.c.key(j, |_, _| None)?;
+        if uncached_digest(&now.key, port) != digest {
+            return Err(format!("{at}: its files changed during the run; run again"));
+        }
+        Ok(v.named(digest))
     }
 }

@@ -91,6 +91,39 @@ impl Node for ReadNum {
     }
 }
 
+/// How many times `read_num_counted` has computed (only the streaming test uses it).
+pub static COUNTED_READS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+
+/// `read_num`, uncached, counting its computations in [`COUNTED_READS`].
+pub struct ReadNumCounted(pub ReadNum);
+impl Node for ReadNumCounted {
+    fn spec(&self) -> &NodeSpec {
+        self.0.spec()
+    }
+    fn run(&self, ctx: &mut Context<'_>) -> Result<(), NodeError> {
+        COUNTED_READS.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+        self.0.run(ctx)
+    }
+}
+
+/// Sums every other item of a streamed sequence (items 0, 2, …): the frames it skips must
+/// never be computed.
+pub struct SumEveryOther(NodeSpec);
+impl Node for SumEveryOther {
+    fn spec(&self) -> &NodeSpec {
+        &self.0
+    }
+    fn run(&self, ctx: &mut Context<'_>) -> Result<(), NodeError> {
+        let items = ctx.stream::<f64>("items")?;
+        let mut v = 0.0;
+        for k in (0..items.len()).step_by(2) {
+            v += *items.get(k)?;
+        }
+        ctx.output("out", v);
+        Ok(())
+    }
+}
+
 /// Sums the numbers in the files a list file names (one relative name per line): the named
 /// files are declared at run time, as a list-file reader must.
 pub struct SumListed(NodeSpec);
@@ -281,6 +314,28 @@ pub fn registry() -> Registry {
             ParamType::Path(PathRole::Input),
             "",
         ))
+        .output(PortSpec::one("out", "float", "")),
+    ));
+    r.register_node(ReadNumCounted(ReadNum(
+        NodeSpec::new(
+            "read_num_counted",
+            "read_num_uncached, counting its computations",
+        )
+        .uncached()
+        .param(ParamSpec::required(
+            "path",
+            ParamType::Path(PathRole::Input),
+            "",
+        ))
+        .output(PortSpec::one("out", "float", "")),
+    )));
+    r.register_node(SumEveryOther(
+        NodeSpec::new(
+            "sum_every_other",
+            "sum of every other item of a streamed sequence",
+        )
+        .mode(Mode::Once)
+        .streamed_input_of::<f64>("items", "")
         .output(PortSpec::one("out", "float", "")),
     ));
     r.register_node(SumListed(

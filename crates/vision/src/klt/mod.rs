@@ -24,7 +24,7 @@ pub use lucas_kanade::{track_point, track_points, LkParams, LkResult};
 pub use noise::noise_sigma;
 pub use overlay::{draw_tracks, DrawTracksOptions, TracksFormat, WriteTracksOptions};
 pub use pyramid::{pyr_down, GrayImage, Level, Pyramid};
-pub use tracker::{track_sequence, Tracker, TrackerParams};
+pub use tracker::{track_loaded, track_sequence, Tracker, TrackerParams};
 pub use tracks::{LostReason, Track, TrackEnd, Tracks};
 
 /// Errors of the KLT module (book chapter 6).

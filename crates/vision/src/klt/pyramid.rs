@@ -87,14 +87,6 @@ impl GrayImage {
         }
     }
 
-    /// [`GrayImage::from_image`] of every image, converted in parallel.
-    pub fn from_images(images: &[&Image]) -> Vec<GrayImage> {
-        images
-            .par_iter()
-            .map(|i| GrayImage::from_image(i))
-            .collect()
-    }
-
     /// Brightness at pixel (x, y) (no bounds check beyond the slice's).
     #[inline]
     pub fn at(&self, x: usize, y: usize) -> f32 {

@@ -400,3 +400,24 @@ pub fn track_sequence(
     }
     Ok(t.finish())
 }
+
+/// [`track_sequence`] over `n` frames produced one at a time by `load(k)` = (frame number,
+/// image): frame k + 1 is loaded (decoded, converted) while frame k is tracked, and at most
+/// two are held, so a long plate never sits in memory whole.
+pub fn track_loaded<E: From<KltError> + Send>(
+    n: usize,
+    load: impl Fn(usize) -> Result<(i64, GrayImage), E> + Sync,
+    params: &TrackerParams,
+    mut progress: impl FnMut(f32),
+) -> Result<Tracks, E> {
+    let mut t = Tracker::new(params.clone())?;
+    let mut next = (n > 0).then(|| load(0));
+    for k in 0..n {
+        let (f, img) = next.take().expect("frame k was loaded")?;
+        let (pushed, loaded) = rayon::join(|| t.push(f, &img), || (k + 1 < n).then(|| load(k + 1)));
+        pushed?;
+        next = loaded;
+        progress((k + 1) as f32 / n as f32);
+    }
+    Ok(t.finish())
+}
