@@ -16,7 +16,9 @@
 //! residuals, with the rotation in place of the homography so that a translating camera over a
 //! planar floor — a homography, but not a rotation — is not taken for a pan. With the focal
 //! length unknown the rotation needs it first; a shot whose pairs do not even fit homographies
-//! ([`rule_out_pan`]; a pan's do, whatever K) is a moving camera without that search.
+//! ([`rule_out_pan`]; a pan's do, whatever K), or whose pairs' rotation parallax stays well
+//! above the threshold at every focal length of the range (`rule_out_pan_at_any_focal`), is a
+//! moving camera without that search.
 //!
 //! **Solve** ([`solve_rotations`]): the rotations are chained frame by frame (each frame's
 //! rotation from the directions of the tracks already seen, RANSAC + Kabsch), then refined by
@@ -244,6 +246,32 @@ fn decision(pairs: Vec<PairParallax>, parallax: &[f64], options: &MotionOptions)
     }
 }
 
+/// The tracks seen in both frames `a` and `b`: their positions in each.
+fn pair_observations(tracks: &Tracks, a: usize, b: usize) -> Vec<([f64; 2], [f64; 2])> {
+    tracks
+        .tracks
+        .iter()
+        .filter(|t| t.first <= a && t.end() > b)
+        .map(|t| (t.points[a - t.first], t.points[b - t.first]))
+        .collect()
+}
+
+/// The median pixel residual of the best rotation (RANSAC) between the rays of `obs` seen by
+/// the pinhole `k`: the pair's parallax at `k`'s focal length (`None` when RANSAC finds none).
+fn rotation_px(
+    obs: &[([f64; 2], [f64; 2])],
+    k: &Intrinsics,
+    params: &RansacParams,
+    rng: &mut Pcg64,
+) -> Option<f64> {
+    let rays: Vec<_> = obs.iter().map(|(p, q)| (ray(k, p), ray(k, q))).collect();
+    let est = RotationEstimator { focal: k.f1 };
+    let rot = ransac(&est, &rays, params, rng).ok()?;
+    Some(median(
+        rays.iter().map(|d| est.residual(&rot.model, d)).collect(),
+    ))
+}
+
 /// The models of [`fit_pairs`] for frames `a`, `b` (`None` when a RANSAC finds none).
 fn fit_pair(
     tracks: &Tracks,
@@ -252,23 +280,10 @@ fn fit_pair(
     b: usize,
     seed: u64,
 ) -> Option<PairParallax> {
-    let obs: Vec<([f64; 2], [f64; 2])> = tracks
-        .tracks
-        .iter()
-        .filter(|t| t.first <= a && t.end() > b)
-        .map(|t| (t.points[a - t.first], t.points[b - t.first]))
-        .collect();
+    let obs = pair_observations(tracks, a, b);
     let mut rng = Pcg64::seed_from_u64(seed);
     let rotation_px = match k {
-        Some(k) => {
-            let rays: Vec<_> = obs.iter().map(|(p, q)| (ray(k, p), ray(k, q))).collect();
-            let est = RotationEstimator { focal: k.f1 };
-            let params = RansacParams::with_threshold(ROTATION_THRESHOLD);
-            let Ok(rot) = ransac(&est, &rays, &params, &mut rng) else {
-                return None;
-            };
-            median(rays.iter().map(|d| est.residual(&rot.model, d)).collect())
-        }
+        Some(k) => rotation_px(&obs, k, &rotation_ransac(), &mut rng)?,
         None => f64::NAN,
     };
     let pts: Vec<_> = obs
@@ -301,10 +316,110 @@ fn fit_pair(
     None
 }
 
+/// Whether the shot may be a nodal pan at *some* focal length, given the pairs `pairs` of
+/// [`fit_pairs`] without K (their noise): the pairs' rotation parallax minimised over the
+/// focal lengths of [`estimate_rotation_focal`]'s range (a log grid of [`FOCAL_GRID`], the
+/// parabola through the best). A pan's parallax at its own focal length is at the noise, so a
+/// least parallax above [`PAN_MARGIN`] × the threshold rules a pan out without chaining the
+/// rotations at every focal length (the search costs ~40× this on the dev plate). `None` when
+/// it may be a pan (then the search decides), else the parallax at the best focal length.
+pub(crate) fn rule_out_pan_at_any_focal(
+    tracks: &Tracks,
+    k: &Intrinsics,
+    pairs: &[PairParallax],
+    options: &MotionOptions,
+    seed: u64,
+) -> Result<Option<Parallax>> {
+    use rayon::prelude::*;
+    let diag = super::lens_solve::image_diagonal(k)?;
+    let fp: Vec<(usize, (usize, usize))> = frame_pairs(tracks)
+        .into_iter()
+        .enumerate()
+        .filter(|(_, (a, b))| {
+            let frames = [tracks.frames[*a], tracks.frames[*b]];
+            pairs.iter().any(|p| p.frames == frames)
+        })
+        .collect();
+    let obs: Vec<_> = fp
+        .iter()
+        .map(|&(_, (a, b))| pair_observations(tracks, a, b))
+        .collect();
+    // Each pair on the seed fit_pairs gives it, at every focal length. A rotation at a wrong
+    // focal length has few inliers, and RANSAC would draw up to its cap of samples for it:
+    // [`GRID_ITERATIONS`] measure such a focal length as bad as it is (two rays a sample: a
+    // pan's pairs, most tracks inliers, need ~25).
+    let capped = RansacParams {
+        max_iterations: GRID_ITERATIONS,
+        ..rotation_ransac()
+    };
+    let parallaxes = |f: f64| -> Vec<Option<f64>> {
+        let kf = Intrinsics {
+            f1: f,
+            f2: f * k.f2 / k.f1,
+            ..k.pinhole()
+        };
+        fp.par_iter()
+            .zip(&obs)
+            .map(|(&(pi, _), o)| {
+                let mut rng = Pcg64::seed_from_u64(derive_seed(seed, 11, pi as u64));
+                rotation_px(o, &kf, &capped, &mut rng)
+            })
+            .collect()
+    };
+    let worst = |f: f64| {
+        let r = parallaxes(f);
+        match r.iter().all(Option::is_some) {
+            true => r.into_iter().flatten().fold(0.0, f64::max),
+            false => f64::INFINITY,
+        }
+    };
+    let Some(f) = super::lens_solve::log_grid_minimum(0.3 * diag, 3.0 * diag, FOCAL_GRID, &worst)
+    else {
+        return Ok(None);
+    };
+    let Some(at_best) = parallaxes(f).into_iter().collect::<Option<Vec<f64>>>() else {
+        return Ok(None);
+    };
+    let with_rotation: Vec<PairParallax> = pairs
+        .iter()
+        .map(|p| {
+            let r = fp
+                .iter()
+                .zip(&at_best)
+                .find(|((_, (a, b)), _)| [tracks.frames[*a], tracks.frames[*b]] == p.frames)
+                .map_or(f64::NAN, |(_, r)| *r);
+            PairParallax {
+                rotation_px: r,
+                ..p.clone()
+            }
+        })
+        .collect();
+    let p = decision(with_rotation, &at_best, options);
+    Ok((p.parallax_px > PAN_MARGIN * p.threshold_px).then_some(p))
+}
+
+/// RANSAC samples per pair and focal length in [`rule_out_pan_at_any_focal`].
+const GRID_ITERATIONS: usize = 300;
+
+/// The RANSAC of a pair's rotation.
+fn rotation_ransac() -> RansacParams {
+    RansacParams::with_threshold(ROTATION_THRESHOLD)
+}
+
+/// How far above the pan threshold the least parallax over focal lengths must be for
+/// [`rule_out_pan_at_any_focal`] to call the camera moving without the focal search: the
+/// grid's parabola only approximates the least parallax, so a pan near its threshold is left
+/// to the search.
+const PAN_MARGIN: f64 = 2.0;
+
 /// The three models of every pair of [`frame_pairs`]: the rotation (when `k` is given; NaN
 /// otherwise), the homography and the fundamental matrix, each by RANSAC, with the median
 /// residual of every common track.
-fn fit_pairs(tracks: &Tracks, k: Option<&Intrinsics>, seed: u64) -> Result<Vec<PairParallax>> {
+pub(crate) fn fit_pairs(
+    tracks: &Tracks,
+    k: Option<&Intrinsics>,
+    seed: u64,
+) -> Result<Vec<PairParallax>> {
     use rayon::prelude::*;
     // Each pair on its own seeded generator: the same pairs whatever the thread count.
     let fitted: Vec<Option<PairParallax>> = frame_pairs(tracks)
@@ -626,10 +741,18 @@ pub fn decide(
         SolveMode::Auto => {
             let und = undistort_tracks(tracks, k)?;
             if focal_unknown {
-                match rule_out_pan(&und, &options.motion, seed) {
-                    Ok(Some(p)) => return Ok((None, None, Some(p.describe()))),
-                    Ok(None) => {}
+                let pairs = match fit_pairs(&und, None, seed) {
+                    Ok(p) => p,
                     Err(e) => return Ok((None, None, Some(format!("parallax not measured: {e}")))),
+                };
+                let homography: Vec<f64> = pairs.iter().map(|p| p.homography_px).collect();
+                let h = decision(pairs.clone(), &homography, &options.motion);
+                if !h.rotation_only {
+                    return Ok((None, None, Some(h.describe())));
+                }
+                if let Some(p) = rule_out_pan_at_any_focal(&und, k, &pairs, &options.motion, seed)?
+                {
+                    return Ok((None, None, Some(p.describe())));
                 }
             }
             let (kp, f) = if focal_unknown {
