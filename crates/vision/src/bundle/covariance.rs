@@ -11,7 +11,8 @@
 //! Observations count with unit weight (the robust loss is ignored: the solve's inliers are the
 //! problem's observations), which is the usual approximation at a converged robust solve.
 
-use nalgebra::{DMatrix, Matrix3, SMatrix};
+use nalgebra::{DMatrix, Matrix3, SMatrix, Vector3};
+use rayon::prelude::*;
 
 use super::error::BundleError;
 use super::problem::Problem;
@@ -60,66 +61,36 @@ pub fn intrinsics_covariance(problem: &Problem) -> Result<Covariances, BundleErr
             "the covariance of {n} camera parameters is not computed (at most {MAX_DIMENSION})"
         )));
     }
-    let mut s = DMatrix::<f64>::zeros(n, n);
     let mut by_point: Vec<Vec<usize>> = vec![Vec::new(); problem.points.len()];
     for (i, o) in problem.observations.iter().enumerate() {
         by_point[o.point].push(i);
     }
+    // The points in a fixed number of chunks (whatever the thread count: the sums' order is
+    // fixed), each eliminated into its own S in parallel, the partial sums added in order.
+    let chunks = (CHUNK_MEMORY / (8 * n * n).max(1)).clamp(1, CHUNKS);
+    let per_chunk = by_point.len().div_ceil(chunks).max(1);
+    let index = Index {
+        pose: &pose_index,
+        intrinsics: &intr_index,
+    };
+    let partials: Vec<(DMatrix<f64>, f64, usize)> = by_point
+        .par_chunks(per_chunk)
+        .enumerate()
+        .map(|(ci, points)| {
+            let mut part = (DMatrix::<f64>::zeros(n, n), 0.0, 0usize);
+            for (q, obs) in points.iter().enumerate() {
+                let p = ci * per_chunk + q;
+                part.2 += eliminate_point(problem, p, obs, &index, &mut part.0, &mut part.1);
+            }
+            part
+        })
+        .collect();
+    let mut s = DMatrix::<f64>::zeros(n, n);
     let (mut sq, mut point_params) = (0.0, 0usize);
-    for (p, obs) in by_point.iter().enumerate() {
-        let point = &problem.points[p];
-        let mut v = Matrix3::<f64>::zeros();
-        // Per observation: the global indices of its camera columns and Jcᵀ·Jx.
-        let mut ws: Vec<([usize; CC], SMatrix<f64, CC, 3>)> = Vec::with_capacity(obs.len());
-        for &i in obs {
-            let o = &problem.observations[i];
-            let cam = &problem.cameras[o.camera];
-            let k = &problem.intrinsics[cam.intrinsics];
-            let (pred, jc, jx) =
-                project_with_jacobians(k, &cam.rotation, &cam.translation, &point.position);
-            let (jc, jx) = (jc * o.weight, jx * o.weight);
-            sq += ((pred - o.pixel) * o.weight).norm_squared();
-            let mut idx = [usize::MAX; CC];
-            idx[..6].copy_from_slice(&pose_index[o.camera]);
-            idx[6..].copy_from_slice(&intr_index[cam.intrinsics]);
-            let u = jc.transpose() * jc;
-            for a in 0..CC {
-                if idx[a] == usize::MAX {
-                    continue;
-                }
-                for b in 0..CC {
-                    if idx[b] != usize::MAX {
-                        s[(idx[a], idx[b])] += u[(a, b)];
-                    }
-                }
-            }
-            if !point.fixed {
-                v += jx.transpose() * jx;
-                ws.push((idx, jc.transpose() * jx));
-            }
-        }
-        if point.fixed || ws.is_empty() {
-            continue;
-        }
-        let (v_inv, rank) = pseudo_inverse(&v);
-        point_params += rank;
-        // S −= Σₐ Σᵦ Wₐ V⁺ Wᵦᵀ over the point's observations.
-        for (ia, wa) in &ws {
-            let t = wa * v_inv;
-            for (ib, wb) in &ws {
-                let m = t * wb.transpose();
-                for a in 0..CC {
-                    if ia[a] == usize::MAX {
-                        continue;
-                    }
-                    for b in 0..CC {
-                        if ib[b] != usize::MAX {
-                            s[(ia[a], ib[b])] -= m[(a, b)];
-                        }
-                    }
-                }
-            }
-        }
+    for (ps, psq, pp) in partials {
+        s += ps;
+        sq += psq;
+        point_params += pp;
     }
     // The priors: residuals like the observations' (their coefficients in the same units).
     for p in &problem.priors {
@@ -170,6 +141,74 @@ pub fn intrinsics_covariance(problem: &Problem) -> Result<Covariances, BundleErr
         })
         .collect();
     Ok((covs, sigma2.sqrt()))
+}
+
+/// Point chunks of [`intrinsics_covariance`] (each its own n × n sum).
+const CHUNKS: usize = 8;
+/// Memory the chunks' sums may take, bytes (fewer chunks for a large S).
+const CHUNK_MEMORY: usize = 256 << 20;
+
+/// The global index of every free camera-side parameter (`usize::MAX`: not free).
+struct Index<'a> {
+    pose: &'a [[usize; 6]],
+    intrinsics: &'a [[usize; INTRINSICS]],
+}
+
+/// Adds point `p`'s observations `obs` to S — their `Jcᵀ Jc` and, for a free point, minus
+/// `W V⁺ Wᵀ` (W: the free camera columns' `Jcᵀ Jx` stacked over the observations) — and their
+/// squared residuals to `sq`. Returns the rank of V (the point's parameters; 0 when fixed).
+fn eliminate_point(
+    problem: &Problem,
+    p: usize,
+    obs: &[usize],
+    index: &Index,
+    s: &mut DMatrix<f64>,
+    sq: &mut f64,
+) -> usize {
+    let point = &problem.points[p];
+    let mut v = Matrix3::<f64>::zeros();
+    // W's rows: a global index and Jcᵀ·Jx's row of that column.
+    let (mut rows, mut w): (Vec<usize>, Vec<Vector3<f64>>) = (Vec::new(), Vec::new());
+    for &i in obs {
+        let o = &problem.observations[i];
+        let cam = &problem.cameras[o.camera];
+        let k = &problem.intrinsics[cam.intrinsics];
+        let (pred, jc, jx) =
+            project_with_jacobians(k, &cam.rotation, &cam.translation, &point.position);
+        let (jc, jx) = (jc * o.weight, jx * o.weight);
+        *sq += ((pred - o.pixel) * o.weight).norm_squared();
+        let mut idx = [usize::MAX; CC];
+        idx[..6].copy_from_slice(&index.pose[o.camera]);
+        idx[6..].copy_from_slice(&index.intrinsics[cam.intrinsics]);
+        let free: Vec<(usize, usize)> = (0..CC)
+            .filter(|&a| idx[a] != usize::MAX)
+            .map(|a| (a, idx[a]))
+            .collect();
+        for &(b, gb) in &free {
+            for &(a, ga) in &free {
+                s[(ga, gb)] += jc.column(a).dot(&jc.column(b));
+            }
+        }
+        if !point.fixed {
+            v += jx.transpose() * jx;
+            let wt = jc.transpose() * jx;
+            for &(a, ga) in &free {
+                rows.push(ga);
+                w.push(wt.row(a).transpose());
+            }
+        }
+    }
+    if point.fixed || rows.is_empty() {
+        return 0;
+    }
+    let (v_inv, rank) = pseudo_inverse(&v);
+    let t: Vec<Vector3<f64>> = w.iter().map(|r| v_inv * r).collect();
+    for (j, &gj) in rows.iter().enumerate() {
+        for (ti, &gi) in t.iter().zip(&rows) {
+            s[(gi, gj)] -= ti.dot(&w[j]);
+        }
+    }
+    rank
 }
 
 /// The pseudo-inverse of a symmetric positive semi-definite 3×3 block (eigenvalues below
