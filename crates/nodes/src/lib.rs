@@ -111,6 +111,7 @@ pub(crate) fn write_output(ctx: &Context<'_>, param: &str, bytes: &[u8]) -> Resu
 #[cfg(test)]
 mod tests {
     use crate::testing::check_defaults;
+    use vfxgraph_engine::ParamValue;
     use vfxgraph_imaging::hdr;
     use vfxgraph_render as render;
     use vfxgraph_video as video;
@@ -118,13 +119,17 @@ mod tests {
 
     /// Every node type whose params come from an options struct, and that struct: the nodes
     /// of a family are listed here when the family is converted.
-    type Check = fn(&str);
+    type Check = fn(&str) -> Vec<&'static str>;
     const OPTIONS: &[(&str, Check)] = &[
         (
             "matchmove",
             check_defaults::<vfxgraph_vision::matchmove::MatchmoveOptions>,
         ),
         ("relax", check_defaults::<crate::matchmove::RelaxParams>),
+        (
+            "bundle_adjust",
+            check_defaults::<crate::bundle::BundleAdjustParams>,
+        ),
         (
             "global_bundle_adjust",
             check_defaults::<crate::matchmove::GlobalParams>,
@@ -225,18 +230,37 @@ mod tests {
             "catcher_texture",
             check_defaults::<render::local_scene::LocalTextureOptions>,
         ),
+        ("catcher_texture", check_defaults::<render::ImageSize>),
     ];
 
-    /// Walks every node type: those with an options struct declare exactly its defaults.
+    /// Walks every node type: those with an options struct declare exactly its defaults; any
+    /// other param with a default is a path left empty (no file), so no default is written
+    /// outside an options struct.
     #[test]
     fn declared_defaults_are_the_options_structs_defaults() {
         let r = crate::registry();
         let mut checked = 0;
         for node in r.nodes() {
-            let name = node.spec().name;
-            if let Some((_, check)) = OPTIONS.iter().find(|(n, _)| *n == name) {
-                check(name);
+            let spec = node.spec();
+            let name = spec.name;
+            let mut from_struct = Vec::new();
+            for (_, check) in OPTIONS.iter().filter(|(n, _)| *n == name) {
+                from_struct.extend(check(name));
                 checked += 1;
+            }
+            for p in &spec.params {
+                let empty = match &p.default {
+                    None => true,
+                    Some(ParamValue::Str(s)) => s.is_empty(),
+                    Some(ParamValue::List(l)) => l.is_empty(),
+                    Some(_) => false,
+                };
+                assert!(
+                    empty || from_struct.contains(&p.name),
+                    "{name}.{}: default {:?} written outside an options struct",
+                    p.name,
+                    p.default
+                );
             }
         }
         assert_eq!(
