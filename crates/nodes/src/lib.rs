@@ -86,6 +86,16 @@ pub fn registry() -> Registry {
     r
 }
 
+/// K: the `intrinsics` input, else the K the camera path `path` carries (a solve's, with its
+/// lens).
+pub(crate) fn intrinsics_or_path_k<'a>(
+    ctx: &'a Context<'_>,
+    path: Option<&'a vfxgraph_vision::formats::CameraPath>,
+) -> Result<Option<&'a vfxgraph_vision::Intrinsics>, NodeError> {
+    let k = ctx.input_opt::<artifacts::IntrinsicsArt>("intrinsics")?;
+    Ok(k.map(|k| &k.0).or(path.and_then(|p| p.intrinsics.as_ref())))
+}
+
 /// The file a node writes: path param `param` resolved against the graph's folder, with its
 /// folder created.
 pub(crate) fn output_path(ctx: &Context<'_>, param: &str) -> Result<std::path::PathBuf, NodeError> {

@@ -167,11 +167,7 @@ pub(crate) fn camera_for(
     frame: Option<i64>,
 ) -> Result<Camera, NodeError> {
     let path = ctx.input_opt::<CameraPathArt>("cameras")?.map(|p| &p.0);
-    let k = match ctx.input_opt::<IntrinsicsArt>("intrinsics")? {
-        Some(k) => Some(&k.0),
-        None => path.and_then(|p| p.intrinsics.as_ref()),
-    };
-    let k = k.map(|k| SolvedK {
+    let k = crate::intrinsics_or_path_k(ctx, path)?.map(|k| SolvedK {
         k: rows(&k.k()),
         size: k.width.zip(k.height).map(|(w, h)| (w as usize, h as usize)),
         distortion: k.distortion,
