@@ -8,7 +8,6 @@ use vfxgraph_vision::matchmove::global::RobustLoss;
 
 use crate::artifacts::{CameraPathArt, IntrinsicsArt, PointCloudArt, ReportArt};
 use crate::tracking::TracksArt;
-use crate::FnNode;
 
 /// The linear solver of `bundle_adjust` (vfxgraph-vision's `LinearSolverKind`, by its short
 /// names).
@@ -51,7 +50,7 @@ impl Default for BundleAdjustParams {
 
 /// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
-    r.register_node(FnNode::new(
+    r.register_fn(
         NodeSpec::new(
             "bundle_adjust",
             "Sparse bundle adjustment of a shot (book §7.7): refines every camera of the path \
@@ -107,8 +106,8 @@ pub fn register(r: &mut Registry) {
             ctx.output("report", ReportArt(report));
             Ok(())
         },
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "read_cameras",
             "Reads a camera path: the book's cameras file (`Frame i`, R rows, t) or its JSON form. \
@@ -126,7 +125,7 @@ pub fn register(r: &mut Registry) {
             ctx.output("cameras", CameraPathArt(path));
             Ok(())
         },
-    ));
+    );
 }
 
 #[cfg(test)]

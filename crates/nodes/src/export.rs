@@ -7,17 +7,15 @@ use vfxgraph_engine::{
 };
 use vfxgraph_imaging::Image;
 use vfxgraph_params::{read_field, Choice};
-use vfxgraph_vision::export::{
-    read, report, write_with, ExportFormat, ExportOptions, ImportFormat,
-};
+use vfxgraph_vision::export::files::{report, write_with};
+use vfxgraph_vision::export::{read, ExportFormat, ExportOptions, ImportFormat};
 
 use crate::artifacts::{CameraPathArt, ImageArt, IntrinsicsArt, PointCloudArt, ReportArt};
 use crate::tracking::TracksArt;
-use crate::FnNode;
 
 /// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
-    r.register_node(FnNode::new(
+    r.register_fn(
         NodeSpec::new(
             "export_cameras",
             "Writes a solved shot (camera path + K, optional points, tracks and plate) for another \
@@ -58,8 +56,8 @@ pub fn register(r: &mut Registry) {
         .options::<ExportOptions>()
         .output_of::<ReportArt>("report", "format, files written, frames, points, image size"),
         run_export,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "import_cameras",
             "Reads a solve made elsewhere: a COLMAP text model (`path` is its cameras.txt; one \
@@ -84,7 +82,7 @@ pub fn register(r: &mut Registry) {
             "COLMAP's points (track id = point id), empty for the book's format",
         ),
         run_import,
-    ));
+    );
 }
 
 fn run_export(ctx: &mut Context<'_>) -> Result<(), NodeError> {

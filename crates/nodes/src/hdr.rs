@@ -20,7 +20,7 @@ use vfxgraph_imaging::hdr::{
 use vfxgraph_render::dome::{Dome, DomeOptions};
 
 use crate::artifacts::{CameraArt, ImageArt, ReportArt};
-use crate::{output_path, FnNode};
+use crate::output_path;
 
 /// An exposure stack (`exposure_stack`): 8-bit codes, exposure times, optional mask.
 #[derive(Clone, Debug, PartialEq)]
@@ -142,7 +142,7 @@ pub fn register(r: &mut Registry) {
     r.register_artifact::<StackArt>();
     r.register_artifact::<ResponseArt>();
     r.register_artifact::<DomeArt>();
-    r.register_node(FnNode::new(
+    r.register_fn(
         NodeSpec::new(
             "read_exposure_stack",
             "Reads bracketed 8-bit PNG/JPEG photographs as raw codes (book 10.2), named either \
@@ -170,8 +170,8 @@ pub fn register(r: &mut Registry) {
         .options::<StackOptions>()
         .output_of::<StackArt>("stack", "the exposure stack"),
         run_read_stack,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "align_exposures",
             "Aligns a hand-held bracket by Ward's median threshold bitmaps (Ward 2003; book \
@@ -188,8 +188,8 @@ pub fn register(r: &mut Registry) {
             "{\"reference\": r, \"shifts\": [[dx, dy], ...]}: aligned(x, y) = exposure(x - dx, y - dy)",
         ),
         run_align,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "hdr_calibrate",
             "Recovers the camera response g = ln f⁻¹ per channel by Debevec & Malik's weighted \
@@ -203,8 +203,8 @@ pub fn register(r: &mut Registry) {
         .input_of::<StackArt>("stack", "the exposure stack")
         .output_of::<ResponseArt>("response", "the response curve"),
         run_calibrate,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "hdr_merge",
             "Assembles the linear radiance map ln E = Σ w(Z)(g(Z) − ln Δt)/Σ w(Z) (book 10.4); \
@@ -215,8 +215,8 @@ pub fn register(r: &mut Registry) {
         .input_of::<ResponseArt>("response", "the response curve")
         .output_of::<ImageArt>("image", "the radiance map, linear"),
         run_merge,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "hdr_to_ldr",
             "Simulates a photograph of an HDR image (book 10.6): code = g⁻¹(ln(E·time)) through \
@@ -228,8 +228,8 @@ pub fn register(r: &mut Registry) {
         .optional_input_of::<ResponseArt>("response", "response curve")
         .output_of::<ImageArt>("image", "the simulated photograph"),
         run_to_ldr,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "plot_response",
             "Plots a response curve as Debevec & Malik's figure: pixel value z (up) against log \
@@ -240,8 +240,8 @@ pub fn register(r: &mut Registry) {
         .input_of::<ResponseArt>("response", "the curve")
         .output_of::<ImageArt>("image", "the plot (write it as PNG)"),
         run_plot,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "write_response",
             "Writes a response curve as CSV: 256 rows (z = 0…255), one column per channel \
@@ -251,8 +251,8 @@ pub fn register(r: &mut Registry) {
         .output_file_param("path", "the CSV file")
         .input_of::<ResponseArt>("response", "the curve"),
         run_write_response,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "probe_to_equirect",
             "Unwraps a mirror-ball light probe (camera looking along −z, +y up, orthographic) \
@@ -263,8 +263,8 @@ pub fn register(r: &mut Registry) {
         .input_of::<ImageArt>("image", "the probe photograph, linear")
         .output_of::<ImageArt>("image", "equirectangular image"),
         run_probe,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "dome",
             "Makes a light dome of an equirectangular image (book 10.7–10.8): oriented by \
@@ -282,7 +282,7 @@ pub fn register(r: &mut Registry) {
         )
         .output_of::<DomeArt>("dome", "the oriented dome"),
         run_dome,
-    ));
+    );
 }
 
 fn run_read_stack(ctx: &mut Context<'_>) -> Result<(), NodeError> {

@@ -9,7 +9,7 @@ use vfxgraph_vision::undistort::{LensWarp, UndistortOptions};
 use vfxgraph_vision::Intrinsics;
 
 use crate::artifacts::{CameraPathArt, ImageArt, IntrinsicsArt};
-use crate::{output_path, FnNode};
+use crate::output_path;
 
 /// The lens: the `intrinsics` input, else the `cameras` path's K (a solve's, with its lens).
 fn lens_input(ctx: &Context<'_>, node: &str) -> Result<Intrinsics, NodeError> {
@@ -87,7 +87,7 @@ fn lens_ports(spec: NodeSpec) -> NodeSpec {
 
 /// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
-    r.register_node(FnNode::new(
+    r.register_fn(
         lens_ports(
             NodeSpec::new(
                 "undistort",
@@ -105,8 +105,8 @@ pub fn register(r: &mut Registry) {
         )
         .options::<UndistortOptions>(),
         run_undistort,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         lens_ports(
             NodeSpec::new(
                 "redistort",
@@ -119,8 +119,8 @@ pub fn register(r: &mut Registry) {
         .output_of::<ImageArt>("image", "the image through the lens")
         .options::<UndistortOptions>(),
         run_redistort,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         lens_ports(
             NodeSpec::new(
                 "write_st_map",
@@ -136,7 +136,7 @@ pub fn register(r: &mut Registry) {
         )
         .options::<StMapOptions>(),
         run_write_st_map,
-    ));
+    );
 }
 
 #[cfg(test)]

@@ -29,29 +29,7 @@ pub mod tracking;
 pub mod tracking_opencv;
 pub mod video;
 
-use vfxgraph_engine::{Context, Node, NodeError, NodeSpec, Registry};
-
-/// A node type made of a spec and a plain function: every node of the catalog is one.
-pub struct FnNode {
-    spec: NodeSpec,
-    run: fn(&mut Context<'_>) -> Result<(), NodeError>,
-}
-
-impl FnNode {
-    /// Pairs a spec with its compute function.
-    pub fn new(spec: NodeSpec, run: fn(&mut Context<'_>) -> Result<(), NodeError>) -> Self {
-        FnNode { spec, run }
-    }
-}
-
-impl Node for FnNode {
-    fn spec(&self) -> &NodeSpec {
-        &self.spec
-    }
-    fn run(&self, ctx: &mut Context<'_>) -> Result<(), NodeError> {
-        (self.run)(ctx)
-    }
-}
+use vfxgraph_engine::{Context, NodeError, Registry};
 
 /// All artifact and node types of vfxgraph.
 pub fn registry() -> Registry {

@@ -14,7 +14,6 @@ use crate::artifacts::{ImageArt, Points3dArt, ReportArt};
 use crate::placement::measured;
 use crate::render::{camera_for, pick_light, SceneArt};
 use crate::shot::{light_and_camera_inputs, size_params};
-use crate::FnNode;
 
 fn run_proxy_from_points(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: ProxyOptions = ctx.options()?;
@@ -37,7 +36,7 @@ fn run_add_objects(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 
 /// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
-    r.register_node(FnNode::new(
+    r.register_fn(
         NodeSpec::new(
             "add_objects",
             "The designed CG objects put into the local scene: `scene`'s camera, dome, lights \
@@ -53,8 +52,8 @@ pub fn register(r: &mut Registry) {
         )
         .output_of::<SceneArt>("scene", "the local scene with the objects"),
         run_add_objects,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "proxy_from_points",
             "Proxy geometry of the real set from measured points (point_cloud_calibrate's \
@@ -69,8 +68,8 @@ pub fn register(r: &mut Registry) {
         .output_of::<SceneArt>("scene", "the scene with the proxies' faces as catchers")
         .output_of::<ReportArt>("report", "proxies made"),
         run_proxy_from_points,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         light_and_camera_inputs(size_params(
             NodeSpec::new(
                 "catcher_texture",
@@ -104,7 +103,7 @@ pub fn register(r: &mut Registry) {
         .output_of::<ImageArt>("seen", "frames that saw each texel (one channel)")
         .output_of::<ReportArt>("report", "the estimate"),
         run_catcher_texture,
-    ));
+    );
 }
 
 fn run_catcher_texture(ctx: &mut Context<'_>) -> Result<(), NodeError> {

@@ -11,8 +11,8 @@ use vfxgraph_vision::matchmove::{
 };
 
 use crate::artifacts::{CameraPathArt, IntrinsicsArt, PointCloudArt, ReportArt};
+use crate::output_path;
 use crate::tracking::TracksArt;
-use crate::{output_path, FnNode};
 
 /// Whether a solve node scores its cameras (`relax`, `global_bundle_adjust`; `matchmove`'s is
 /// [`MatchmoveOptions::score`]).
@@ -157,7 +157,7 @@ pub fn register(r: &mut Registry) {
     )
     .seeded()
     .options::<MatchmoveOptions>();
-    r.register_node(FnNode::new(spec, run_matchmove));
+    r.register_fn(spec, run_matchmove);
 
     let spec = solve_node(
         "relax",
@@ -167,7 +167,7 @@ pub fn register(r: &mut Registry) {
         true,
     )
     .options::<RelaxParams>();
-    r.register_node(FnNode::new(spec, run_relax));
+    r.register_fn(spec, run_relax);
 
     let spec = solve_node(
         "global_bundle_adjust",
@@ -177,9 +177,9 @@ pub fn register(r: &mut Registry) {
         true,
     )
     .options::<GlobalParams>();
-    r.register_node(FnNode::new(spec, run_global));
+    r.register_fn(spec, run_global);
 
-    r.register_node(FnNode::new(
+    r.register_fn(
         NodeSpec::new(
             "write_cameras",
             "Writes a camera path: the book's cameras file (`Frame i`, R rows, t) or JSON (with K \
@@ -190,9 +190,9 @@ pub fn register(r: &mut Registry) {
         .options::<formats::WriteCamerasOptions>()
         .input_of::<CameraPathArt>("cameras", "the path to write"),
         run_write_cameras,
-    ));
+    );
 
-    r.register_node(FnNode::new(
+    r.register_fn(
         NodeSpec::new(
             "plot_solve_error",
             "Plots a solve's report as SVG: reprojection RMS per frame and inliers per frame \
@@ -205,7 +205,7 @@ pub fn register(r: &mut Registry) {
             "the report of matchmove, relax or global_bundle_adjust",
         ),
         run_plot,
-    ));
+    );
 }
 
 #[cfg(test)]

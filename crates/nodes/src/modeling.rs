@@ -7,7 +7,6 @@ use vfxgraph_vision::formats::marked_points::{
 use vfxgraph_vision::modeling::point_cloud_calibrate;
 
 use crate::artifacts::{json_artifact, CameraPathArt, IntrinsicsArt, Points3dArt, ReportArt};
-use crate::FnNode;
 
 json_artifact!(
     /// Points marked by hand on several frames (`marks`).
@@ -19,7 +18,7 @@ json_artifact!(
 /// Registers the artifact and nodes of this module.
 pub fn register(r: &mut Registry) {
     r.register_artifact::<MarkedPointsArt>();
-    r.register_node(FnNode::new(
+    r.register_fn(
         NodeSpec::new(
             "read_marks",
             "Reads marked points: the book's `points2d.txt` (`Frame f` / `Npoints n` / n lines \
@@ -40,8 +39,8 @@ pub fn register(r: &mut Registry) {
             ctx.output("marks", MarkedPointsArt(marks));
             Ok(())
         },
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "write_marks",
             "Writes marked points as the book's `points2d.txt`, or JSON when the name ends \
@@ -56,8 +55,8 @@ pub fn register(r: &mut Registry) {
                 marks,
             )?)
         },
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "point_cloud_calibrate",
             "Point-cloud calibration (book chapter 8): each marked point triangulated from the \
@@ -89,5 +88,5 @@ pub fn register(r: &mut Registry) {
             ctx.output("report", ReportArt(rep));
             Ok(())
         },
-    ));
+    );
 }

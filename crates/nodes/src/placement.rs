@@ -14,7 +14,6 @@ use vfxgraph_vision::formats::CameraPath;
 
 use crate::artifacts::{CameraPathArt, ImageArt, Points3dArt, ReportArt};
 use crate::render::{rows, SceneArt};
-use crate::FnNode;
 
 /// The `points3d` input as render points.
 pub(crate) fn measured(ctx: &Context<'_>) -> Result<Vec<Vec3>, NodeError> {
@@ -48,7 +47,7 @@ fn viewers(path: &CameraPath, with_view: bool) -> Result<Viewers, NodeError> {
 
 /// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
-    r.register_node(FnNode::new(
+    r.register_fn(
         NodeSpec::new(
             "place_scene",
             "Moves a designed scene onto measured points (book ch. 8, §10.10): the similarity \
@@ -78,8 +77,8 @@ pub fn register(r: &mut Registry) {
              residuals and the relative RMS",
         ),
         run_place_scene,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "catcher_from_points",
             "A shadow catcher through measured ground points (book ch. 8, §10.10): 3 points \
@@ -116,7 +115,7 @@ pub fn register(r: &mut Registry) {
             "the catcher's corners, frame (origin, axes, unit), planarity and the placed objects",
         ),
         run_catcher_from_points,
-    ));
+    );
 }
 
 fn run_place_scene(ctx: &mut Context<'_>) -> Result<(), NodeError> {

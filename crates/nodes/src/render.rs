@@ -20,7 +20,6 @@ use vfxgraph_vision::formats::FramePose;
 
 use crate::artifacts::{CameraPathArt, ImageArt, IntrinsicsArt};
 use crate::hdr::DomeArt;
-use crate::FnNode;
 
 /// A scene (`scene`): camera, objects, lights, dome, shadow catchers (book §9.13, §10), with
 /// the dome image it names when that image could be read.
@@ -83,7 +82,7 @@ pub(crate) fn scene_inputs(spec: NodeSpec, docs: [&'static str; 3]) -> NodeSpec 
 /// Registers the artifact and nodes of this module.
 pub fn register(r: &mut Registry) {
     r.register_artifact::<SceneArt>();
-    r.register_node(FnNode::new(
+    r.register_fn(
         NodeSpec::new(
             "read_scene",
             "Reads a scene file, by extension: the book's S3D `.scn` language (scene/hdrscene, \
@@ -107,8 +106,8 @@ pub fn register(r: &mut Registry) {
         )
         .output_of::<SceneArt>("scene", "the scene"),
         run_read_scene,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         scene_inputs(
             NodeSpec::new(
                 "render",
@@ -139,7 +138,7 @@ pub fn register(r: &mut Registry) {
         .output_of::<ImageArt>("image", "radiance, linear RGB")
         .output_of::<ImageArt>("variance", "per-pixel variance of the mean, linear RGB"),
         run_render,
-    ));
+    );
 }
 
 fn run_read_scene(ctx: &mut Context<'_>) -> Result<(), NodeError> {

@@ -16,11 +16,11 @@ use vfxgraph_render::differential::{
 use vfxgraph_render::ImageSize;
 
 use crate::artifacts::{ImageArt, ReportArt};
+use crate::output_path;
 use crate::render::{
     camera_for, check_finite, instance_camera, pick_light, scene_inputs, with_sync_progress,
     SceneArt,
 };
-use crate::{output_path, FnNode};
 
 /// Named images of one size (`layers`): what a compositor reads from a multi-layer EXR.
 #[derive(Clone, Debug, PartialEq)]
@@ -73,7 +73,7 @@ pub(crate) fn light_and_camera_inputs(spec: NodeSpec) -> NodeSpec {
 /// Registers the artifact and nodes of this module.
 pub fn register(r: &mut Registry) {
     r.register_artifact::<LayersArt>();
-    r.register_node(FnNode::new(
+    r.register_fn(
         light_and_camera_inputs(
             NodeSpec::new(
                 "fit_catcher",
@@ -103,8 +103,8 @@ pub fn register(r: &mut Registry) {
         .output_of::<SceneArt>("scene", "the scene with the fitted catcher colour")
         .output_of::<ReportArt>("report", "the fit"),
         run_fit_catcher,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         light_and_camera_inputs(
             NodeSpec::new(
                 "differential_render",
@@ -145,8 +145,8 @@ pub fn register(r: &mut Registry) {
         )
         .output_of::<ReportArt>("report", "counters and time"),
         run_differential_render,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "composite",
             "Composites the layers of `differential_render` over a plate (book §10.10) without \
@@ -162,8 +162,8 @@ pub fn register(r: &mut Registry) {
         .optional_input_of::<ImageArt>("plate", "the frame's plate")
         .output_of::<ImageArt>("image", "the composite, linear RGB"),
         run_composite,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "write_layers",
             "Writes named layers as one multi-layer OpenEXR file (single part; layer `name` \
@@ -176,7 +176,7 @@ pub fn register(r: &mut Registry) {
         .options::<LayersOptions>()
         .input_of::<LayersArt>("layers", "the layers"),
         run_write_layers,
-    ));
+    );
 }
 
 fn run_fit_catcher(ctx: &mut Context<'_>) -> Result<(), NodeError> {

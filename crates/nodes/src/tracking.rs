@@ -9,7 +9,6 @@ use vfxgraph_vision::klt::{
 };
 
 use crate::artifacts::ImageArt;
-use crate::FnNode;
 
 /// Feature tracks over a frame sequence (`tracks`): stable ids, per-frame observations, why
 /// each track ended (book chapter 6; canonical encoding: the native JSON model).
@@ -34,7 +33,7 @@ impl ArtifactType for TracksArt {
 /// Registers the artifact and nodes of this module.
 pub fn register(r: &mut Registry) {
     r.register_artifact::<TracksArt>();
-    r.register_node(FnNode::new(
+    r.register_fn(
         klt_spec(
             "klt_track",
             &TrackerParams::default(),
@@ -48,8 +47,8 @@ pub fn register(r: &mut Registry) {
                  drift_correction: 0` is the book's tracker.",
         ),
         run_klt_track,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "read_tracks",
             "Reads tracks: the book's `f.txt` format (`Features per frame = N`, `Frame i`, \
@@ -61,8 +60,8 @@ pub fn register(r: &mut Registry) {
         .input_file_param("path", "the tracks file")
         .output_of::<TracksArt>("tracks", "the tracks"),
         run_read_tracks,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "write_tracks",
             "Writes tracks atomically: `book` = the book's f.txt (status 0 tracked, -1 lost; \
@@ -73,8 +72,8 @@ pub fn register(r: &mut Registry) {
         .options::<WriteTracksOptions>()
         .input_of::<TracksArt>("tracks", "the tracks"),
         run_write_tracks,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "draw_tracks",
             "Draws the tracks over each frame for a person to look at: each live track's path \
@@ -87,7 +86,7 @@ pub fn register(r: &mut Registry) {
         .input_of::<TracksArt>("tracks", "the tracks")
         .output_of::<ImageArt>("image", "the frame with tracks drawn (RGB)"),
         run_draw_tracks,
-    ));
+    );
 }
 
 /// The spec of `klt_track` and of its OpenCV cross-check `klt_track_opencv`: the params of

@@ -7,11 +7,10 @@ use vfxgraph_engine::{Context, Mode, NodeError, NodeSpec, Registry, Threads};
 use vfxgraph_video::{open_shared, write_video, ReadVideoOptions, WriteVideoOptions};
 
 use crate::artifacts::ImageArt;
-use crate::FnNode;
 
 /// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
-    r.register_node(FnNode::new(
+    r.register_fn(
         NodeSpec::new(
             "read_video",
             "Reads frame f of the graph's range from an H.264 .mp4 file (frame 0 is the first \
@@ -24,8 +23,8 @@ pub fn register(r: &mut Registry) {
         .options::<ReadVideoOptions>()
         .output_of::<ImageArt>("sequence", "the frame's image"),
         run_read_video,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "write_video",
             "Writes the frames of a sequence, in frame order, as an H.264 .mp4 a person can \
@@ -40,7 +39,7 @@ pub fn register(r: &mut Registry) {
         .options::<WriteVideoOptions>()
         .sequence_input_of::<ImageArt>("sequence", "the frames, in order"),
         run_write_video,
-    ));
+    );
 }
 
 fn run_read_video(ctx: &mut Context<'_>) -> Result<(), NodeError> {

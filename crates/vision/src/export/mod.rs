@@ -36,9 +36,7 @@ use crate::formats::CameraPath;
 use crate::klt::Tracks;
 use crate::points::PointCloud;
 
-pub use files::{
-    files, read, report, write, write_with, ExportFormat, ExportOptions, ImportFormat,
-};
+pub use files::{files, read, ExportFormat, ExportOptions, ImportFormat};
 
 /// The horizontal film back (mm) given to the scene formats; only the ratios focal/aperture
 /// matter for the projection, this makes the focal length read like a full-frame lens.
