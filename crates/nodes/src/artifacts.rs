@@ -2,7 +2,7 @@
 //! engine's `ArtifactType` is implemented here so the algorithm crates stay engine-free).
 
 use vfxgraph_engine::artifact::codec::{hash_f32s, hash_u64, put_f32s, put_u64, Hasher, Reader};
-use vfxgraph_engine::{ArtifactType, Registry};
+use vfxgraph_engine::{ArtifactType, Context, NodeError, Registry};
 use vfxgraph_imaging::Image;
 
 /// A linear-light f32 image (`image`).
@@ -38,6 +38,15 @@ impl ArtifactType for ImageArt {
             .map(ImageArt)
             .map_err(|e| e.to_string())
     }
+}
+
+/// The images of sequence input `port`, with their frame numbers, in frame order.
+pub(crate) fn image_sequence<'a>(
+    ctx: &'a Context<'_>,
+    port: &str,
+) -> Result<Vec<(i64, &'a Image)>, NodeError> {
+    let seq = ctx.sequence::<ImageArt>(port)?;
+    Ok(seq.into_iter().map(|(f, i)| (f, &i.0)).collect())
 }
 
 /// A newtype artifact stored as canonical JSON (serde, no hash maps).

@@ -10,7 +10,9 @@ use vfxgraph_params::{read_field, Choice};
 use vfxgraph_vision::export::files::{report, write_with};
 use vfxgraph_vision::export::{read, ExportFormat, ExportOptions, ImportFormat};
 
-use crate::artifacts::{CameraPathArt, ImageArt, IntrinsicsArt, PointCloudArt, ReportArt};
+use crate::artifacts::{
+    image_sequence, CameraPathArt, ImageArt, IntrinsicsArt, PointCloudArt, ReportArt,
+};
 use crate::tracking::TracksArt;
 
 /// Registers the nodes of this module.
@@ -103,11 +105,7 @@ fn run_export(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let plate: Vec<(i64, &Image)> = match ctx.input_opt::<ImageArt>("plate") {
         Ok(None) => Vec::new(),
         Ok(Some(img)) => vec![(0, &img.0)],
-        Err(_) => ctx
-            .sequence::<ImageArt>("plate")?
-            .into_iter()
-            .map(|(f, i)| (f, &i.0))
-            .collect(),
+        Err(_) => image_sequence(ctx, "plate")?,
     };
     let shot = o.shot(k, path.clone(), cloud, tracks, &plate)?;
     // Through the context: every file is recorded as an output (COLMAP's images.txt and

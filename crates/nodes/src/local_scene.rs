@@ -8,12 +8,14 @@
 use vfxgraph_engine::{Context, NodeError, NodeSpec, Registry};
 use vfxgraph_render::catcher_texture::View;
 use vfxgraph_render::local_scene::{add_objects, texture_local_scene_report, LocalTextureOptions};
+use vfxgraph_render::plate::plate_frames;
 use vfxgraph_render::proxy::{add_proxies, ProxyOptions};
+use vfxgraph_render::ImageSize;
 
-use crate::artifacts::{ImageArt, Points3dArt, ReportArt};
+use crate::artifacts::{image_sequence, ImageArt, Points3dArt, ReportArt};
 use crate::placement::measured;
 use crate::render::{camera_for, pick_light, SceneArt};
-use crate::shot::{light_and_camera_inputs, size_params};
+use crate::shot::light_and_camera_inputs;
 
 fn run_proxy_from_points(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: ProxyOptions = ctx.options()?;
@@ -70,7 +72,7 @@ pub fn register(r: &mut Registry) {
         run_proxy_from_points,
     );
     r.register_fn(
-        light_and_camera_inputs(size_params(
+        light_and_camera_inputs(
             NodeSpec::new(
                 "catcher_texture",
                 "The textured shadow catcher (Debevec 1998's local scene; book §10.10.1's \
@@ -91,8 +93,9 @@ pub fn register(r: &mut Registry) {
             // 3: a face's irradiance on the side the plate sees it from, and the irradiance
             // grid's points no camera sees (under a box) left out of the interpolation.
             .version(3)
-            .options::<LocalTextureOptions>(),
-        ))
+            .options::<LocalTextureOptions>()
+            .options::<ImageSize>(),
+        )
         .sequence_input_of::<ImageArt>("plate", "the plate frames (linear radiance)")
         .output_of::<SceneArt>("scene", "the scene with the catcher's albedo texture")
         .output_of::<ImageArt>(
@@ -110,33 +113,18 @@ fn run_catcher_texture(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: LocalTextureOptions = ctx.options()?;
     let art = ctx.input::<SceneArt>("scene")?;
     let light = pick_light(ctx, art)?;
-    let plates = ctx.sequence::<ImageArt>("plate")?;
-    let range = match (plates.first(), plates.last()) {
-        (Some(a), Some(b)) => format!("{}–{}", a.0, b.0),
-        _ => "none".into(),
-    };
-    let wanted: Vec<i64> = if o.frames.is_empty() {
-        plates.iter().map(|(f, _)| *f).collect()
-    } else {
-        o.frames.iter().map(|&f| f as i64).collect()
-    };
-    let mut chosen = Vec::new();
-    for f in &wanted {
-        let plate = plates
-            .iter()
-            .find(|(g, _)| g == f)
-            .map(|(_, i)| &i.0)
-            .ok_or_else(|| {
-                NodeError::msg(format!(
-                    "param `frames`: the plate has no frame {f} (its frames are {range})"
-                ))
-            })?;
-        chosen.push((*f, camera_for(ctx, &art.scene, Some(*f))?, plate));
-    }
-    let views: Vec<View> = chosen
+    let frames: Vec<i64> = o.frames.iter().map(|&f| f as i64).collect();
+    let plates = plate_frames(&image_sequence(ctx, "plate")?, &frames)
+        .map_err(|e| NodeError::msg(format!("param `frames`: {e}")))?;
+    let cameras = plates
         .iter()
-        .map(|(frame, camera, plate)| View {
-            frame: *frame,
+        .map(|(f, _)| camera_for(ctx, &art.scene, Some(*f)))
+        .collect::<Result<Vec<_>, _>>()?;
+    let views: Vec<View> = plates
+        .iter()
+        .zip(&cameras)
+        .map(|(&(frame, plate), camera)| View {
+            frame,
             camera,
             plate,
         })

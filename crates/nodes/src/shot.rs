@@ -6,16 +6,15 @@ use vfxgraph_engine::artifact::codec::{put_bytes, put_u64, Reader};
 use vfxgraph_engine::{
     ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, Registry,
 };
-use vfxgraph_imaging::io::{encode_exr_layers, LayersOptions};
+use vfxgraph_imaging::io::LayersOptions;
 use vfxgraph_imaging::{read_image, Image};
-use vfxgraph_params::Choice;
 use vfxgraph_render::catcher_fit::{fit_catcher, FitCatcherOptions};
 use vfxgraph_render::differential::{
     composite, differential_render, CompositeOptions, DifferentialLayers, DifferentialOptions,
 };
-use vfxgraph_render::ImageSize;
+use vfxgraph_render::plate::plate_frames;
 
-use crate::artifacts::{ImageArt, ReportArt};
+use crate::artifacts::{image_sequence, ImageArt, ReportArt};
 use crate::output_path;
 use crate::render::{
     camera_for, check_finite, instance_camera, pick_light, scene_inputs, with_sync_progress,
@@ -51,11 +50,6 @@ impl ArtifactType for LayersArt {
         r.finish()?;
         Ok(LayersArt(v))
     }
-}
-
-/// The image size override params (`width`, `height`) of a node that renders.
-pub(crate) fn size_params(spec: NodeSpec) -> NodeSpec {
-    spec.options::<ImageSize>()
 }
 
 /// The inputs of the shot's renders ([`scene_inputs`]).
@@ -184,21 +178,7 @@ fn run_fit_catcher(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let art = ctx.input::<SceneArt>("scene")?;
     let light = pick_light(ctx, art)?;
     let frame = ctx.params().i64("frame");
-    let plates = ctx.sequence::<ImageArt>("plate")?;
-    let plate = plates
-        .iter()
-        .find(|(f, _)| *f == frame)
-        .map(|(_, p)| &p.0)
-        .ok_or_else(|| {
-            NodeError::msg(format!(
-                "the plate has no frame {frame} (it has {} frames{})",
-                plates.len(),
-                match (plates.first(), plates.last()) {
-                    (Some(a), Some(b)) => format!(", {}–{}", a.0, b.0),
-                    _ => String::new(),
-                }
-            ))
-        })?;
+    let plate = plate_frames(&image_sequence(ctx, "plate")?, &[frame])?[0].1;
     let camera = camera_for(ctx, &art.scene, Some(frame))?;
     if (plate.width, plate.height) != (camera.width, camera.height) {
         return Err(NodeError::msg(format!(
@@ -249,22 +229,7 @@ fn run_differential_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
         .map_err(NodeError::msg)?;
     let layers = l.named(&image);
     let shadow = layers[2].1.clone();
-    let s = out.stats;
-    let report = serde_json::json!({
-        "frame": ctx.frame(),
-        "width": camera.width,
-        "height": camera.height,
-        "spp": settings.spp,
-        "max_depth": settings.max_depth,
-        "mode": o.mode.choice(),
-        "plate": plate.is_some(),
-        "traced_pixels": s.traced_pixels,
-        "mean_spp_traced": s.samples as f64 / s.traced_pixels.max(1) as f64,
-        "pixels": s.pixels,
-        "paths_with_objects": s.paths_with,
-        "paths_without_objects": s.paths_without,
-        "seconds": s.seconds,
-    });
+    let report = out.report(ctx.frame(), &camera, &settings, o.mode, plate.is_some());
     ctx.output("image", ImageArt(image));
     ctx.output("beauty", ImageArt(l.beauty.clone()));
     ctx.output("shadow", ImageArt(shadow));
@@ -306,14 +271,7 @@ fn run_composite(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 fn run_write_layers(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: LayersOptions = ctx.options()?;
     crate::image_io::check_pattern(ctx)?;
-    let layers = &ctx.input::<LayersArt>("layers")?.0;
-    if layers.is_empty() {
-        return Err(NodeError::msg("no layers to write"));
-    }
-    // The first layer is also written under the bare channel names (what viewers show).
-    let mut named: Vec<(&str, &Image)> = vec![("", &layers[0].1)];
-    named.extend(layers.iter().map(|(n, i)| (n.as_str(), i)));
-    let bytes = encode_exr_layers(&named, &o.exr())?;
+    let bytes = o.encode(&ctx.input::<LayersArt>("layers")?.0)?;
     vfxgraph_imaging::io::write_atomic(&output_path(ctx, "path")?, &bytes)?;
     Ok(())
 }

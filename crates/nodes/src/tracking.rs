@@ -106,9 +106,8 @@ pub(crate) fn klt_spec(
 
 /// The frames of input `frames` as gray images (the trackers' input).
 pub(crate) fn gray_frames(ctx: &Context<'_>) -> Result<Vec<(i64, GrayImage)>, NodeError> {
-    let frames = ctx.sequence::<ImageArt>("frames")?;
-    let images: Vec<_> = frames.iter().map(|(_, img)| &img.0).collect();
-    let grays = GrayImage::from_images(&images);
+    let frames = crate::artifacts::image_sequence(ctx, "frames")?;
+    let grays = GrayImage::from_images(&frames.iter().map(|(_, i)| *i).collect::<Vec<_>>());
     Ok(frames.iter().map(|(f, _)| *f).zip(grays).collect())
 }
 

@@ -55,9 +55,7 @@ fn run_read_video(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 
 fn run_write_video(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: WriteVideoOptions = ctx.options()?;
-    let frames = ctx.sequence::<ImageArt>("sequence")?;
-    let frames: Vec<(i64, &vfxgraph_imaging::Image)> =
-        frames.iter().map(|(f, img)| (*f, &img.0)).collect();
+    let frames = crate::artifacts::image_sequence(ctx, "sequence")?;
     write_video(&ctx.path("path"), &frames, &o).map_err(|e| NodeError::msg(e.to_string()))
 }
 

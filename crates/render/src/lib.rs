@@ -27,6 +27,7 @@ pub mod local_scene;
 pub mod math;
 pub mod obj;
 pub mod placement;
+pub mod plate;
 pub mod proxy;
 pub mod ray;
 pub mod render;
