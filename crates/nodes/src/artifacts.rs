@@ -49,9 +49,10 @@ pub(crate) fn image_sequence<'a>(
     Ok(seq.into_iter().map(|(f, i)| (f, &i.0)).collect())
 }
 
-/// A newtype artifact stored as canonical JSON (serde, no hash maps).
+/// Newtype artifacts stored as canonical JSON (serde, no hash maps), one per
+/// `Name(Inner), "type name", "type doc";` entry.
 macro_rules! json_artifact {
-    ($(#[$doc:meta])* $name:ident($inner:ty), $type_name:expr, $type_doc:expr) => {
+    ($($(#[$doc:meta])* $name:ident($inner:ty), $type_name:expr, $type_doc:expr);+ $(;)?) => {$(
         $(#[$doc])*
         #[derive(Clone, Debug, PartialEq)]
         pub struct $name(pub $inner);
@@ -66,58 +67,36 @@ macro_rules! json_artifact {
                 vfxgraph_engine::artifact::decode_json(bytes).map($name)
             }
         }
-    };
+    )+};
 }
 pub(crate) use json_artifact;
 
-json_artifact!(
+json_artifact! {
     /// Camera intrinsics K (`intrinsics`).
-    IntrinsicsArt(vfxgraph_vision::Intrinsics),
-    "intrinsics",
-    "Camera intrinsics K: f1, f2, skew, principal point (pixels), optional image size."
-);
-json_artifact!(
+    IntrinsicsArt(vfxgraph_vision::Intrinsics), "intrinsics",
+    "Camera intrinsics K: f1, f2, skew, principal point (pixels), optional image size.";
     /// A calibrated camera K[R|t] (`camera`).
-    CameraArt(vfxgraph_vision::Camera),
-    "camera",
-    "A calibrated camera K[R|t]: maps world X to pixels K(RX + t), looking down +z."
-);
-json_artifact!(
+    CameraArt(vfxgraph_vision::Camera), "camera",
+    "A calibrated camera K[R|t]: maps world X to pixels K(RX + t), looking down +z.";
     /// Pixel positions (`points2d`).
-    Points2dArt(vfxgraph_vision::Points2d),
-    "points2d",
-    "A list of image points (pixels, origin at the top-left pixel centre, y down)."
-);
-json_artifact!(
+    Points2dArt(vfxgraph_vision::Points2d), "points2d",
+    "A list of image points (pixels, origin at the top-left pixel centre, y down).";
     /// World points (`points3d`).
-    Points3dArt(vfxgraph_vision::Points3d),
-    "points3d",
-    "A list of 3D points in world coordinates."
-);
-json_artifact!(
+    Points3dArt(vfxgraph_vision::Points3d), "points3d",
+    "A list of 3D points in world coordinates.";
     /// The cameras of a sequence, one [R|t] per frame (`camera_path`).
-    CameraPathArt(vfxgraph_vision::formats::CameraPath),
-    "camera_path",
-    "The extrinsics [R|t] of every solved frame of a shot (intrinsics travel separately)."
-);
-json_artifact!(
+    CameraPathArt(vfxgraph_vision::formats::CameraPath), "camera_path",
+    "The extrinsics [R|t] of every solved frame of a shot (intrinsics travel separately).";
     /// A point cloud with track ids and errors (`point_cloud`).
-    PointCloudArt(vfxgraph_vision::points::PointCloud),
-    "point_cloud",
-    "Reconstructed 3D points, each with the id of its feature track and its RMS error (px)."
-);
-json_artifact!(
+    PointCloudArt(vfxgraph_vision::points::PointCloud), "point_cloud",
+    "Reconstructed 3D points, each with the id of its feature track and its RMS error (px).";
     /// Indices into another list (`indices`).
-    IndicesArt(Vec<usize>),
-    "indices",
-    "A list of indices into another artifact's list (e.g. the inliers of a fit)."
-);
-json_artifact!(
+    IndicesArt(Vec<usize>), "indices",
+    "A list of indices into another artifact's list (e.g. the inliers of a fit).";
     /// Any report of figures, as a JSON document (`report`).
-    ReportArt(serde_json::Value),
-    "report",
-    "A report of figures (errors, inliers, timings) as a JSON document."
-);
+    ReportArt(serde_json::Value), "report",
+    "A report of figures (errors, inliers, timings) as a JSON document.";
+}
 
 /// Registers the artifact types of this crate.
 pub fn register(r: &mut Registry) {

@@ -34,26 +34,23 @@ fn warp_of(ctx: &Context<'_>, node: &str, o: &UndistortOptions) -> Result<LensWa
     LensWarp::new(&k, o).map_err(|e| NodeError::msg(format!("{node}: {e}")))
 }
 
-fn run_undistort(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+/// `undistort` or `redistort` (`node`): the image through the lens warp; `undistort` also
+/// outputs K′.
+fn run_warp(ctx: &mut Context<'_>, node: &str) -> Result<(), NodeError> {
     let o: UndistortOptions = ctx.options()?;
-    let warp = warp_of(ctx, "undistort", &o)?;
+    let warp = warp_of(ctx, node, &o)?;
     let img = &ctx.input::<ImageArt>("image")?.0;
-    let out = warp
-        .undistort(img)
-        .map_err(|e| NodeError::msg(format!("undistort: {e}")))?;
+    let undistort = node == "undistort";
+    let out = if undistort {
+        warp.undistort(img)
+    } else {
+        warp.redistort(img)
+    };
+    let out = out.map_err(|e| NodeError::msg(format!("{node}: {e}")))?;
     ctx.output("image", ImageArt(out));
-    ctx.output("intrinsics", IntrinsicsArt(warp.pinhole.clone()));
-    Ok(())
-}
-
-fn run_redistort(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let o: UndistortOptions = ctx.options()?;
-    let warp = warp_of(ctx, "redistort", &o)?;
-    let img = &ctx.input::<ImageArt>("image")?.0;
-    let out = warp
-        .redistort(img)
-        .map_err(|e| NodeError::msg(format!("redistort: {e}")))?;
-    ctx.output("image", ImageArt(out));
+    if undistort {
+        ctx.output("intrinsics", IntrinsicsArt(warp.pinhole.clone()));
+    }
     Ok(())
 }
 
@@ -104,7 +101,7 @@ pub fn register(r: &mut Registry) {
             "K′ of the undistorted image: the same focal lengths, no lens, its size",
         )
         .options::<UndistortOptions>(),
-        run_undistort,
+        |ctx| run_warp(ctx, "undistort"),
     );
     r.register_fn(
         lens_ports(
@@ -118,7 +115,7 @@ pub fn register(r: &mut Registry) {
         )
         .output_of::<ImageArt>("image", "the image through the lens")
         .options::<UndistortOptions>(),
-        run_redistort,
+        |ctx| run_warp(ctx, "redistort"),
     );
     r.register_fn(
         lens_ports(
@@ -181,7 +178,7 @@ mod tests {
             ]
         };
         let mut ctx = Context::for_test(&sp, &ps, dir.path(), None, inputs());
-        run_undistort(&mut ctx).unwrap();
+        run_warp(&mut ctx, "undistort").unwrap();
         let und = ctx.take_output::<ImageArt>("image").unwrap().0;
         let k2 = ctx.take_output::<IntrinsicsArt>("intrinsics").unwrap().0;
         let warp = LensWarp::new(&lens(), &UndistortOptions::default()).unwrap();
@@ -204,7 +201,7 @@ mod tests {
                 ),
             ],
         );
-        run_redistort(&mut ctx).unwrap();
+        run_warp(&mut ctx, "redistort").unwrap();
         let back = ctx.take_output::<ImageArt>("image").unwrap().0;
         assert_eq!((back.width, back.height), (96, 54));
 
@@ -245,7 +242,7 @@ mod tests {
                 InputValue::One(Value::new(ImageArt(plate.clone()))),
             )],
         );
-        let e = run_undistort(&mut ctx).unwrap_err().to_string();
+        let e = run_warp(&mut ctx, "undistort").unwrap_err().to_string();
         assert!(e.contains("undistort: no lens"), "{e}");
     }
 }

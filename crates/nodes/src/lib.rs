@@ -19,7 +19,6 @@ pub mod matchmove;
 pub mod modeling;
 pub mod placement;
 pub mod plate;
-pub mod plot;
 pub mod render;
 pub mod shot;
 #[cfg(test)]

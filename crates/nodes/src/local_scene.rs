@@ -21,8 +21,7 @@ fn run_proxy_from_points(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: ProxyOptions = ctx.options()?;
     let art = ctx.input::<SceneArt>("scene")?;
     let (scene, report) = add_proxies(&art.scene, &measured(ctx)?, &o).map_err(NodeError::msg)?;
-    let dome = art.dome.clone();
-    ctx.output("scene", SceneArt { scene, dome });
+    ctx.output("scene", SceneArt::new(scene, art.dome.clone()));
     ctx.output("report", ReportArt(report));
     Ok(())
 }
@@ -31,8 +30,7 @@ fn run_add_objects(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let local = ctx.input::<SceneArt>("scene")?;
     let cg = ctx.input::<SceneArt>("objects")?;
     let scene = add_objects(&local.scene, &cg.scene).map_err(NodeError::msg)?;
-    let dome = local.dome.clone();
-    ctx.output("scene", SceneArt { scene, dome });
+    ctx.output("scene", SceneArt::new(scene, local.dome.clone()));
     Ok(())
 }
 
@@ -138,8 +136,7 @@ fn run_catcher_texture(ctx: &mut Context<'_>) -> Result<(), NodeError> {
         Some(ctx.cancel_flag()),
     )
     .map_err(|e| NodeError::msg(e.to_string()))?;
-    let (scene, dome) = (out.scene, art.dome.clone());
-    ctx.output("scene", SceneArt { scene, dome });
+    ctx.output("scene", SceneArt::new(out.scene, art.dome.clone()));
     ctx.output("albedo", ImageArt(out.albedo));
     ctx.output("seen", ImageArt(out.seen));
     ctx.output("report", ReportArt(out.report));

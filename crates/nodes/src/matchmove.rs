@@ -3,6 +3,7 @@
 //! defaults) live in `vfxgraph_vision::matchmove`.
 
 use vfxgraph_engine::{Context, Mode, NodeError, NodeSpec, Registry};
+use vfxgraph_imaging::draw::svg::solve_error_svg;
 use vfxgraph_params::Options;
 use vfxgraph_vision::formats;
 use vfxgraph_vision::matchmove::{
@@ -136,12 +137,9 @@ fn run_write_cameras(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 }
 
 fn run_plot(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let path = output_path(ctx, "path")?;
     let report = &ctx.input::<ReportArt>("report")?.0;
-    let svg = crate::plot::solve_error_svg(report).map_err(NodeError::msg)?;
-    vfxgraph_engine::fsutil::atomic_write(&path, svg.as_bytes())
-        .map_err(|e| NodeError::msg(format!("{}: {e}", path.display())))?;
-    Ok(())
+    let svg = solve_error_svg(report).map_err(NodeError::msg)?;
+    crate::write_output(ctx, "path", svg.as_bytes())
 }
 
 /// Registers the nodes of this module.

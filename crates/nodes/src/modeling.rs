@@ -30,12 +30,7 @@ pub fn register(r: &mut Registry) {
         .input_file_param("path", "marked-points file")
         .output_of::<MarkedPointsArt>("marks", "the marks"),
         |ctx| {
-            let path = ctx.path("path");
-            let marks = if vfxgraph_vision::formats::is_json(&path) {
-                vfxgraph_vision::formats::read_json(&path)?
-            } else {
-                read_marked_points(&path)?
-            };
+            let marks = read_marked_points(&ctx.path("path"))?;
             ctx.output("marks", MarkedPointsArt(marks));
             Ok(())
         },

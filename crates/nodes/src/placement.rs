@@ -128,10 +128,8 @@ fn run_place_scene(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let image = ctx.input_opt::<ImageArt>("dome_image")?.map(|i| &i.0);
     let p = place_scene(design, image, &measured(ctx)?, &o)
         .map_err(|e| NodeError::msg(format!("place_scene: {e}")))?;
-    let report = p.report();
-    let (scene, dome) = (p.scene, p.dome);
-    ctx.output("scene", SceneArt { scene, dome });
-    ctx.output("report", ReportArt(report));
+    ctx.output("report", ReportArt(p.report()));
+    ctx.output("scene", SceneArt::new(p.scene, p.dome));
     Ok(())
 }
 
@@ -150,10 +148,8 @@ fn run_catcher_from_points(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let image = ctx.input_opt::<ImageArt>("dome_image")?.map(|i| &i.0);
     let c = catcher_from_points(&pts, &viewers, design, image, &o)
         .map_err(|e| NodeError::msg(format!("catcher_from_points: {e}")))?;
-    let report = c.report();
-    let (scene, dome) = (c.scene, c.dome);
-    ctx.output("scene", SceneArt { scene, dome });
-    ctx.output("report", ReportArt(report));
+    ctx.output("report", ReportArt(c.report()));
+    ctx.output("scene", SceneArt::new(c.scene, c.dome));
     Ok(())
 }
 

@@ -13,8 +13,8 @@ use vfxgraph_engine::artifact::{decode_json, encode_json};
 use vfxgraph_engine::{ArtifactType, Context, Mode, NodeError, NodeSpec, Registry, Threads};
 use vfxgraph_render::dome::{Dome, Light};
 use vfxgraph_render::{
-    camera_for_frame, read_scene_file, render, Camera, ImageSize, PathPose, RenderOptions, Scene,
-    SolvedK,
+    camera_for_frame, read_scene_file, render, Camera, ImageSize, PathPose, RenderError,
+    RenderOptions, Scene, SolvedK,
 };
 use vfxgraph_vision::formats::FramePose;
 
@@ -30,6 +30,13 @@ pub struct SceneArt {
     /// The loaded, oriented dome of `scene.dome` (`None` without a dome, or when its image was
     /// not found: then `render` needs a `dome` input).
     pub dome: Option<Dome>,
+}
+
+impl SceneArt {
+    /// A scene with its loaded dome.
+    pub fn new(scene: Scene, dome: Option<Dome>) -> Self {
+        SceneArt { scene, dome }
+    }
 }
 
 impl ArtifactType for SceneArt {
@@ -64,7 +71,7 @@ impl ArtifactType for SceneArt {
             t => return Err(format!("bad dome tag {t}")),
         };
         r.finish()?;
-        Ok(SceneArt { scene, dome })
+        Ok(SceneArt::new(scene, dome))
     }
 }
 
@@ -147,8 +154,7 @@ fn run_read_scene(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     for f in &file.files {
         ctx.declare_input_file(f)?;
     }
-    let (scene, dome) = (file.scene, file.dome);
-    ctx.output("scene", SceneArt { scene, dome });
+    ctx.output("scene", SceneArt::new(file.scene, file.dome));
     Ok(())
 }
 
@@ -223,16 +229,6 @@ pub(crate) fn with_sync_progress<R>(
     })
 }
 
-/// An error when a render dropped non-finite samples (a bug in the tracer, not in the scene).
-pub(crate) fn check_finite(nonfinite: u64) -> Result<(), NodeError> {
-    if nonfinite > 0 {
-        return Err(NodeError::msg(format!(
-            "{nonfinite} samples had non-finite radiance (a bug: please report the scene)"
-        )));
-    }
-    Ok(())
-}
-
 fn run_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: RenderOptions = ctx.options()?;
     let art = ctx.input::<SceneArt>("scene")?;
@@ -244,7 +240,7 @@ fn run_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
         render(&world, light.env(), &camera, &settings, progress, cancel)
     })
     .map_err(|e| NodeError::msg(e.to_string()))?;
-    check_finite(out.stats.nonfinite)?;
+    RenderError::check_finite(out.stats.nonfinite)?;
     ctx.output("image", ImageArt(out.image));
     ctx.output("variance", ImageArt(out.variance));
     Ok(())

@@ -13,12 +13,12 @@ use vfxgraph_render::differential::{
     composite, differential_render, CompositeOptions, DifferentialLayers, DifferentialOptions,
 };
 use vfxgraph_render::plate::plate_frames;
+use vfxgraph_render::RenderError;
 
 use crate::artifacts::{image_sequence, ImageArt, ReportArt};
 use crate::output_path;
 use crate::render::{
-    camera_for, check_finite, instance_camera, pick_light, scene_inputs, with_sync_progress,
-    SceneArt,
+    camera_for, instance_camera, pick_light, scene_inputs, with_sync_progress, SceneArt,
 };
 
 /// Named images of one size (`layers`): what a compositor reads from a multi-layer EXR.
@@ -195,10 +195,8 @@ fn run_fit_catcher(ctx: &mut Context<'_>) -> Result<(), NodeError> {
         Some(ctx.cancel_flag()),
     )
     .map_err(|e| NodeError::msg(format!("frame {frame}: {e}")))?;
-    let report = fit.report(frame);
-    let dome = art.dome.clone();
-    ctx.output("scene", SceneArt { scene, dome });
-    ctx.output("report", ReportArt(report));
+    ctx.output("scene", SceneArt::new(scene, art.dome.clone()));
+    ctx.output("report", ReportArt(fit.report(frame)));
     Ok(())
 }
 
@@ -222,7 +220,7 @@ fn run_differential_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
         )
     })
     .map_err(|e| NodeError::msg(e.to_string()))?;
-    check_finite(out.stats.nonfinite)?;
+    RenderError::check_finite(out.stats.nonfinite)?;
     let l = &out.layers;
     let image = l
         .composite_or_render(plate, o.mode)

@@ -30,6 +30,19 @@ pub enum RenderError {
     /// The camera is invalid.
     #[error(transparent)]
     Camera(#[from] crate::camera::CameraError),
+    /// Samples of non-finite radiance were dropped: a bug in the tracer, not in the scene.
+    #[error("{0} samples had non-finite radiance (a bug: please report the scene)")]
+    NonFinite(u64),
+}
+
+impl RenderError {
+    /// [`RenderError::NonFinite`] when a render dropped `nonfinite` samples.
+    pub fn check_finite(nonfinite: u64) -> Result<(), RenderError> {
+        match nonfinite {
+            0 => Ok(()),
+            n => Err(RenderError::NonFinite(n)),
+        }
+    }
 }
 
 /// Render settings.
