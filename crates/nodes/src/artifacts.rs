@@ -14,11 +14,7 @@ impl ArtifactType for ImageArt {
     const DOC: &'static str =
         "A linear-light f32 image: width × height × channels (1 gray, 3 RGB, 4 RGBA), rows top-down.";
     fn encode(&self, out: &mut Vec<u8>) {
-        let img = &self.0;
-        put_u64(out, img.width as u64);
-        put_u64(out, img.height as u64);
-        put_u64(out, img.channels as u64);
-        put_f32s(out, &img.data);
+        put_image(out, &self.0);
     }
     fn hash_into(&self, h: &mut Hasher) {
         let img = &self.0;
@@ -38,6 +34,14 @@ impl ArtifactType for ImageArt {
             .map(ImageArt)
             .map_err(|e| e.to_string())
     }
+}
+
+/// Appends image `img` as [`ImageArt`] encodes it (without a copy of the image).
+pub(crate) fn put_image(out: &mut Vec<u8>, img: &Image) {
+    put_u64(out, img.width as u64);
+    put_u64(out, img.height as u64);
+    put_u64(out, img.channels as u64);
+    put_f32s(out, &img.data);
 }
 
 /// The images of sequence input `port`, with their frame numbers, in frame order.

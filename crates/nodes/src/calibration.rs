@@ -106,7 +106,7 @@ pub fn register(r: &mut Registry) {
         .output_file_param("path", "JSON file"),
         |ctx| {
             let cam = &ctx.input::<CameraArt>("camera")?.0;
-            write_json(ctx, cam)
+            Ok(formats::write_json(&ctx.path("path"), cam)?)
         },
     );
     r.register_fn(
@@ -119,10 +119,7 @@ pub fn register(r: &mut Registry) {
         .output_file_param("path", "g7cam.txt-style K file, or .json"),
         |ctx| {
             let k = &ctx.input::<IntrinsicsArt>("intrinsics")?.0;
-            Ok(formats::write_intrinsics(
-                &crate::output_path(ctx, "path")?,
-                k,
-            )?)
+            Ok(formats::write_intrinsics(&ctx.path("path"), k)?)
         },
     );
     r.register_fn(
@@ -132,15 +129,9 @@ pub fn register(r: &mut Registry) {
             .output_file_param("path", "JSON file"),
         |ctx| {
             let rep = &ctx.input::<ReportArt>("report")?.0;
-            write_json(ctx, rep)
+            Ok(formats::write_json(&ctx.path("path"), rep)?)
         },
     );
-}
-
-fn write_json<T: serde::Serialize>(ctx: &Context<'_>, value: &T) -> Result<(), NodeError> {
-    let mut text = serde_json::to_string_pretty(value)?;
-    text.push('\n');
-    crate::write_output(ctx, "path", text.as_bytes())
 }
 
 fn run_calibrate(ctx: &mut Context<'_>) -> Result<(), NodeError> {
@@ -282,7 +273,11 @@ mod tests {
                 InputValue::One(Value::new(CameraArt(scene.camera.clone()))),
             )],
         );
-        write_json(&ctx, &ctx.input::<CameraArt>("camera").unwrap().0).unwrap();
+        crate::registry()
+            .node("write_camera")
+            .unwrap()
+            .run(&mut ctx)
+            .unwrap();
         let v: serde_json::Value =
             serde_json::from_slice(&std::fs::read(dir.path().join("cams/c.json")).unwrap())
                 .unwrap();

@@ -19,8 +19,7 @@ use vfxgraph_imaging::hdr::{
 };
 use vfxgraph_render::dome::{Dome, DomeOptions};
 
-use crate::artifacts::{CameraArt, ImageArt, ReportArt};
-use crate::output_path;
+use crate::artifacts::{put_image, CameraArt, ImageArt, ReportArt};
 
 /// An exposure stack (`exposure_stack`): 8-bit codes, exposure times, optional mask.
 #[derive(Clone, Debug, PartialEq)]
@@ -80,10 +79,8 @@ impl ArtifactType for ResponseArt {
         g(128) = 0 (Debevec & Malik 1997; book 10.2).";
     fn encode(&self, out: &mut Vec<u8>) {
         put_u64(out, self.0.channels() as u64);
-        for g in self.0.curves() {
-            for v in g {
-                put_f64(out, *v);
-            }
+        for v in self.0.curves().iter().flatten() {
+            put_f64(out, *v);
         }
     }
     fn decode(bytes: &[u8]) -> Result<Self, String> {
@@ -116,7 +113,7 @@ impl ArtifactType for DomeArt {
     const DOC: &'static str = "An equirectangular light dome oriented by orig/south, importance \
         sampled by luminance × sin θ (book 10.7–10.9).";
     fn encode(&self, out: &mut Vec<u8>) {
-        ImageArt(self.0.image().clone()).encode(out);
+        put_image(out, self.0.image());
         for v in self.0.orig().iter().chain(self.0.south().iter()) {
             put_f64(out, *v);
         }
@@ -340,7 +337,7 @@ fn run_to_ldr(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 
 fn run_write_response(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let curve = &ctx.input::<ResponseArt>("response")?.0;
-    let path = output_path(ctx, "path")?;
+    let path = ctx.path("path");
     vfxgraph_imaging::io::write_atomic(&path, curve.to_csv().as_bytes())?;
     Ok(())
 }

@@ -9,7 +9,6 @@ use vfxgraph_vision::undistort::{LensWarp, UndistortOptions};
 use vfxgraph_vision::Intrinsics;
 
 use crate::artifacts::{CameraPathArt, ImageArt, IntrinsicsArt};
-use crate::output_path;
 
 /// The lens: the `intrinsics` input, else the `cameras` path's K (a solve's, with its lens).
 fn lens_input(ctx: &Context<'_>, node: &str) -> Result<Intrinsics, NodeError> {
@@ -56,7 +55,7 @@ fn run_warp(ctx: &mut Context<'_>, node: &str) -> Result<(), NodeError> {
 
 fn run_write_st_map(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: StMapOptions = ctx.options()?;
-    let path = output_path(ctx, "path")?;
+    let path = crate::output_path(ctx, "path")?;
     if !path
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("exr"))

@@ -73,8 +73,8 @@ pub(crate) fn intrinsics_or_path_k<'a>(
     Ok(k.map(|k| &k.0).or(path.and_then(|p| p.intrinsics.as_ref())))
 }
 
-/// The file a node writes: path param `param` resolved against the graph's folder, with its
-/// folder created.
+/// The file of path param `param`, its folder created: for `write_image`, which refuses a
+/// missing folder (the other writers create theirs).
 pub(crate) fn output_path(ctx: &Context<'_>, param: &str) -> Result<std::path::PathBuf, NodeError> {
     let path = ctx.path(param);
     if let Some(parent) = path.parent() {
@@ -84,15 +84,12 @@ pub(crate) fn output_path(ctx: &Context<'_>, param: &str) -> Result<std::path::P
     Ok(path)
 }
 
-/// Writes `bytes` to `path` atomically, naming the file in the error.
-pub(crate) fn write_atomic(path: &std::path::Path, bytes: &[u8]) -> Result<(), NodeError> {
-    vfxgraph_engine::fsutil::atomic_write(path, bytes)
-        .map_err(|e| NodeError::msg(format!("cannot write {}: {e}", path.display())))
-}
-
-/// Writes `bytes` atomically to the file of path param `param` (see [`output_path`]).
+/// Writes `bytes` atomically to the file of path param `param` (the one writer: folders
+/// created, fsync), naming the file in the error.
 pub(crate) fn write_output(ctx: &Context<'_>, param: &str, bytes: &[u8]) -> Result<(), NodeError> {
-    write_atomic(&output_path(ctx, param)?, bytes)
+    let path = ctx.path(param);
+    vfxgraph_engine::fsutil::atomic_write(&path, bytes)
+        .map_err(|e| NodeError::msg(format!("cannot write {}: {e}", path.display())))
 }
 
 #[cfg(test)]

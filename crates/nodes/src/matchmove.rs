@@ -12,7 +12,6 @@ use vfxgraph_vision::matchmove::{
 };
 
 use crate::artifacts::{CameraPathArt, IntrinsicsArt, PointCloudArt, ReportArt};
-use crate::output_path;
 use crate::tracking::TracksArt;
 
 /// Whether a solve node scores its cameras (`relax`, `global_bundle_adjust`; `matchmove`'s is
@@ -130,7 +129,7 @@ fn run_global(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 
 fn run_write_cameras(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: formats::WriteCamerasOptions = ctx.options()?;
-    let path = output_path(ctx, "path")?;
+    let path = ctx.path("path");
     let cams = &ctx.input::<CameraPathArt>("cameras")?.0;
     formats::write_camera_path(&path, cams, o.format)?;
     Ok(())

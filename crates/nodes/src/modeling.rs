@@ -45,10 +45,7 @@ pub fn register(r: &mut Registry) {
         .input_of::<MarkedPointsArt>("marks", "the marks"),
         |ctx| {
             let marks = &ctx.input::<MarkedPointsArt>("marks")?.0;
-            Ok(write_marked_points(
-                &crate::output_path(ctx, "path")?,
-                marks,
-            )?)
+            Ok(write_marked_points(&ctx.path("path"), marks)?)
         },
     );
     r.register_fn(

@@ -15,8 +15,7 @@ use vfxgraph_render::differential::{
 use vfxgraph_render::plate::plate_frames;
 use vfxgraph_render::RenderError;
 
-use crate::artifacts::{image_sequence, ImageArt, ReportArt};
-use crate::output_path;
+use crate::artifacts::{image_sequence, put_image, ImageArt, ReportArt};
 use crate::render::{
     camera_for, instance_camera, pick_light, scene_inputs, with_sync_progress, SceneArt,
 };
@@ -34,7 +33,7 @@ impl ArtifactType for LayersArt {
         for (name, img) in &self.0 {
             put_bytes(out, name.as_bytes());
             let mut b = Vec::new();
-            ImageArt(img.clone()).encode(&mut b);
+            put_image(&mut b, img);
             put_bytes(out, &b);
         }
     }
@@ -270,7 +269,7 @@ fn run_write_layers(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: LayersOptions = ctx.options()?;
     crate::image_io::check_pattern(ctx)?;
     let bytes = o.encode(&ctx.input::<LayersArt>("layers")?.0)?;
-    vfxgraph_imaging::io::write_atomic(&output_path(ctx, "path")?, &bytes)?;
+    vfxgraph_imaging::io::write_atomic(&ctx.path("path"), &bytes)?;
     Ok(())
 }
 
