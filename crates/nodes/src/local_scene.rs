@@ -14,8 +14,8 @@ use vfxgraph_render::ImageSize;
 
 use crate::artifacts::{image_sequence, ImageArt, Points3dArt, ReportArt};
 use crate::placement::measured;
-use crate::render::{camera_for, pick_light, SceneArt};
-use crate::shot::light_and_camera_inputs;
+use crate::render::{camera_for, pick_light, scene_inputs, SceneArt};
+use crate::shot::SHOT_INPUTS;
 
 fn run_proxy_from_points(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: ProxyOptions = ctx.options()?;
@@ -70,7 +70,7 @@ pub fn register(r: &mut Registry) {
         run_proxy_from_points,
     );
     r.register_fn(
-        light_and_camera_inputs(
+        scene_inputs(
             NodeSpec::new(
                 "catcher_texture",
                 "The textured shadow catcher (Debevec 1998's local scene; book §10.10.1's \
@@ -93,6 +93,7 @@ pub fn register(r: &mut Registry) {
             .version(3)
             .options::<LocalTextureOptions>()
             .options::<ImageSize>(),
+            SHOT_INPUTS,
         )
         .sequence_input_of::<ImageArt>("plate", "the plate frames (linear radiance)")
         .output_of::<SceneArt>("scene", "the scene with the catcher's albedo texture")

@@ -46,26 +46,24 @@ pub(crate) struct RelaxParams {
     score: Score,
 }
 
+/// A solve node's spec: `matchmove`'s (K optional), or one that refines a solved path
+/// (`cameras_in`: K and the path required).
 fn solve_node(name: &'static str, doc: &'static str, cameras_in: bool) -> NodeSpec {
     let spec = NodeSpec::new(name, doc)
         .mode(Mode::Once)
         .input_of::<TracksArt>("tracks", "the feature tracks");
-    let spec = if name == "matchmove" {
+    let spec = if cameras_in {
+        spec.input_of::<IntrinsicsArt>("intrinsics", "K, shared by every frame")
+            .input_of::<CameraPathArt>(
+                "cameras",
+                "a solved path covering every frame of the tracks",
+            )
+    } else {
         spec.optional_input_of::<IntrinsicsArt>(
             "intrinsics",
             "K and the lens shared by every frame: exact, or a start (focal: refine); optional \
              with focal: unknown and the image size",
         )
-    } else {
-        spec.input_of::<IntrinsicsArt>("intrinsics", "K, shared by every frame")
-    };
-    let spec = if cameras_in {
-        spec.input_of::<CameraPathArt>(
-            "cameras",
-            "a solved path covering every frame of the tracks",
-        )
-    } else {
-        spec
     };
     spec.output_of::<CameraPathArt>("cameras", "K and [R|t] of every frame")
         .output_of::<PointCloudArt>(

@@ -158,14 +158,9 @@ fn run_read_scene(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     Ok(())
 }
 
-/// The camera of this instance: the scene's, or frame f's pose of `cameras` with K from
-/// `intrinsics`, the path's own K, or the scene camera (book §2.8), then the size override.
-pub(crate) fn instance_camera(ctx: &Context<'_>, scene: &Scene) -> Result<Camera, NodeError> {
-    camera_for(ctx, scene, ctx.frame())
-}
-
-/// [`instance_camera`] for frame `frame`: vfxgraph-render's `camera_for_frame` over the
-/// `cameras` and `intrinsics` inputs (K: `intrinsics`, else the path's own K).
+/// The camera of frame `frame` (this instance's: `ctx.frame()`): the scene's, or that frame's
+/// pose of `cameras` with K from `intrinsics`, the path's own K, or the scene camera (book §2.8),
+/// then the size override (vfxgraph-render's `camera_for_frame`).
 pub(crate) fn camera_for(
     ctx: &Context<'_>,
     scene: &Scene,
@@ -233,7 +228,7 @@ fn run_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: RenderOptions = ctx.options()?;
     let art = ctx.input::<SceneArt>("scene")?;
     let light = pick_light(ctx, art)?;
-    let camera = instance_camera(ctx, &art.scene)?;
+    let camera = camera_for(ctx, &art.scene, ctx.frame())?;
     let (world, settings) = (o.world(&art.scene), o.settings(ctx.seed()));
     let out = with_sync_progress(ctx, |progress| {
         let cancel = Some(ctx.cancel_flag());

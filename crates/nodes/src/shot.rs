@@ -16,9 +16,7 @@ use vfxgraph_render::plate::plate_frames;
 use vfxgraph_render::RenderError;
 
 use crate::artifacts::{image_sequence, put_image, ImageArt, ReportArt};
-use crate::render::{
-    camera_for, instance_camera, pick_light, scene_inputs, with_sync_progress, SceneArt,
-};
+use crate::render::{camera_for, pick_light, scene_inputs, with_sync_progress, SceneArt};
 
 /// Named images of one size (`layers`): what a compositor reads from a multi-layer EXR.
 #[derive(Clone, Debug, PartialEq)]
@@ -51,23 +49,18 @@ impl ArtifactType for LayersArt {
     }
 }
 
-/// The inputs of the shot's renders ([`scene_inputs`]).
-pub(crate) fn light_and_camera_inputs(spec: NodeSpec) -> NodeSpec {
-    scene_inputs(
-        spec,
-        [
-            "objects and shadow catchers",
-            "the solved camera path (K from `intrinsics`, the path, or the scene camera)",
-            "K (and image size) replacing the path's and the scene camera's",
-        ],
-    )
-}
+/// The docs of the shot's renders' scene, cameras and intrinsics inputs ([`scene_inputs`]).
+pub(crate) const SHOT_INPUTS: [&str; 3] = [
+    "objects and shadow catchers",
+    "the solved camera path (K from `intrinsics`, the path, or the scene camera)",
+    "K (and image size) replacing the path's and the scene camera's",
+];
 
 /// Registers the artifact and nodes of this module.
 pub fn register(r: &mut Registry) {
     r.register_artifact::<LayersArt>();
     r.register_fn(
-        light_and_camera_inputs(
+        scene_inputs(
             NodeSpec::new(
                 "fit_catcher",
                 "Fits the shadow catchers' diffuse colour to the plate (book §10.10, the \
@@ -88,6 +81,7 @@ pub fn register(r: &mut Registry) {
                 "the plate frame (and camera) to fit on",
             ))
             .options::<FitCatcherOptions>(),
+            SHOT_INPUTS,
         )
         .sequence_input_of::<ImageArt>(
             "plate",
@@ -98,7 +92,7 @@ pub fn register(r: &mut Registry) {
         run_fit_catcher,
     );
     r.register_fn(
-        light_and_camera_inputs(
+        scene_inputs(
             NodeSpec::new(
                 "differential_render",
                 "Differential rendering (book §10.10; Debevec 1998), one frame per instance: \
@@ -120,6 +114,7 @@ pub fn register(r: &mut Registry) {
                 bytes_per_pixel: 400,
             })
             .options::<DifferentialOptions>(),
+            SHOT_INPUTS,
         )
         .optional_input_of::<ImageArt>("plate", "this frame's plate (linear radiance)")
         .output_of::<ImageArt>("image", "the composite (linear RGB)")
@@ -203,7 +198,7 @@ fn run_differential_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: DifferentialOptions = ctx.options()?;
     let art = ctx.input::<SceneArt>("scene")?;
     let light = pick_light(ctx, art)?;
-    let camera = instance_camera(ctx, &art.scene)?;
+    let camera = camera_for(ctx, &art.scene, ctx.frame())?;
     let plate = plate_of(ctx)?;
     let plate = plate.as_ref();
     let settings = o.settings(ctx.seed());
@@ -240,26 +235,18 @@ fn plate_of(ctx: &Context<'_>) -> Result<Option<Image>, NodeError> {
     if let Some(p) = ctx.input_opt::<ImageArt>("plate")? {
         return Ok(Some(p.0.clone()));
     }
-    if ctx.params().str("plate").is_empty() {
-        return Ok(None);
-    }
-    let path = ctx.path("plate");
-    read_image(&path)
-        .map(Some)
-        .map_err(|e| NodeError::msg(format!("plate: {e}")))
+    let file = (!ctx.params().str("plate").is_empty()).then(|| ctx.path("plate"));
+    let read =
+        |p: std::path::PathBuf| read_image(&p).map_err(|e| NodeError::msg(format!("plate: {e}")));
+    file.map(read).transpose()
 }
 
 fn run_composite(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: CompositeOptions = ctx.options()?;
     let layers = &ctx.input::<LayersArt>("layers")?.0;
     let l = DifferentialLayers::from_named(layers).map_err(NodeError::msg)?;
-    let plate = match plate_of(ctx)? {
-        Some(p) => p,
-        None => {
-            let g = o.grey as f32;
-            Image::from_fn(l.beauty.width, l.beauty.height, 3, |_, _, _| g)
-        }
-    };
+    let (w, h, g) = (l.beauty.width, l.beauty.height, o.grey as f32);
+    let plate = plate_of(ctx)?.unwrap_or_else(|| Image::from_fn(w, h, 3, |_, _, _| g));
     let image = composite(&l, &plate, o.mode).map_err(NodeError::msg)?;
     ctx.output("image", ImageArt(image));
     Ok(())
