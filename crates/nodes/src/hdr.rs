@@ -39,21 +39,18 @@ impl ArtifactType for StackArt {
             put_f64(out, e.time);
             put_bytes(out, &e.codes);
         }
-        match s.mask() {
-            Some(m) => put_bytes(out, &m.iter().map(|&b| b as u8).collect::<Vec<u8>>()),
-            None => put_bytes(out, &[]),
-        }
+        let mask: Vec<u8> = s
+            .mask()
+            .map_or(vec![], |m| m.iter().map(|&b| b as u8).collect());
+        put_bytes(out, &mask);
     }
     fn decode(bytes: &[u8]) -> Result<Self, String> {
         let mut r = Reader::new(bytes);
         let (w, h, c, n) = (r.u64()?, r.u64()?, r.u64()?, r.u64()?);
         let mut exposures = Vec::new();
         for _ in 0..n {
-            let time = r.f64()?;
-            exposures.push(Exposure {
-                time,
-                codes: r.bytes()?.to_vec(),
-            });
+            let (time, codes) = (r.f64()?, r.bytes()?.to_vec());
+            exposures.push(Exposure { time, codes });
         }
         let mask = r.bytes()?.to_vec();
         r.finish()?;
