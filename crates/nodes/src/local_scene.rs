@@ -135,8 +135,7 @@ fn run_catcher_texture(ctx: &mut Context<'_>) -> Result<(), NodeError> {
         &o,
         ctx.seed(),
         Some(ctx.cancel_flag()),
-    )
-    .map_err(|e| NodeError::msg(e.to_string()))?;
+    )?;
     ctx.output("scene", SceneArt::new(out.scene, art.dome.clone()));
     ctx.output("albedo", ImageArt(out.albedo));
     ctx.output("seen", ImageArt(out.seen));

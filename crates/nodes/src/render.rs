@@ -149,7 +149,7 @@ pub fn register(r: &mut Registry) {
 }
 
 fn run_read_scene(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let file = read_scene_file(&ctx.path("path")).map_err(|e| NodeError::msg(e.to_string()))?;
+    let file = read_scene_file(&ctx.path("path"))?;
     // The OBJ meshes and dome image it read are part of the cache key (an edit reruns).
     for f in &file.files {
         ctx.declare_input_file(f)?;
@@ -181,7 +181,7 @@ pub(crate) fn camera_for(
         frame,
         &size,
     )
-    .map_err(|e| NodeError::msg(e.to_string()))
+    .map_err(NodeError::from)
 }
 
 /// A matrix as the render crate takes it: an array of its rows.
@@ -233,8 +233,7 @@ fn run_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let out = with_sync_progress(ctx, |progress| {
         let cancel = Some(ctx.cancel_flag());
         render(&world, light.env(), &camera, &settings, progress, cancel)
-    })
-    .map_err(|e| NodeError::msg(e.to_string()))?;
+    })?;
     RenderError::check_finite(out.stats.nonfinite)?;
     ctx.output("image", ImageArt(out.image));
     ctx.output("variance", ImageArt(out.variance));

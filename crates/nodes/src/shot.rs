@@ -212,8 +212,7 @@ fn run_differential_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
             progress,
             Some(ctx.cancel_flag()),
         )
-    })
-    .map_err(|e| NodeError::msg(e.to_string()))?;
+    })?;
     RenderError::check_finite(out.stats.nonfinite)?;
     let l = &out.layers;
     let image = l

@@ -44,11 +44,8 @@ pub fn register(r: &mut Registry) {
 
 fn run_read_video(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: ReadVideoOptions = ctx.options()?;
-    let video =
-        open_shared(&ctx.path("path"), o.backend).map_err(|e| NodeError::msg(e.to_string()))?;
-    let img = video
-        .frame(ctx.frame().unwrap_or(0))
-        .map_err(|e| NodeError::msg(e.to_string()))?;
+    let video = open_shared(&ctx.path("path"), o.backend)?;
+    let img = video.frame(ctx.frame().unwrap_or(0))?;
     ctx.output("sequence", ImageArt(img));
     Ok(())
 }
@@ -56,7 +53,7 @@ fn run_read_video(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 fn run_write_video(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: WriteVideoOptions = ctx.options()?;
     let frames = crate::artifacts::image_sequence(ctx, "sequence")?;
-    write_video(&ctx.path("path"), &frames, &o).map_err(|e| NodeError::msg(e.to_string()))
+    Ok(write_video(&ctx.path("path"), &frames, &o)?)
 }
 
 #[cfg(test)]
