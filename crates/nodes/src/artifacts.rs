@@ -54,9 +54,12 @@ pub(crate) fn image_sequence<'a>(
 }
 
 /// Newtype artifacts stored as canonical JSON (serde, no hash maps), one per
-/// `Name(Inner), "type name", "type doc";` entry.
+/// `Name(Inner), "type name", "type doc"[, check = fn(&Inner) -> Result<(), impl Display>];`
+/// entry, and `register_json_artifacts`, which registers them all.
 macro_rules! json_artifact {
-    ($($(#[$doc:meta])* $name:ident($inner:ty), $type_name:expr, $type_doc:expr);+ $(;)?) => {$(
+    ($($(#[$doc:meta])* $name:ident($inner:ty), $type_name:expr, $type_doc:expr
+       $(, check = $check:path)?);+ $(;)?) => {
+        $(
         $(#[$doc])*
         #[derive(Clone, Debug, PartialEq)]
         pub struct $name(pub $inner);
@@ -68,10 +71,18 @@ macro_rules! json_artifact {
                 vfxgraph_engine::artifact::encode_json(&self.0, out)
             }
             fn decode(bytes: &[u8]) -> Result<Self, String> {
-                vfxgraph_engine::artifact::decode_json(bytes).map($name)
+                let value: $inner = vfxgraph_engine::artifact::decode_json(bytes)?;
+                $($check(&value).map_err(|e| e.to_string())?;)?
+                Ok($name(value))
             }
         }
-    )+};
+        )+
+
+        /// Registers the artifact types of this module's JSON table.
+        pub(crate) fn register_json_artifacts(r: &mut vfxgraph_engine::Registry) {
+            $(r.register_artifact::<$name>();)+
+        }
+    };
 }
 pub(crate) use json_artifact;
 
@@ -105,14 +116,7 @@ json_artifact! {
 /// Registers the artifact types of this crate.
 pub fn register(r: &mut Registry) {
     r.register_artifact::<ImageArt>();
-    r.register_artifact::<IntrinsicsArt>();
-    r.register_artifact::<CameraArt>();
-    r.register_artifact::<Points2dArt>();
-    r.register_artifact::<Points3dArt>();
-    r.register_artifact::<IndicesArt>();
-    r.register_artifact::<CameraPathArt>();
-    r.register_artifact::<PointCloudArt>();
-    r.register_artifact::<ReportArt>();
+    register_json_artifacts(r);
 }
 
 #[cfg(test)]

@@ -6,31 +6,22 @@ use vfxgraph_engine::{Context, Mode, NodeError, NodeSpec, Registry, Threads};
 use vfxgraph_imaging::io::write_image;
 use vfxgraph_vision::st_map::{st_map, StMapOptions};
 use vfxgraph_vision::undistort::{LensWarp, UndistortOptions};
-use vfxgraph_vision::Intrinsics;
 
 use crate::artifacts::{CameraPathArt, ImageArt, IntrinsicsArt};
 
-/// The lens: the `intrinsics` input, else the `cameras` path's K (a solve's, with its lens).
-fn lens_input(ctx: &Context<'_>, node: &str) -> Result<Intrinsics, NodeError> {
-    if let Some(k) = ctx.input_opt::<IntrinsicsArt>("intrinsics")? {
-        return Ok(k.0.clone());
-    }
-    match ctx.input_opt::<CameraPathArt>("cameras")? {
-        Some(p) => p.0.intrinsics.clone().ok_or_else(|| {
-            NodeError::msg(format!(
-                "{node}: the `cameras` path carries no K (connect `intrinsics`)"
-            ))
-        }),
-        None => Err(NodeError::msg(format!(
+/// The lens warp of node `node`: K with its lens from the `intrinsics` input, else from the
+/// `cameras` path (a solve's).
+fn warp_of(ctx: &Context<'_>, node: &str, o: &UndistortOptions) -> Result<LensWarp, NodeError> {
+    let path = ctx.input_opt::<CameraPathArt>("cameras")?.map(|p| &p.0);
+    let k = crate::intrinsics_or_path_k(ctx, path)?.ok_or_else(|| match path {
+        Some(_) => format!("{node}: the `cameras` path carries no K (connect `intrinsics`)"),
+        None => format!(
             "{node}: no lens: connect `intrinsics` (K with its lens and image size) or a solved \
              `cameras` path"
-        ))),
-    }
-}
-
-fn warp_of(ctx: &Context<'_>, node: &str, o: &UndistortOptions) -> Result<LensWarp, NodeError> {
-    let k = lens_input(ctx, node)?;
-    LensWarp::new(&k, o).map_err(|e| NodeError::msg(format!("{node}: {e}")))
+        ),
+    });
+    let k = k.map_err(NodeError::msg)?;
+    LensWarp::new(k, o).map_err(|e| NodeError::msg(format!("{node}: {e}")))
 }
 
 /// `undistort` or `redistort` (`node`): the image through the lens warp; `undistort` also
@@ -142,6 +133,7 @@ mod tests {
     use vfxgraph_engine::{InputValue, ParamValue, Value};
     use vfxgraph_imaging::Image;
     use vfxgraph_vision::lens::Distortion;
+    use vfxgraph_vision::Intrinsics;
 
     fn lens() -> Intrinsics {
         Intrinsics::new(92.0, 92.0, 47.5, 26.5)

@@ -17,7 +17,7 @@ json_artifact!(
 
 /// Registers the artifact and nodes of this module.
 pub fn register(r: &mut Registry) {
-    r.register_artifact::<MarkedPointsArt>();
+    register_json_artifacts(r);
     r.register_fn(
         NodeSpec::new(
             "read_marks",

@@ -4,8 +4,6 @@
 //! `tonemap` + PNG), optionally lit by a `dome` from the HDR nodes and seen by frame f's camera
 //! of a solved `camera_path`.
 
-use std::sync::Mutex;
-
 use nalgebra::Matrix3;
 
 use vfxgraph_engine::artifact::codec::{put_bytes, put_u64, Reader};
@@ -13,8 +11,8 @@ use vfxgraph_engine::artifact::{decode_json, encode_json};
 use vfxgraph_engine::{ArtifactType, Context, Mode, NodeError, NodeSpec, Registry, Threads};
 use vfxgraph_render::dome::{Dome, Light};
 use vfxgraph_render::{
-    camera_for_frame, read_scene_file, render, Camera, ImageSize, PathPose, RenderError,
-    RenderOptions, Scene, SolvedK,
+    camera_for_frame, read_scene_file, render, with_sync_progress, Camera, ImageSize, PathPose,
+    RenderError, RenderOptions, Scene, SolvedK,
 };
 use vfxgraph_vision::formats::FramePose;
 
@@ -210,30 +208,19 @@ pub(crate) fn pick_light<'a>(
     Light::pick(input_dome, art.dome.as_ref(), &art.scene).map_err(NodeError::msg)
 }
 
-/// Runs `f` with a `Sync` progress callback forwarding to `ctx.progress` (the engine's
-/// callback is not `Sync`; calls are serialized through a mutex).
-pub(crate) fn with_sync_progress<R>(
-    ctx: &Context<'_>,
-    f: impl FnOnce(&(dyn Fn(f32) + Sync)) -> R,
-) -> R {
-    let progress = Mutex::new(|x: f32| ctx.progress(x));
-    f(&|x| {
-        if let Ok(cb) = progress.lock() {
-            cb(x)
-        }
-    })
-}
-
 fn run_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: RenderOptions = ctx.options()?;
     let art = ctx.input::<SceneArt>("scene")?;
     let light = pick_light(ctx, art)?;
     let camera = camera_for(ctx, &art.scene, ctx.frame())?;
     let (world, settings) = (o.world(&art.scene), o.settings(ctx.seed()));
-    let out = with_sync_progress(ctx, |progress| {
-        let cancel = Some(ctx.cancel_flag());
-        render(&world, light.env(), &camera, &settings, progress, cancel)
-    })?;
+    let out = with_sync_progress(
+        |x| ctx.progress(x),
+        |progress| {
+            let cancel = Some(ctx.cancel_flag());
+            render(&world, light.env(), &camera, &settings, progress, cancel)
+        },
+    )?;
     RenderError::check_finite(out.stats.nonfinite)?;
     ctx.output("image", ImageArt(out.image));
     ctx.output("variance", ImageArt(out.variance));

@@ -13,10 +13,10 @@ use vfxgraph_render::differential::{
     composite, differential_render, CompositeOptions, DifferentialLayers, DifferentialOptions,
 };
 use vfxgraph_render::plate::plate_frames;
-use vfxgraph_render::RenderError;
+use vfxgraph_render::{with_sync_progress, RenderError};
 
 use crate::artifacts::{image_sequence, put_image, ImageArt, ReportArt};
-use crate::render::{camera_for, pick_light, scene_inputs, with_sync_progress, SceneArt};
+use crate::render::{camera_for, pick_light, scene_inputs, SceneArt};
 
 /// Named images of one size (`layers`): what a compositor reads from a multi-layer EXR.
 #[derive(Clone, Debug, PartialEq)]
@@ -202,17 +202,20 @@ fn run_differential_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let plate = plate_of(ctx)?;
     let plate = plate.as_ref();
     let settings = o.settings(ctx.seed());
-    let out = with_sync_progress(ctx, |progress| {
-        differential_render(
-            &art.scene,
-            light.env(),
-            &camera,
-            &settings,
-            o.adaptive(),
-            progress,
-            Some(ctx.cancel_flag()),
-        )
-    })?;
+    let out = with_sync_progress(
+        |x| ctx.progress(x),
+        |progress| {
+            differential_render(
+                &art.scene,
+                light.env(),
+                &camera,
+                &settings,
+                o.adaptive(),
+                progress,
+                Some(ctx.cancel_flag()),
+            )
+        },
+    )?;
     RenderError::check_finite(out.stats.nonfinite)?;
     let l = &out.layers;
     let image = l

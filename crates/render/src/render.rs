@@ -308,3 +308,17 @@ pub fn render(
         },
     })
 }
+
+/// Runs `f` with a `Sync` progress callback (what the renders take) forwarding to `progress`,
+/// which need not be `Sync`: calls are serialized through a mutex.
+pub fn with_sync_progress<R>(
+    progress: impl Fn(f32) + Send,
+    f: impl FnOnce(&(dyn Fn(f32) + Sync)) -> R,
+) -> R {
+    let progress = std::sync::Mutex::new(progress);
+    f(&|x| {
+        if let Ok(cb) = progress.lock() {
+            cb(x)
+        }
+    })
+}
