@@ -86,13 +86,12 @@ pub fn register(r: &mut Registry) {
                     .ok_or_else(|| NodeError::msg("unknown solver"))?,
                 ..SolverOptions::default()
             };
-            let refine = o.refine_intrinsics;
             let out = adjust_sequence(
                 &ctx.input::<CameraPathArt>("cameras")?.0,
                 &ctx.input::<PointCloudArt>("points")?.0,
                 &ctx.input::<TracksArt>("tracks")?.0,
                 &ctx.input::<IntrinsicsArt>("intrinsics")?.0,
-                refine,
+                o.refine_intrinsics,
                 &options,
             )?;
             let mut report = serde_json::to_value(&out.report)?;

@@ -103,8 +103,7 @@ fn run_export(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     // An optional sequence port: `input_opt` is Ok(None) when unconnected, an error when a
     // sequence is there.
     let plate: Vec<(i64, &Image)> = match ctx.input_opt::<ImageArt>("plate") {
-        Ok(None) => Vec::new(),
-        Ok(Some(img)) => vec![(0, &img.0)],
+        Ok(img) => img.map(|i| vec![(0, &i.0)]).unwrap_or_default(),
         Err(_) => image_sequence(ctx, "plate")?,
     };
     let shot = o.shot(k, path.clone(), cloud, tracks, &plate)?;

@@ -13,9 +13,9 @@ use vfxgraph_engine::{
 
 use vfxgraph_imaging::draw::{plot_response, PlotOptions};
 use vfxgraph_imaging::hdr::{
-    align_exposures, calibrate_debevec, merge_debevec, photograph, probe_to_equirect, AlignOptions,
-    CalibrateOptions, Exposure, ExposureStack, LdrOptions, ProbeOptions, ResponseCurve, StackFiles,
-    StackOptions, LEVELS,
+    align_exposures, align_report, calibrate_debevec, merge_debevec, photograph, probe_to_equirect,
+    AlignOptions, CalibrateOptions, Exposure, ExposureStack, LdrOptions, ProbeOptions,
+    ResponseCurve, StackFiles, StackOptions, LEVELS,
 };
 use vfxgraph_render::dome::{Dome, DomeOptions};
 
@@ -296,10 +296,7 @@ fn run_align(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: AlignOptions = ctx.options()?;
     let stack = &ctx.input::<StackArt>("stack")?.0;
     let (aligned, shifts) = align_exposures(stack, &o)?;
-    let report = serde_json::json!({
-        "reference": o.reference.unwrap_or(stack.len() / 2),
-        "shifts": shifts.iter().map(|&(x, y)| [x, y]).collect::<Vec<_>>(),
-    });
+    let report = align_report(&o, stack.len(), &shifts);
     ctx.output("stack", StackArt(aligned));
     ctx.output("report", ReportArt(report));
     Ok(())
@@ -334,9 +331,11 @@ fn run_to_ldr(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 
 fn run_write_response(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let curve = &ctx.input::<ResponseArt>("response")?.0;
-    let path = ctx.path("path");
-    vfxgraph_imaging::io::write_atomic(&path, curve.to_csv().as_bytes())?;
-    Ok(())
+    let csv = curve.to_csv();
+    Ok(vfxgraph_imaging::io::write_atomic(
+        &ctx.path("path"),
+        csv.as_bytes(),
+    )?)
 }
 
 fn run_plot(ctx: &mut Context<'_>) -> Result<(), NodeError> {

@@ -84,8 +84,7 @@ fn run_write_image(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     check_pattern(ctx)?;
     let port = ctx.input_port(0);
     let img = &ctx.input::<ImageArt>(port)?.0;
-    write_image(&crate::output_path(ctx, "path")?, img)?;
-    Ok(())
+    Ok(write_image(&crate::output_path(ctx, "path")?, img)?)
 }
 
 #[cfg(test)]

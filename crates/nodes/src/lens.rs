@@ -57,8 +57,7 @@ fn run_write_st_map(ctx: &mut Context<'_>) -> Result<(), NodeError> {
         )));
     }
     let warp = warp_of(ctx, "write_st_map", &o.framing)?;
-    write_image(&path, &st_map(&warp, o.direction))?;
-    Ok(())
+    Ok(write_image(&path, &st_map(&warp, o.direction))?)
 }
 
 fn lens_ports(spec: NodeSpec) -> NodeSpec {

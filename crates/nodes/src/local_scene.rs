@@ -122,11 +122,7 @@ fn run_catcher_texture(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let views: Vec<View> = plates
         .iter()
         .zip(&cameras)
-        .map(|(&(frame, plate), camera)| View {
-            frame,
-            camera,
-            plate,
-        })
+        .map(|(&(frame, plate), camera)| View::new(frame, camera, plate))
         .collect();
     let out = texture_local_scene_report(
         &art.scene,

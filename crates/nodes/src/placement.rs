@@ -24,14 +24,8 @@ pub(crate) fn measured(ctx: &Context<'_>) -> Result<Vec<Vec3>, NodeError> {
 /// The cameras of a solved path as viewers of a catcher: their centres, and the first one as a
 /// render camera (its K, R, t) when `with_view` and the path has intrinsics.
 fn viewers(path: &CameraPath, with_view: bool) -> Result<Viewers, NodeError> {
-    let centres = path
-        .frames
-        .iter()
-        .map(|f| {
-            let c = f.pose.center();
-            Vec3::new(c.x, c.y, c.z)
-        })
-        .collect();
+    let centres = path.frames.iter().map(|f| f.pose.center());
+    let centres = centres.map(|c| Vec3::new(c.x, c.y, c.z)).collect();
     let first = match (path.frames.first(), &path.intrinsics) {
         (Some(f), Some(k)) if with_view => Some(Camera::from_krt(
             rows(&k.k()),

@@ -214,13 +214,11 @@ fn run_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let light = pick_light(ctx, art)?;
     let camera = camera_for(ctx, &art.scene, ctx.frame())?;
     let (world, settings) = (o.world(&art.scene), o.settings(ctx.seed()));
-    let out = with_sync_progress(
-        |x| ctx.progress(x),
-        |progress| {
-            let cancel = Some(ctx.cancel_flag());
-            render(&world, light.env(), &camera, &settings, progress, cancel)
-        },
-    )?;
+    let progress = |x| ctx.progress(x);
+    let out = with_sync_progress(progress, |progress| {
+        let cancel = Some(ctx.cancel_flag());
+        render(&world, light.env(), &camera, &settings, progress, cancel)
+    })?;
     RenderError::check_finite(out.stats.nonfinite)?;
     ctx.output("image", ImageArt(out.image));
     ctx.output("variance", ImageArt(out.variance));

@@ -174,12 +174,6 @@ fn run_fit_catcher(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let frame = ctx.params().i64("frame");
     let plate = plate_frames(&image_sequence(ctx, "plate")?, &[frame])?[0].1;
     let camera = camera_for(ctx, &art.scene, Some(frame))?;
-    if (plate.width, plate.height) != (camera.width, camera.height) {
-        return Err(NodeError::msg(format!(
-            "plate frame {frame} is {}×{} but the camera renders {}×{} (set width/height)",
-            plate.width, plate.height, camera.width, camera.height
-        )));
-    }
     let (scene, fit) = fit_catcher(
         &art.scene,
         light.env(),
@@ -202,20 +196,18 @@ fn run_differential_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let plate = plate_of(ctx)?;
     let plate = plate.as_ref();
     let settings = o.settings(ctx.seed());
-    let out = with_sync_progress(
-        |x| ctx.progress(x),
-        |progress| {
-            differential_render(
-                &art.scene,
-                light.env(),
-                &camera,
-                &settings,
-                o.adaptive(),
-                progress,
-                Some(ctx.cancel_flag()),
-            )
-        },
-    )?;
+    let progress = |x| ctx.progress(x);
+    let out = with_sync_progress(progress, |progress| {
+        differential_render(
+            &art.scene,
+            light.env(),
+            &camera,
+            &settings,
+            o.adaptive(),
+            progress,
+            Some(ctx.cancel_flag()),
+        )
+    })?;
     RenderError::check_finite(out.stats.nonfinite)?;
     let l = &out.layers;
     let image = l
@@ -258,8 +250,10 @@ fn run_write_layers(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: LayersOptions = ctx.options()?;
     crate::image_io::check_pattern(ctx)?;
     let bytes = o.encode(&ctx.input::<LayersArt>("layers")?.0)?;
-    vfxgraph_imaging::io::write_atomic(&ctx.path("path"), &bytes)?;
-    Ok(())
+    Ok(vfxgraph_imaging::io::write_atomic(
+        &ctx.path("path"),
+        &bytes,
+    )?)
 }
 
 #[cfg(test)]
