@@ -71,39 +71,41 @@ fn lens_ports(spec: NodeSpec) -> NodeSpec {
     )
 }
 
+/// `undistort` or `redistort`: the lens ports, the image in and out (`docs`), their options.
+fn warp_node(name: &'static str, doc: &'static str, docs: [&'static str; 2]) -> NodeSpec {
+    lens_ports(NodeSpec::new(name, doc).input_of::<ImageArt>("image", docs[0]))
+        .output_of::<ImageArt>("image", docs[1])
+        .options::<UndistortOptions>()
+}
+
 /// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
     r.register_fn(
-        lens_ports(
-            NodeSpec::new(
-                "undistort",
-                "The plate as an ideal pinhole with the same focal length sees it: each output \
-                 pixel x′ samples the plate (bilinear) at K·distort(K′⁻¹x′). With overscan the \
-                 output is as large as the plate's undistorted footprint, so nothing is lost; \
-                 `intrinsics` out is K′ (no lens) with that size.",
-            )
-            .input_of::<ImageArt>("image", "the plate (the lens's size)"),
+        warp_node(
+            "undistort",
+            "The plate as an ideal pinhole with the same focal length sees it: each output \
+             pixel x′ samples the plate (bilinear) at K·distort(K′⁻¹x′). With overscan the \
+             output is as large as the plate's undistorted footprint, so nothing is lost; \
+             `intrinsics` out is K′ (no lens) with that size.",
+            ["the plate (the lens's size)", "the undistorted image"],
         )
-        .output_of::<ImageArt>("image", "the undistorted image")
         .output_of::<IntrinsicsArt>(
             "intrinsics",
             "K′ of the undistorted image: the same focal lengths, no lens, its size",
-        )
-        .options::<UndistortOptions>(),
+        ),
         |ctx| run_warp(ctx, "undistort"),
     );
     r.register_fn(
-        lens_ports(
-            NodeSpec::new(
-                "redistort",
-                "An undistorted image (a pinhole render with `undistort`'s K′, same framing \
-                 options) seen through the lens again: each plate pixel x samples it at \
-                 K′·undistort(K⁻¹x). The inverse of `undistort`.",
-            )
-            .input_of::<ImageArt>("image", "the undistorted image (K′'s size)"),
-        )
-        .output_of::<ImageArt>("image", "the image through the lens")
-        .options::<UndistortOptions>(),
+        warp_node(
+            "redistort",
+            "An undistorted image (a pinhole render with `undistort`'s K′, same framing \
+             options) seen through the lens again: each plate pixel x samples it at \
+             K′·undistort(K⁻¹x). The inverse of `undistort`.",
+            [
+                "the undistorted image (K′'s size)",
+                "the image through the lens",
+            ],
+        ),
         |ctx| run_warp(ctx, "redistort"),
     );
     r.register_fn(
