@@ -33,4 +33,4 @@ pub use frames::FrameSet;
 pub use graph::{load, Graph, LoadError, Overrides};
 pub use node::{Context, InputValue, Memory, Mode, Node, NodeError, NodeSpec, PortSpec, Threads};
 pub use param::{ParamSpec, ParamType, ParamValue, Params, PathRole};
-pub use registry::Registry;
+pub use registry::{Registry, RunFn};

@@ -7,7 +7,23 @@ use std::collections::BTreeMap;
 use std::sync::Arc;
 
 use crate::artifact::{decoder, ArtifactType, DecodeFn, DynArtifact};
-use crate::node::Node;
+use crate::node::{Context, Node, NodeError, NodeSpec};
+
+/// A node's compute function, for a node type made of a spec and a plain function
+/// ([`Registry::register_fn`]).
+pub type RunFn = fn(&mut Context<'_>) -> Result<(), NodeError>;
+
+/// A node type made of a spec and a plain function.
+struct FnNode(NodeSpec, RunFn);
+
+impl Node for FnNode {
+    fn spec(&self) -> &NodeSpec {
+        &self.0
+    }
+    fn run(&self, ctx: &mut Context<'_>) -> Result<(), NodeError> {
+        (self.1)(ctx)
+    }
+}
 
 /// What the registry knows about one artifact type.
 #[derive(Clone)]
@@ -50,6 +66,11 @@ impl Registry {
         if self.artifacts.insert(T::NAME, info).is_some() {
             panic!("artifact type `{}` registered twice", T::NAME);
         }
+    }
+
+    /// Adds a node type made of `spec` and the function `run` (see [`Registry::register_node`]).
+    pub fn register_fn(&mut self, spec: NodeSpec, run: RunFn) {
+        self.register_node(FnNode(spec, run))
     }
 
     /// Adds a node type. Its ports must name registered artifact types, and a type name may be

@@ -2,7 +2,7 @@
 //! engine's `ArtifactType` is implemented here so the algorithm crates stay engine-free).
 
 use vfxgraph_engine::artifact::codec::{put_f32s, put_u64, Reader};
-use vfxgraph_engine::{ArtifactType, Registry};
+use vfxgraph_engine::{ArtifactType, Context, NodeError, Registry};
 use vfxgraph_imaging::Image;
 
 /// A linear-light f32 image (`image`).
@@ -14,11 +14,7 @@ impl ArtifactType for ImageArt {
     const DOC: &'static str =
         "A linear-light f32 image: width × height × channels (1 gray, 3 RGB, 4 RGBA), rows top-down.";
     fn encode(&self, out: &mut Vec<u8>) {
-        let img = &self.0;
-        put_u64(out, img.width as u64);
-        put_u64(out, img.height as u64);
-        put_u64(out, img.channels as u64);
-        put_f32s(out, &img.data);
+        put_image(out, &self.0);
     }
     fn decode(bytes: &[u8]) -> Result<Self, String> {
         let mut r = Reader::new(bytes);
@@ -33,9 +29,30 @@ impl ArtifactType for ImageArt {
     }
 }
 
-/// A newtype artifact stored as canonical JSON (serde, no hash maps).
+/// Appends image `img` as [`ImageArt`] encodes it (without a copy of the image).
+pub(crate) fn put_image(out: &mut Vec<u8>, img: &Image) {
+    put_u64(out, img.width as u64);
+    put_u64(out, img.height as u64);
+    put_u64(out, img.channels as u64);
+    put_f32s(out, &img.data);
+}
+
+/// The images of sequence input `port`, with their frame numbers, in frame order.
+pub(crate) fn image_sequence<'a>(
+    ctx: &'a Context<'_>,
+    port: &str,
+) -> Result<Vec<(i64, &'a Image)>, NodeError> {
+    let seq = ctx.sequence::<ImageArt>(port)?;
+    Ok(seq.into_iter().map(|(f, i)| (f, &i.0)).collect())
+}
+
+/// Newtype artifacts stored as canonical JSON (serde, no hash maps), one per
+/// `Name(Inner), "type name", "type doc"[, check = fn(&Inner) -> Result<(), impl Display>];`
+/// entry, and `register_json_artifacts`, which registers them all.
 macro_rules! json_artifact {
-    ($(#[$doc:meta])* $name:ident($inner:ty), $type_name:expr, $type_doc:expr) => {
+    ($($(#[$doc:meta])* $name:ident($inner:ty), $type_name:expr, $type_doc:expr
+       $(, check = $check:path)?);+ $(;)?) => {
+        $(
         $(#[$doc])*
         #[derive(Clone, Debug, PartialEq)]
         pub struct $name(pub $inner);
@@ -47,73 +64,52 @@ macro_rules! json_artifact {
                 vfxgraph_engine::artifact::encode_json(&self.0, out)
             }
             fn decode(bytes: &[u8]) -> Result<Self, String> {
-                vfxgraph_engine::artifact::decode_json(bytes).map($name)
+                let value: $inner = vfxgraph_engine::artifact::decode_json(bytes)?;
+                $($check(&value).map_err(|e| e.to_string())?;)?
+                Ok($name(value))
             }
+        }
+        )+
+
+        /// Registers the artifact types of this module's JSON table.
+        pub(crate) fn register_json_artifacts(r: &mut vfxgraph_engine::Registry) {
+            $(r.register_artifact::<$name>();)+
         }
     };
 }
 pub(crate) use json_artifact;
 
-json_artifact!(
+json_artifact! {
     /// Camera intrinsics K (`intrinsics`).
-    IntrinsicsArt(vfxgraph_vision::Intrinsics),
-    "intrinsics",
-    "Camera intrinsics K: f1, f2, skew, principal point (pixels), optional image size."
-);
-json_artifact!(
+    IntrinsicsArt(vfxgraph_vision::Intrinsics), "intrinsics",
+    "Camera intrinsics K: f1, f2, skew, principal point (pixels), optional image size.";
     /// A calibrated camera K[R|t] (`camera`).
-    CameraArt(vfxgraph_vision::Camera),
-    "camera",
-    "A calibrated camera K[R|t]: maps world X to pixels K(RX + t), looking down +z."
-);
-json_artifact!(
+    CameraArt(vfxgraph_vision::Camera), "camera",
+    "A calibrated camera K[R|t]: maps world X to pixels K(RX + t), looking down +z.";
     /// Pixel positions (`points2d`).
-    Points2dArt(vfxgraph_vision::Points2d),
-    "points2d",
-    "A list of image points (pixels, origin at the top-left pixel centre, y down)."
-);
-json_artifact!(
+    Points2dArt(vfxgraph_vision::Points2d), "points2d",
+    "A list of image points (pixels, origin at the top-left pixel centre, y down).";
     /// World points (`points3d`).
-    Points3dArt(vfxgraph_vision::Points3d),
-    "points3d",
-    "A list of 3D points in world coordinates."
-);
-json_artifact!(
+    Points3dArt(vfxgraph_vision::Points3d), "points3d",
+    "A list of 3D points in world coordinates.";
     /// The cameras of a sequence, one [R|t] per frame (`camera_path`).
-    CameraPathArt(vfxgraph_vision::formats::CameraPath),
-    "camera_path",
-    "The extrinsics [R|t] of every solved frame of a shot (intrinsics travel separately)."
-);
-json_artifact!(
+    CameraPathArt(vfxgraph_vision::formats::CameraPath), "camera_path",
+    "The extrinsics [R|t] of every solved frame of a shot (intrinsics travel separately).";
     /// A point cloud with track ids and errors (`point_cloud`).
-    PointCloudArt(vfxgraph_vision::points::PointCloud),
-    "point_cloud",
-    "Reconstructed 3D points, each with the id of its feature track and its RMS error (px)."
-);
-json_artifact!(
+    PointCloudArt(vfxgraph_vision::points::PointCloud), "point_cloud",
+    "Reconstructed 3D points, each with the id of its feature track and its RMS error (px).";
     /// Indices into another list (`indices`).
-    IndicesArt(Vec<usize>),
-    "indices",
-    "A list of indices into another artifact's list (e.g. the inliers of a fit)."
-);
-json_artifact!(
+    IndicesArt(Vec<usize>), "indices",
+    "A list of indices into another artifact's list (e.g. the inliers of a fit).";
     /// Any report of figures, as a JSON document (`report`).
-    ReportArt(serde_json::Value),
-    "report",
-    "A report of figures (errors, inliers, timings) as a JSON document."
-);
+    ReportArt(serde_json::Value), "report",
+    "A report of figures (errors, inliers, timings) as a JSON document.";
+}
 
 /// Registers the artifact types of this crate.
 pub fn register(r: &mut Registry) {
     r.register_artifact::<ImageArt>();
-    r.register_artifact::<IntrinsicsArt>();
-    r.register_artifact::<CameraArt>();
-    r.register_artifact::<Points2dArt>();
-    r.register_artifact::<Points3dArt>();
-    r.register_artifact::<IndicesArt>();
-    r.register_artifact::<CameraPathArt>();
-    r.register_artifact::<PointCloudArt>();
-    r.register_artifact::<ReportArt>();
+    register_json_artifacts(r);
 }
 
 #[cfg(test)]

@@ -1,16 +1,56 @@
 //! Bundle adjustment nodes (book §7.7): `bundle_adjust`, `read_cameras`.
 
-use vfxgraph_engine::{Mode, NodeError, NodeSpec, ParamSpec, ParamType, ParamValue, Registry};
+use vfxgraph_engine::{Mode, NodeError, NodeSpec, Registry};
+use vfxgraph_params::{Choice, Options};
 use vfxgraph_vision::bundle::{adjust_sequence, LinearSolverKind, Loss, SolverOptions};
 use vfxgraph_vision::formats;
+use vfxgraph_vision::matchmove::global::RobustLoss;
 
 use crate::artifacts::{CameraPathArt, IntrinsicsArt, PointCloudArt, ReportArt};
 use crate::tracking::TracksArt;
-use crate::FnNode;
+
+/// The linear solver of `bundle_adjust` (vfxgraph-vision's `LinearSolverKind`, by its short
+/// names).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Choice)]
+pub(crate) enum SolverChoice {
+    Auto,
+    Dense,
+    Sparse,
+    Iterative,
+}
+
+/// The params of `bundle_adjust`.
+#[derive(Debug, PartialEq, Options)]
+pub(crate) struct BundleAdjustParams {
+    /// robust loss on the reprojection error
+    loss: RobustLoss,
+    /// where the robust loss starts to down-weight (pixels)
+    #[param(range = 1e-6..=1e6)]
+    loss_scale_px: f64,
+    /// cap on Levenberg–Marquardt steps
+    #[param(range = 0..=10_000)]
+    max_iterations: usize,
+    /// also refine f and the principal point (one block shared by all frames)
+    refine_intrinsics: bool,
+    /// linear solver of the reduced camera system
+    solver: SolverChoice,
+}
+
+impl Default for BundleAdjustParams {
+    fn default() -> Self {
+        BundleAdjustParams {
+            loss: RobustLoss::Huber,
+            loss_scale_px: 2.0,
+            max_iterations: 50,
+            refine_intrinsics: false,
+            solver: SolverChoice::Auto,
+        }
+    }
+}
 
 /// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
-    r.register_node(FnNode::new(
+    r.register_fn(
         NodeSpec::new(
             "bundle_adjust",
             "Sparse bundle adjustment of a shot (book §7.7): refines every camera of the path \
@@ -23,36 +63,7 @@ pub fn register(r: &mut Registry) {
         .input_of::<PointCloudArt>("points", "initial points (with track ids)")
         .input_of::<crate::tracking::TracksArt>("tracks", "the observations")
         .input_of::<IntrinsicsArt>("intrinsics", "K shared by every frame")
-        .param(ParamSpec::optional(
-            "loss",
-            ParamType::Enum(&["none", "huber", "cauchy"]),
-            ParamValue::Str("huber".into()),
-            "robust loss on the reprojection error",
-        ))
-        .param(ParamSpec::optional(
-            "loss_scale_px",
-            ParamType::Float { min: 1e-6, max: 1e6 },
-            ParamValue::Float(2.0),
-            "where the robust loss starts to down-weight (pixels)",
-        ))
-        .param(ParamSpec::optional(
-            "max_iterations",
-            ParamType::Int { min: 0, max: 10_000 },
-            ParamValue::Int(50),
-            "cap on Levenberg–Marquardt steps",
-        ))
-        .param(ParamSpec::optional(
-            "refine_intrinsics",
-            ParamType::Bool,
-            ParamValue::Bool(false),
-            "also refine f and the principal point (one block shared by all frames)",
-        ))
-        .param(ParamSpec::optional(
-            "solver",
-            ParamType::Enum(&["auto", "dense", "sparse", "iterative"]),
-            ParamValue::Str("auto".into()),
-            "linear solver of the reduced camera system",
-        ))
+        .options::<BundleAdjustParams>()
         .output_of::<CameraPathArt>("cameras", "refined cameras")
         .output_of::<PointCloudArt>("points", "refined points, errors filled in")
         .output_of::<IntrinsicsArt>("intrinsics", "K (refined if asked)")
@@ -61,27 +72,26 @@ pub fn register(r: &mut Registry) {
             "initial/final cost and RMS, iterations, time, termination, per-camera and per-point error",
         ),
         |ctx| {
-            let p = ctx.params();
-            let scale = p.f64("loss_scale_px");
-            let loss = match p.str("loss") {
-                "huber" => Loss::Huber { scale },
-                "cauchy" => Loss::Cauchy { scale },
-                _ => Loss::Trivial,
+            let o: BundleAdjustParams = ctx.options()?;
+            let scale = o.loss_scale_px;
+            let loss = match o.loss {
+                RobustLoss::None => Loss::Trivial,
+                RobustLoss::Huber => Loss::Huber { scale },
+                RobustLoss::Cauchy => Loss::Cauchy { scale },
             };
             let options = SolverOptions {
-                max_iterations: p.i64("max_iterations") as usize,
+                max_iterations: o.max_iterations,
                 loss,
-                linear_solver: LinearSolverKind::parse(p.str("solver"))
+                linear_solver: LinearSolverKind::parse(o.solver.choice())
                     .ok_or_else(|| NodeError::msg("unknown solver"))?,
                 ..SolverOptions::default()
             };
-            let refine = p.bool("refine_intrinsics");
             let out = adjust_sequence(
                 &ctx.input::<CameraPathArt>("cameras")?.0,
                 &ctx.input::<PointCloudArt>("points")?.0,
                 &ctx.input::<TracksArt>("tracks")?.0,
                 &ctx.input::<IntrinsicsArt>("intrinsics")?.0,
-                refine,
+                o.refine_intrinsics,
                 &options,
             )?;
             let mut report = serde_json::to_value(&out.report)?;
@@ -95,8 +105,8 @@ pub fn register(r: &mut Registry) {
             ctx.output("report", ReportArt(report));
             Ok(())
         },
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "read_cameras",
             "Reads a camera path: the book's cameras file (`Frame i`, R rows, t) or its JSON form. \
@@ -114,7 +124,7 @@ pub fn register(r: &mut Registry) {
             ctx.output("cameras", CameraPathArt(path));
             Ok(())
         },
-    ));
+    );
 }
 
 #[cfg(test)]

@@ -7,7 +7,6 @@ use vfxgraph_vision::formats;
 use vfxgraph_vision::two_view::{reconstruct_two_view, TwoViewParams};
 
 use crate::artifacts::{CameraArt, IndicesArt, IntrinsicsArt, Points2dArt, Points3dArt, ReportArt};
-use crate::FnNode;
 
 /// Reads file param `path` with `read` and sets output `port` to `wrap` of what it read.
 fn read_into<T, A: ArtifactType, E: std::error::Error>(
@@ -36,7 +35,7 @@ fn file_reader(
 
 /// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
-    r.register_node(FnNode::new(
+    r.register_fn(
         file_reader(
             "read_intrinsics",
             "Reads camera intrinsics K: the book's g7cam.txt (3×3 matrix, rows) or JSON.",
@@ -46,8 +45,8 @@ pub fn register(r: &mut Registry) {
         .threads(vfxgraph_engine::Threads::One)
         .memory(vfxgraph_engine::Memory::Fixed(256)),
         |ctx| read_into(ctx, "intrinsics", formats::read_intrinsics, IntrinsicsArt),
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         file_reader(
             "read_points2d",
             "Reads image points, `u v` per line (the book's calib_projs.txt), or JSON.",
@@ -55,8 +54,8 @@ pub fn register(r: &mut Registry) {
             PortSpec::of::<Points2dArt>("points", "pixel coordinates"),
         ),
         |ctx| read_into(ctx, "points", formats::read_points2d, Points2dArt),
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         file_reader(
             "read_points3d",
             "Reads 3D points, `X Y Z` per line, or JSON.",
@@ -64,8 +63,8 @@ pub fn register(r: &mut Registry) {
             PortSpec::of::<Points3dArt>("points", "world coordinates"),
         ),
         |ctx| read_into(ctx, "points", formats::read_points3d, Points3dArt),
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "calibrate_camera",
             "Calibrates one camera from 3D↔2D matches (book ch. 4): `dlt` (normalized DLT and \
@@ -79,8 +78,8 @@ pub fn register(r: &mut Registry) {
         .output_of::<CameraArt>("camera", "K[R|t]")
         .output_of::<ReportArt>("report", "per-point reprojection errors, inliers and RMS"),
         run_calibrate,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "two_view",
             "Relative pose and structure from two views with known K (book ch. 5): RANSAC on the \
@@ -96,8 +95,8 @@ pub fn register(r: &mut Registry) {
         .output_of::<IndicesArt>("inliers", "input index of each 3D point")
         .output_of::<ReportArt>("report", "figures"),
         run_two_view,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "write_camera",
             "Writes a camera as JSON {\"K\": [[3×3]], \"R\": [[3×3]], \"t\": [3], \"width\"?, \
@@ -107,10 +106,10 @@ pub fn register(r: &mut Registry) {
         .output_file_param("path", "JSON file"),
         |ctx| {
             let cam = &ctx.input::<CameraArt>("camera")?.0;
-            write_json(ctx, cam)
+            Ok(formats::write_json(&ctx.path("path"), cam)?)
         },
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "write_intrinsics",
             "Writes camera intrinsics K as the book's g7cam.txt (3×3, rows), or JSON (with \
@@ -120,28 +119,19 @@ pub fn register(r: &mut Registry) {
         .output_file_param("path", "g7cam.txt-style K file, or .json"),
         |ctx| {
             let k = &ctx.input::<IntrinsicsArt>("intrinsics")?.0;
-            Ok(formats::write_intrinsics(
-                &crate::output_path(ctx, "path")?,
-                k,
-            )?)
+            Ok(formats::write_intrinsics(&ctx.path("path"), k)?)
         },
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new("write_report", "Writes any report as pretty JSON.")
             .threads(vfxgraph_engine::Threads::One)
             .input_of::<ReportArt>("report", "the report")
             .output_file_param("path", "JSON file"),
         |ctx| {
             let rep = &ctx.input::<ReportArt>("report")?.0;
-            write_json(ctx, rep)
+            Ok(formats::write_json(&ctx.path("path"), rep)?)
         },
-    ));
-}
-
-fn write_json<T: serde::Serialize>(ctx: &Context<'_>, value: &T) -> Result<(), NodeError> {
-    let mut text = serde_json::to_string_pretty(value)?;
-    text.push('\n');
-    crate::write_output(ctx, "path", text.as_bytes())
+    );
 }
 
 fn run_calibrate(ctx: &mut Context<'_>) -> Result<(), NodeError> {
@@ -283,7 +273,11 @@ mod tests {
                 InputValue::One(Value::new(CameraArt(scene.camera.clone()))),
             )],
         );
-        write_json(&ctx, &ctx.input::<CameraArt>("camera").unwrap().0).unwrap();
+        crate::registry()
+            .node("write_camera")
+            .unwrap()
+            .run(&mut ctx)
+            .unwrap();
         let v: serde_json::Value =
             serde_json::from_slice(&std::fs::read(dir.path().join("cams/c.json")).unwrap())
                 .unwrap();

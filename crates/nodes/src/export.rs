@@ -2,26 +2,22 @@
 //! `export_cameras` and `import_cameras`. The formats and their conventions live in
 //! `vfxgraph_vision::export`.
 
-use std::path::{Path, PathBuf};
-
-use serde_json::json;
 use vfxgraph_engine::{
     Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, PortSpec, Registry,
 };
 use vfxgraph_imaging::Image;
 use vfxgraph_params::{read_field, Choice};
-use vfxgraph_vision::export::{
-    colors, files, read, ExportFormat, ExportOptions, ImportFormat, SceneOptions, Shot,
-};
-use vfxgraph_vision::points::PointCloud;
+use vfxgraph_vision::export::files::{report, write_with};
+use vfxgraph_vision::export::{read, ExportFormat, ExportOptions, ImportFormat};
 
-use crate::artifacts::{CameraPathArt, ImageArt, IntrinsicsArt, PointCloudArt, ReportArt};
+use crate::artifacts::{
+    image_sequence, CameraPathArt, ImageArt, IntrinsicsArt, PointCloudArt, ReportArt,
+};
 use crate::tracking::TracksArt;
-use crate::FnNode;
 
 /// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
-    r.register_node(FnNode::new(
+    r.register_fn(
         NodeSpec::new(
             "export_cameras",
             "Writes a solved shot (camera path + K, optional points, tracks and plate) for another \
@@ -62,8 +58,8 @@ pub fn register(r: &mut Registry) {
         .options::<ExportOptions>()
         .output_of::<ReportArt>("report", "format, files written, frames, points, image size"),
         run_export,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "import_cameras",
             "Reads a solve made elsewhere: a COLMAP text model (`path` is its cameras.txt; one \
@@ -88,107 +84,37 @@ pub fn register(r: &mut Registry) {
             "COLMAP's points (track id = point id), empty for the book's format",
         ),
         run_import,
-    ));
+    );
 }
 
 fn run_export(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let format: ExportFormat = read_field(ctx.params(), "format").map_err(NodeError::msg)?;
     let o: ExportOptions = ctx.options()?;
-    let path = ctx.input::<CameraPathArt>("cameras")?.0.clone();
-    let intrinsics = match (
-        ctx.input_opt::<IntrinsicsArt>("intrinsics")?,
-        &path.intrinsics,
-    ) {
-        (Some(k), _) => k.0.clone(),
-        (None, Some(k)) => k.clone(),
-        (None, None) => {
-            return Err(NodeError::msg(
-                "no K: the camera path carries none, so connect `intrinsics`",
-            ))
-        }
-    };
-    let cloud: Option<PointCloud> = ctx
+    let path = &ctx.input::<CameraPathArt>("cameras")?.0;
+    let k = crate::intrinsics_or_path_k(ctx, Some(path))?
+        .cloned()
+        .ok_or_else(|| {
+            NodeError::msg("no K: the camera path carries none, so connect `intrinsics`")
+        })?;
+    let cloud = ctx
         .input_opt::<PointCloudArt>("points")?
         .map(|c| c.0.clone());
     let tracks = ctx.input_opt::<TracksArt>("tracks")?.map(|t| t.0.clone());
     // An optional sequence port: `input_opt` is Ok(None) when unconnected, an error when a
     // sequence is there.
     let plate: Vec<(i64, &Image)> = match ctx.input_opt::<ImageArt>("plate") {
-        Ok(None) => Vec::new(),
-        Ok(Some(img)) => vec![(0, &img.0)],
-        Err(_) => ctx
-            .sequence::<ImageArt>("plate")?
-            .into_iter()
-            .map(|(f, i)| (f, &i.0))
-            .collect(),
+        Ok(img) => img.map(|i| vec![(0, &i.0)]).unwrap_or_default(),
+        Err(_) => image_sequence(ctx, "plate")?,
     };
-    let plate_size = plate
-        .first()
-        .map(|(_, i)| (i.width as u32, i.height as u32));
-    let mut shot = Shot::new(o.sized(intrinsics, plate_size)?, path);
-    shot.cloud = cloud;
-    shot.tracks = tracks;
-    o.name(&mut shot);
-    shot.validate()?;
-    if !plate.is_empty() && shot.cloud.is_some() {
-        shot.colors = Some(colors::sample_point_colors(&shot, &plate));
-    }
+    let shot = o.shot(k, path.clone(), cloud, tracks, &plate)?;
     // Through the context: every file is recorded as an output (COLMAP's images.txt and
     // points3D.txt, Nuke's film-back note), so deleting one makes the entry stale.
     let path = ctx.path("path");
-    let out = write_with(format, &path, &shot, &o.scene, |p, bytes| {
-        ctx.write_file(p, bytes)
+    let files = write_with(format, &path, &shot, &o.scene, |p, text| {
+        ctx.write_file(p, text.as_bytes())
     })?;
-    let report = json!({
-        "format": format.choice(),
-        "files": out.iter().map(|f| f.display().to_string()).collect::<Vec<_>>(),
-        "frames": shot.path.frames.len(),
-        "points": shot.cloud.as_ref().map_or(0, |c| c.points.len()),
-        "width": shot.intrinsics.width,
-        "height": shot.intrinsics.height,
-        "coloured": shot.colors.is_some(),
-        "lens": shot.intrinsics.distortion.name(),
-    });
-    ctx.output("report", ReportArt(report));
+    ctx.output("report", ReportArt(report(format, &shot, &files)));
     Ok(())
-}
-
-/// Writes `shot` in `format` at `path` (atomically, each file; the others first, the file
-/// `path` names last, so its presence means the export is whole); returns the files written.
-pub fn write(
-    format: ExportFormat,
-    path: &Path,
-    shot: &Shot,
-    options: &SceneOptions,
-) -> Result<Vec<PathBuf>, NodeError> {
-    write_with(format, path, shot, options, crate::write_atomic)
-}
-
-/// [`write`] with each file's bytes handed to `put` (the node's `Context::write_file`).
-fn write_with(
-    format: ExportFormat,
-    path: &Path,
-    shot: &Shot,
-    options: &SceneOptions,
-    mut put: impl FnMut(&Path, &[u8]) -> Result<(), NodeError>,
-) -> Result<Vec<PathBuf>, NodeError> {
-    let out = files(format, path, shot, options)?;
-    for (p, text) in out.iter().skip(1).chain(out.first()) {
-        put(p, text.as_bytes())?;
-    }
-    Ok(out.into_iter().map(|(p, _)| p).collect())
-}
-
-/// [`write`] with the format by name (`colmap`, `blender`, `usd`, `nuke`, `json`, `ply`).
-pub fn export(
-    format: &str,
-    path: &Path,
-    shot: &Shot,
-    options: &SceneOptions,
-) -> Result<Vec<PathBuf>, NodeError> {
-    let f = ExportFormat::from_choice(format)
-        .ok_or_else(|| NodeError::msg(format!("unknown export format `{format}`")))?;
-    write(f, path, shot, options)
 }
 
 fn run_import(ctx: &mut Context<'_>) -> Result<(), NodeError> {
@@ -206,11 +132,13 @@ mod tests {
     use super::*;
     use crate::testing::{params, spec};
     use nalgebra::Vector3;
+    use std::path::Path;
     use vfxgraph_engine::ParamValue;
     use vfxgraph_engine::{InputValue, Value};
     use vfxgraph_vision::camera::Pose;
     use vfxgraph_vision::formats;
     use vfxgraph_vision::formats::{CameraPath, FramePose};
+    use vfxgraph_vision::points::PointCloud;
     use vfxgraph_vision::rotation::axis_angle_to_r;
     use vfxgraph_vision::Intrinsics;
 

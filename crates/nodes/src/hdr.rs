@@ -13,14 +13,13 @@ use vfxgraph_engine::{
 
 use vfxgraph_imaging::draw::{plot_response, PlotOptions};
 use vfxgraph_imaging::hdr::{
-    align_exposures, calibrate_debevec, merge_debevec, photograph, probe_to_equirect, AlignOptions,
-    CalibrateOptions, Exposure, ExposureStack, LdrOptions, ProbeOptions, ResponseCurve, StackFiles,
-    StackOptions, LEVELS,
+    align_exposures, align_report, calibrate_debevec, merge_debevec, photograph, probe_to_equirect,
+    AlignOptions, CalibrateOptions, Exposure, ExposureStack, LdrOptions, ProbeOptions,
+    ResponseCurve, StackFiles, StackOptions, LEVELS,
 };
 use vfxgraph_render::dome::{Dome, DomeOptions};
 
-use crate::artifacts::{CameraArt, ImageArt, ReportArt};
-use crate::{output_path, FnNode};
+use crate::artifacts::{put_image, CameraArt, ImageArt, ReportArt};
 
 /// An exposure stack (`exposure_stack`): 8-bit codes, exposure times, optional mask.
 #[derive(Clone, Debug, PartialEq)]
@@ -40,21 +39,18 @@ impl ArtifactType for StackArt {
             put_f64(out, e.time);
             put_bytes(out, &e.codes);
         }
-        match s.mask() {
-            Some(m) => put_bytes(out, &m.iter().map(|&b| b as u8).collect::<Vec<u8>>()),
-            None => put_bytes(out, &[]),
-        }
+        let mask: Vec<u8> = s
+            .mask()
+            .map_or(vec![], |m| m.iter().map(|&b| b as u8).collect());
+        put_bytes(out, &mask);
     }
     fn decode(bytes: &[u8]) -> Result<Self, String> {
         let mut r = Reader::new(bytes);
         let (w, h, c, n) = (r.u64()?, r.u64()?, r.u64()?, r.u64()?);
         let mut exposures = Vec::new();
         for _ in 0..n {
-            let time = r.f64()?;
-            exposures.push(Exposure {
-                time,
-                codes: r.bytes()?.to_vec(),
-            });
+            let (time, codes) = (r.f64()?, r.bytes()?.to_vec());
+            exposures.push(Exposure { time, codes });
         }
         let mask = r.bytes()?.to_vec();
         r.finish()?;
@@ -80,10 +76,8 @@ impl ArtifactType for ResponseArt {
         g(128) = 0 (Debevec & Malik 1997; book 10.2).";
     fn encode(&self, out: &mut Vec<u8>) {
         put_u64(out, self.0.channels() as u64);
-        for g in self.0.curves() {
-            for v in g {
-                put_f64(out, *v);
-            }
+        for v in self.0.curves().iter().flatten() {
+            put_f64(out, *v);
         }
     }
     fn decode(bytes: &[u8]) -> Result<Self, String> {
@@ -116,7 +110,7 @@ impl ArtifactType for DomeArt {
     const DOC: &'static str = "An equirectangular light dome oriented by orig/south, importance \
         sampled by luminance × sin θ (book 10.7–10.9).";
     fn encode(&self, out: &mut Vec<u8>) {
-        ImageArt(self.0.image().clone()).encode(out);
+        put_image(out, self.0.image());
         for v in self.0.orig().iter().chain(self.0.south().iter()) {
             put_f64(out, *v);
         }
@@ -142,7 +136,7 @@ pub fn register(r: &mut Registry) {
     r.register_artifact::<StackArt>();
     r.register_artifact::<ResponseArt>();
     r.register_artifact::<DomeArt>();
-    r.register_node(FnNode::new(
+    r.register_fn(
         NodeSpec::new(
             "read_exposure_stack",
             "Reads bracketed 8-bit PNG/JPEG photographs as raw codes (book 10.2), named either \
@@ -170,8 +164,8 @@ pub fn register(r: &mut Registry) {
         .options::<StackOptions>()
         .output_of::<StackArt>("stack", "the exposure stack"),
         run_read_stack,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "align_exposures",
             "Aligns a hand-held bracket by Ward's median threshold bitmaps (Ward 2003; book \
@@ -188,8 +182,8 @@ pub fn register(r: &mut Registry) {
             "{\"reference\": r, \"shifts\": [[dx, dy], ...]}: aligned(x, y) = exposure(x - dx, y - dy)",
         ),
         run_align,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "hdr_calibrate",
             "Recovers the camera response g = ln f⁻¹ per channel by Debevec & Malik's weighted \
@@ -203,8 +197,8 @@ pub fn register(r: &mut Registry) {
         .input_of::<StackArt>("stack", "the exposure stack")
         .output_of::<ResponseArt>("response", "the response curve"),
         run_calibrate,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "hdr_merge",
             "Assembles the linear radiance map ln E = Σ w(Z)(g(Z) − ln Δt)/Σ w(Z) (book 10.4); \
@@ -215,8 +209,8 @@ pub fn register(r: &mut Registry) {
         .input_of::<ResponseArt>("response", "the response curve")
         .output_of::<ImageArt>("image", "the radiance map, linear"),
         run_merge,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "hdr_to_ldr",
             "Simulates a photograph of an HDR image (book 10.6): code = g⁻¹(ln(E·time)) through \
@@ -228,8 +222,8 @@ pub fn register(r: &mut Registry) {
         .optional_input_of::<ResponseArt>("response", "response curve")
         .output_of::<ImageArt>("image", "the simulated photograph"),
         run_to_ldr,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "plot_response",
             "Plots a response curve as Debevec & Malik's figure: pixel value z (up) against log \
@@ -240,8 +234,8 @@ pub fn register(r: &mut Registry) {
         .input_of::<ResponseArt>("response", "the curve")
         .output_of::<ImageArt>("image", "the plot (write it as PNG)"),
         run_plot,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "write_response",
             "Writes a response curve as CSV: 256 rows (z = 0…255), one column per channel \
@@ -251,8 +245,8 @@ pub fn register(r: &mut Registry) {
         .output_file_param("path", "the CSV file")
         .input_of::<ResponseArt>("response", "the curve"),
         run_write_response,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "probe_to_equirect",
             "Unwraps a mirror-ball light probe (camera looking along −z, +y up, orthographic) \
@@ -263,8 +257,8 @@ pub fn register(r: &mut Registry) {
         .input_of::<ImageArt>("image", "the probe photograph, linear")
         .output_of::<ImageArt>("image", "equirectangular image"),
         run_probe,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "dome",
             "Makes a light dome of an equirectangular image (book 10.7–10.8): oriented by \
@@ -282,7 +276,7 @@ pub fn register(r: &mut Registry) {
         )
         .output_of::<DomeArt>("dome", "the oriented dome"),
         run_dome,
-    ));
+    );
 }
 
 fn run_read_stack(ctx: &mut Context<'_>) -> Result<(), NodeError> {
@@ -302,10 +296,7 @@ fn run_align(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: AlignOptions = ctx.options()?;
     let stack = &ctx.input::<StackArt>("stack")?.0;
     let (aligned, shifts) = align_exposures(stack, &o)?;
-    let report = serde_json::json!({
-        "reference": o.reference.unwrap_or(stack.len() / 2),
-        "shifts": shifts.iter().map(|&(x, y)| [x, y]).collect::<Vec<_>>(),
-    });
+    let report = align_report(&o, stack.len(), &shifts);
     ctx.output("stack", StackArt(aligned));
     ctx.output("report", ReportArt(report));
     Ok(())
@@ -340,9 +331,11 @@ fn run_to_ldr(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 
 fn run_write_response(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let curve = &ctx.input::<ResponseArt>("response")?.0;
-    let path = output_path(ctx, "path")?;
-    vfxgraph_imaging::io::write_atomic(&path, curve.to_csv().as_bytes())?;
-    Ok(())
+    let csv = curve.to_csv();
+    Ok(vfxgraph_imaging::io::write_atomic(
+        &ctx.path("path"),
+        csv.as_bytes(),
+    )?)
 }
 
 fn run_plot(ctx: &mut Context<'_>) -> Result<(), NodeError> {

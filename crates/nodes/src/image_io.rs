@@ -7,13 +7,12 @@ use vfxgraph_engine::{Context, Mode, NodeError, NodeSpec, Registry, Threads};
 use vfxgraph_imaging::{read_image, write_image};
 
 use crate::artifacts::ImageArt;
-use crate::FnNode;
 
 const FORMATS: &str = "PNG, JPEG, EXR, PFM or HDR, by extension";
 
 /// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
-    r.register_node(FnNode::new(
+    r.register_fn(
         NodeSpec::new(
             "read_image",
             "Reads one image file (PNG, JPEG, OpenEXR, PFM, Radiance HDR) into linear f32. \
@@ -25,8 +24,8 @@ pub fn register(r: &mut Registry) {
         .input_file_param("path", "the image file, relative to the graph file")
         .output_of::<ImageArt>("image", "the image, linear light"),
         run_read_image,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "write_image",
             "Writes an image file; the format comes from the extension (PNG/JPEG are sRGB \
@@ -36,8 +35,8 @@ pub fn register(r: &mut Registry) {
         .output_file_param("path", FORMATS)
         .input_of::<ImageArt>("image", "the image to write"),
         run_write_image,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "read_image_sequence",
             "Reads one image file per frame of the graph's range; the path holds a frame \
@@ -48,8 +47,8 @@ pub fn register(r: &mut Registry) {
         .input_file_param("path", "file pattern, e.g. plate/frame.%04d.png")
         .output_of::<ImageArt>("sequence", "the frame's image"),
         run_read_image,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "write_image_sequence",
             "Writes one image file per frame; the path holds a frame pattern (`%04d` or `####`).",
@@ -59,7 +58,7 @@ pub fn register(r: &mut Registry) {
         .output_file_param("path", "file pattern, e.g. out/frame.%04d.exr")
         .input_of::<ImageArt>("sequence", "the frame's image"),
         run_write_image,
-    ));
+    );
 }
 
 /// Per frame, path param `path` must hold a frame pattern (else every frame would use one file).
@@ -85,8 +84,7 @@ fn run_write_image(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     check_pattern(ctx)?;
     let port = ctx.input_port(0);
     let img = &ctx.input::<ImageArt>(port)?.0;
-    write_image(&crate::output_path(ctx, "path")?, img)?;
-    Ok(())
+    Ok(write_image(&crate::output_path(ctx, "path")?, img)?)
 }
 
 #[cfg(test)]

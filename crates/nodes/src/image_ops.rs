@@ -6,11 +6,10 @@ use vfxgraph_imaging::{
 };
 
 use crate::artifacts::ImageArt;
-use crate::FnNode;
 
 /// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
-    r.register_node(FnNode::new(
+    r.register_fn(
         NodeSpec::new(
             "exposure",
             "Scales linear light by 2^stops (photographic exposure, book §10.2); alpha is kept.",
@@ -20,8 +19,8 @@ pub fn register(r: &mut Registry) {
         .input_of::<ImageArt>("image", "linear image")
         .output_of::<ImageArt>("image", "exposed image"),
         run_exposure,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "tonemap",
             "Maps linear HDR light to displayable [0, 1] linear light: `srgb` clips, \
@@ -33,8 +32,8 @@ pub fn register(r: &mut Registry) {
         .input_of::<ImageArt>("image", "linear HDR image")
         .output_of::<ImageArt>("image", "tone-mapped linear image"),
         run_tonemap,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "constant",
             "An image of one colour (RGB), plus `ramp` × x/width on every channel: test \
@@ -43,7 +42,7 @@ pub fn register(r: &mut Registry) {
         .options::<ConstantOptions>()
         .output_of::<ImageArt>("image", "the image"),
         run_constant,
-    ));
+    );
 }
 
 fn run_exposure(ctx: &mut Context<'_>) -> Result<(), NodeError> {

@@ -6,60 +6,47 @@ use vfxgraph_engine::{Context, Mode, NodeError, NodeSpec, Registry, Threads};
 use vfxgraph_imaging::io::write_image;
 use vfxgraph_vision::st_map::{st_map, StMapOptions};
 use vfxgraph_vision::undistort::{LensWarp, UndistortOptions};
-use vfxgraph_vision::Intrinsics;
 
 use crate::artifacts::{CameraPathArt, ImageArt, IntrinsicsArt};
-use crate::{output_path, FnNode};
 
-/// The lens: the `intrinsics` input, else the `cameras` path's K (a solve's, with its lens).
-fn lens_input(ctx: &Context<'_>, node: &str) -> Result<Intrinsics, NodeError> {
-    if let Some(k) = ctx.input_opt::<IntrinsicsArt>("intrinsics")? {
-        return Ok(k.0.clone());
-    }
-    match ctx.input_opt::<CameraPathArt>("cameras")? {
-        Some(p) => p.0.intrinsics.clone().ok_or_else(|| {
-            NodeError::msg(format!(
-                "{node}: the `cameras` path carries no K (connect `intrinsics`)"
-            ))
-        }),
-        None => Err(NodeError::msg(format!(
+/// The lens warp of node `node`: K with its lens from the `intrinsics` input, else from the
+/// `cameras` path (a solve's).
+fn warp_of(ctx: &Context<'_>, node: &str, o: &UndistortOptions) -> Result<LensWarp, NodeError> {
+    let path = ctx.input_opt::<CameraPathArt>("cameras")?.map(|p| &p.0);
+    let k = crate::intrinsics_or_path_k(ctx, path)?.ok_or_else(|| match path {
+        Some(_) => format!("{node}: the `cameras` path carries no K (connect `intrinsics`)"),
+        None => format!(
             "{node}: no lens: connect `intrinsics` (K with its lens and image size) or a solved \
              `cameras` path"
-        ))),
+        ),
+    });
+    let k = k.map_err(NodeError::msg)?;
+    LensWarp::new(k, o).map_err(|e| NodeError::msg(format!("{node}: {e}")))
+}
+
+/// `undistort` or `redistort` (`node`): the image through the lens warp; `undistort` also
+/// outputs K′.
+fn run_warp(ctx: &mut Context<'_>, node: &str) -> Result<(), NodeError> {
+    let o: UndistortOptions = ctx.options()?;
+    let warp = warp_of(ctx, node, &o)?;
+    let img = &ctx.input::<ImageArt>("image")?.0;
+    let undistort = node == "undistort";
+    let out = if undistort {
+        warp.undistort(img)
+    } else {
+        warp.redistort(img)
+    };
+    let out = out.map_err(|e| NodeError::msg(format!("{node}: {e}")))?;
+    ctx.output("image", ImageArt(out));
+    if undistort {
+        ctx.output("intrinsics", IntrinsicsArt(warp.pinhole.clone()));
     }
-}
-
-fn warp_of(ctx: &Context<'_>, node: &str, o: &UndistortOptions) -> Result<LensWarp, NodeError> {
-    let k = lens_input(ctx, node)?;
-    LensWarp::new(&k, o).map_err(|e| NodeError::msg(format!("{node}: {e}")))
-}
-
-fn run_undistort(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let o: UndistortOptions = ctx.options()?;
-    let warp = warp_of(ctx, "undistort", &o)?;
-    let img = &ctx.input::<ImageArt>("image")?.0;
-    let out = warp
-        .undistort(img)
-        .map_err(|e| NodeError::msg(format!("undistort: {e}")))?;
-    ctx.output("image", ImageArt(out));
-    ctx.output("intrinsics", IntrinsicsArt(warp.pinhole.clone()));
-    Ok(())
-}
-
-fn run_redistort(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let o: UndistortOptions = ctx.options()?;
-    let warp = warp_of(ctx, "redistort", &o)?;
-    let img = &ctx.input::<ImageArt>("image")?.0;
-    let out = warp
-        .redistort(img)
-        .map_err(|e| NodeError::msg(format!("redistort: {e}")))?;
-    ctx.output("image", ImageArt(out));
     Ok(())
 }
 
 fn run_write_st_map(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: StMapOptions = ctx.options()?;
-    let path = output_path(ctx, "path")?;
+    let path = crate::output_path(ctx, "path")?;
     if !path
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("exr"))
@@ -70,8 +57,7 @@ fn run_write_st_map(ctx: &mut Context<'_>) -> Result<(), NodeError> {
         )));
     }
     let warp = warp_of(ctx, "write_st_map", &o.framing)?;
-    write_image(&path, &st_map(&warp, o.direction))?;
-    Ok(())
+    Ok(write_image(&path, &st_map(&warp, o.direction))?)
 }
 
 fn lens_ports(spec: NodeSpec) -> NodeSpec {
@@ -85,42 +71,44 @@ fn lens_ports(spec: NodeSpec) -> NodeSpec {
     )
 }
 
+/// `undistort` or `redistort`: the lens ports, the image in and out (`docs`), their options.
+fn warp_node(name: &'static str, doc: &'static str, docs: [&'static str; 2]) -> NodeSpec {
+    lens_ports(NodeSpec::new(name, doc).input_of::<ImageArt>("image", docs[0]))
+        .output_of::<ImageArt>("image", docs[1])
+        .options::<UndistortOptions>()
+}
+
 /// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
-    r.register_node(FnNode::new(
-        lens_ports(
-            NodeSpec::new(
-                "undistort",
-                "The plate as an ideal pinhole with the same focal length sees it: each output \
-                 pixel x′ samples the plate (bilinear) at K·distort(K′⁻¹x′). With overscan the \
-                 output is as large as the plate's undistorted footprint, so nothing is lost; \
-                 `intrinsics` out is K′ (no lens) with that size.",
-            )
-            .input_of::<ImageArt>("image", "the plate (the lens's size)"),
+    r.register_fn(
+        warp_node(
+            "undistort",
+            "The plate as an ideal pinhole with the same focal length sees it: each output \
+             pixel x′ samples the plate (bilinear) at K·distort(K′⁻¹x′). With overscan the \
+             output is as large as the plate's undistorted footprint, so nothing is lost; \
+             `intrinsics` out is K′ (no lens) with that size.",
+            ["the plate (the lens's size)", "the undistorted image"],
         )
-        .output_of::<ImageArt>("image", "the undistorted image")
         .output_of::<IntrinsicsArt>(
             "intrinsics",
             "K′ of the undistorted image: the same focal lengths, no lens, its size",
-        )
-        .options::<UndistortOptions>(),
-        run_undistort,
-    ));
-    r.register_node(FnNode::new(
-        lens_ports(
-            NodeSpec::new(
-                "redistort",
-                "An undistorted image (a pinhole render with `undistort`'s K′, same framing \
-                 options) seen through the lens again: each plate pixel x samples it at \
-                 K′·undistort(K⁻¹x). The inverse of `undistort`.",
-            )
-            .input_of::<ImageArt>("image", "the undistorted image (K′'s size)"),
-        )
-        .output_of::<ImageArt>("image", "the image through the lens")
-        .options::<UndistortOptions>(),
-        run_redistort,
-    ));
-    r.register_node(FnNode::new(
+        ),
+        |ctx| run_warp(ctx, "undistort"),
+    );
+    r.register_fn(
+        warp_node(
+            "redistort",
+            "An undistorted image (a pinhole render with `undistort`'s K′, same framing \
+             options) seen through the lens again: each plate pixel x samples it at \
+             K′·undistort(K⁻¹x). The inverse of `undistort`.",
+            [
+                "the undistorted image (K′'s size)",
+                "the image through the lens",
+            ],
+        ),
+        |ctx| run_warp(ctx, "redistort"),
+    );
+    r.register_fn(
         lens_ports(
             NodeSpec::new(
                 "write_st_map",
@@ -136,7 +124,7 @@ pub fn register(r: &mut Registry) {
         )
         .options::<StMapOptions>(),
         run_write_st_map,
-    ));
+    );
 }
 
 #[cfg(test)]
@@ -146,6 +134,7 @@ mod tests {
     use vfxgraph_engine::{InputValue, ParamValue, Value};
     use vfxgraph_imaging::Image;
     use vfxgraph_vision::lens::Distortion;
+    use vfxgraph_vision::Intrinsics;
 
     fn lens() -> Intrinsics {
         Intrinsics::new(92.0, 92.0, 47.5, 26.5)
@@ -181,7 +170,7 @@ mod tests {
             ]
         };
         let mut ctx = Context::for_test(&sp, &ps, dir.path(), None, inputs());
-        run_undistort(&mut ctx).unwrap();
+        run_warp(&mut ctx, "undistort").unwrap();
         let und = ctx.take_output::<ImageArt>("image").unwrap().0;
         let k2 = ctx.take_output::<IntrinsicsArt>("intrinsics").unwrap().0;
         let warp = LensWarp::new(&lens(), &UndistortOptions::default()).unwrap();
@@ -204,7 +193,7 @@ mod tests {
                 ),
             ],
         );
-        run_redistort(&mut ctx).unwrap();
+        run_warp(&mut ctx, "redistort").unwrap();
         let back = ctx.take_output::<ImageArt>("image").unwrap().0;
         assert_eq!((back.width, back.height), (96, 54));
 
@@ -245,7 +234,7 @@ mod tests {
                 InputValue::One(Value::new(ImageArt(plate.clone()))),
             )],
         );
-        let e = run_undistort(&mut ctx).unwrap_err().to_string();
+        let e = run_warp(&mut ctx, "undistort").unwrap_err().to_string();
         assert!(e.contains("undistort: no lens"), "{e}");
     }
 }

@@ -19,7 +19,6 @@ pub mod matchmove;
 pub mod modeling;
 pub mod placement;
 pub mod plate;
-pub mod plot;
 pub mod render;
 pub mod shot;
 #[cfg(test)]
@@ -29,29 +28,7 @@ pub mod tracking;
 pub mod tracking_opencv;
 pub mod video;
 
-use vfxgraph_engine::{Context, Node, NodeError, NodeSpec, Registry};
-
-/// A node type made of a spec and a plain function: every node of the catalog is one.
-pub struct FnNode {
-    spec: NodeSpec,
-    run: fn(&mut Context<'_>) -> Result<(), NodeError>,
-}
-
-impl FnNode {
-    /// Pairs a spec with its compute function.
-    pub fn new(spec: NodeSpec, run: fn(&mut Context<'_>) -> Result<(), NodeError>) -> Self {
-        FnNode { spec, run }
-    }
-}
-
-impl Node for FnNode {
-    fn spec(&self) -> &NodeSpec {
-        &self.spec
-    }
-    fn run(&self, ctx: &mut Context<'_>) -> Result<(), NodeError> {
-        (self.run)(ctx)
-    }
-}
+use vfxgraph_engine::{Context, NodeError, Registry};
 
 /// All artifact and node types of vfxgraph.
 pub fn registry() -> Registry {
@@ -86,8 +63,18 @@ pub fn registry() -> Registry {
     r
 }
 
-/// The file a node writes: path param `param` resolved against the graph's folder, with its
-/// folder created.
+/// K: the `intrinsics` input, else the K the camera path `path` carries (a solve's, with its
+/// lens).
+pub(crate) fn intrinsics_or_path_k<'a>(
+    ctx: &'a Context<'_>,
+    path: Option<&'a vfxgraph_vision::formats::CameraPath>,
+) -> Result<Option<&'a vfxgraph_vision::Intrinsics>, NodeError> {
+    let k = ctx.input_opt::<artifacts::IntrinsicsArt>("intrinsics")?;
+    Ok(k.map(|k| &k.0).or(path.and_then(|p| p.intrinsics.as_ref())))
+}
+
+/// The file of path param `param`, its folder created: for `write_image`, which refuses a
+/// missing folder (the other writers create theirs).
 pub(crate) fn output_path(ctx: &Context<'_>, param: &str) -> Result<std::path::PathBuf, NodeError> {
     let path = ctx.path(param);
     if let Some(parent) = path.parent() {
@@ -97,20 +84,18 @@ pub(crate) fn output_path(ctx: &Context<'_>, param: &str) -> Result<std::path::P
     Ok(path)
 }
 
-/// Writes `bytes` to `path` atomically, naming the file in the error.
-pub(crate) fn write_atomic(path: &std::path::Path, bytes: &[u8]) -> Result<(), NodeError> {
-    vfxgraph_engine::fsutil::atomic_write(path, bytes)
-        .map_err(|e| NodeError::msg(format!("cannot write {}: {e}", path.display())))
-}
-
-/// Writes `bytes` atomically to the file of path param `param` (see [`output_path`]).
+/// Writes `bytes` atomically to the file of path param `param` (the one writer: folders
+/// created, fsync), naming the file in the error.
 pub(crate) fn write_output(ctx: &Context<'_>, param: &str, bytes: &[u8]) -> Result<(), NodeError> {
-    write_atomic(&output_path(ctx, param)?, bytes)
+    let path = ctx.path(param);
+    vfxgraph_engine::fsutil::atomic_write(&path, bytes)
+        .map_err(|e| NodeError::msg(format!("cannot write {}: {e}", path.display())))
 }
 
 #[cfg(test)]
 mod tests {
     use crate::testing::check_defaults;
+    use vfxgraph_engine::ParamValue;
     use vfxgraph_imaging::hdr;
     use vfxgraph_render as render;
     use vfxgraph_video as video;
@@ -118,13 +103,17 @@ mod tests {
 
     /// Every node type whose params come from an options struct, and that struct: the nodes
     /// of a family are listed here when the family is converted.
-    type Check = fn(&str);
+    type Check = fn(&str) -> Vec<&'static str>;
     const OPTIONS: &[(&str, Check)] = &[
         (
             "matchmove",
             check_defaults::<vfxgraph_vision::matchmove::MatchmoveOptions>,
         ),
         ("relax", check_defaults::<crate::matchmove::RelaxParams>),
+        (
+            "bundle_adjust",
+            check_defaults::<crate::bundle::BundleAdjustParams>,
+        ),
         (
             "global_bundle_adjust",
             check_defaults::<crate::matchmove::GlobalParams>,
@@ -225,18 +214,37 @@ mod tests {
             "catcher_texture",
             check_defaults::<render::local_scene::LocalTextureOptions>,
         ),
+        ("catcher_texture", check_defaults::<render::ImageSize>),
     ];
 
-    /// Walks every node type: those with an options struct declare exactly its defaults.
+    /// Walks every node type: those with an options struct declare exactly its defaults; any
+    /// other param with a default is a path left empty (no file), so no default is written
+    /// outside an options struct.
     #[test]
     fn declared_defaults_are_the_options_structs_defaults() {
         let r = crate::registry();
         let mut checked = 0;
         for node in r.nodes() {
-            let name = node.spec().name;
-            if let Some((_, check)) = OPTIONS.iter().find(|(n, _)| *n == name) {
-                check(name);
+            let spec = node.spec();
+            let name = spec.name;
+            let mut from_struct = Vec::new();
+            for (_, check) in OPTIONS.iter().filter(|(n, _)| *n == name) {
+                from_struct.extend(check(name));
                 checked += 1;
+            }
+            for p in &spec.params {
+                let empty = match &p.default {
+                    None => true,
+                    Some(ParamValue::Str(s)) => s.is_empty(),
+                    Some(ParamValue::List(l)) => l.is_empty(),
+                    Some(_) => false,
+                };
+                assert!(
+                    empty || from_struct.contains(&p.name),
+                    "{name}.{}: default {:?} written outside an options struct",
+                    p.name,
+                    p.default
+                );
             }
         }
         assert_eq!(

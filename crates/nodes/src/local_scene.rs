@@ -8,20 +8,20 @@
 use vfxgraph_engine::{Context, NodeError, NodeSpec, Registry};
 use vfxgraph_render::catcher_texture::View;
 use vfxgraph_render::local_scene::{add_objects, texture_local_scene_report, LocalTextureOptions};
+use vfxgraph_render::plate::plate_frames;
 use vfxgraph_render::proxy::{add_proxies, ProxyOptions};
+use vfxgraph_render::ImageSize;
 
-use crate::artifacts::{ImageArt, Points3dArt, ReportArt};
+use crate::artifacts::{image_sequence, ImageArt, Points3dArt, ReportArt};
 use crate::placement::measured;
-use crate::render::{camera_for, pick_light, SceneArt};
-use crate::shot::{light_and_camera_inputs, size_params};
-use crate::FnNode;
+use crate::render::{camera_for, pick_light, scene_inputs, SceneArt};
+use crate::shot::SHOT_INPUTS;
 
 fn run_proxy_from_points(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: ProxyOptions = ctx.options()?;
     let art = ctx.input::<SceneArt>("scene")?;
     let (scene, report) = add_proxies(&art.scene, &measured(ctx)?, &o).map_err(NodeError::msg)?;
-    let dome = art.dome.clone();
-    ctx.output("scene", SceneArt { scene, dome });
+    ctx.output("scene", SceneArt::new(scene, art.dome.clone()));
     ctx.output("report", ReportArt(report));
     Ok(())
 }
@@ -30,14 +30,13 @@ fn run_add_objects(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let local = ctx.input::<SceneArt>("scene")?;
     let cg = ctx.input::<SceneArt>("objects")?;
     let scene = add_objects(&local.scene, &cg.scene).map_err(NodeError::msg)?;
-    let dome = local.dome.clone();
-    ctx.output("scene", SceneArt { scene, dome });
+    ctx.output("scene", SceneArt::new(scene, local.dome.clone()));
     Ok(())
 }
 
 /// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
-    r.register_node(FnNode::new(
+    r.register_fn(
         NodeSpec::new(
             "add_objects",
             "The designed CG objects put into the local scene: `scene`'s camera, dome, lights \
@@ -53,8 +52,8 @@ pub fn register(r: &mut Registry) {
         )
         .output_of::<SceneArt>("scene", "the local scene with the objects"),
         run_add_objects,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "proxy_from_points",
             "Proxy geometry of the real set from measured points (point_cloud_calibrate's \
@@ -69,9 +68,9 @@ pub fn register(r: &mut Registry) {
         .output_of::<SceneArt>("scene", "the scene with the proxies' faces as catchers")
         .output_of::<ReportArt>("report", "proxies made"),
         run_proxy_from_points,
-    ));
-    r.register_node(FnNode::new(
-        light_and_camera_inputs(size_params(
+    );
+    r.register_fn(
+        scene_inputs(
             NodeSpec::new(
                 "catcher_texture",
                 "The textured shadow catcher (Debevec 1998's local scene; book §10.10.1's \
@@ -92,8 +91,10 @@ pub fn register(r: &mut Registry) {
             // 3: a face's irradiance on the side the plate sees it from, and the irradiance
             // grid's points no camera sees (under a box) left out of the interpolation.
             .version(3)
-            .options::<LocalTextureOptions>(),
-        ))
+            .options::<LocalTextureOptions>()
+            .options::<ImageSize>(),
+            SHOT_INPUTS,
+        )
         .sequence_input_of::<ImageArt>("plate", "the plate frames (linear radiance)")
         .output_of::<SceneArt>("scene", "the scene with the catcher's albedo texture")
         .output_of::<ImageArt>(
@@ -104,43 +105,24 @@ pub fn register(r: &mut Registry) {
         .output_of::<ImageArt>("seen", "frames that saw each texel (one channel)")
         .output_of::<ReportArt>("report", "the estimate"),
         run_catcher_texture,
-    ));
+    );
 }
 
 fn run_catcher_texture(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: LocalTextureOptions = ctx.options()?;
     let art = ctx.input::<SceneArt>("scene")?;
     let light = pick_light(ctx, art)?;
-    let plates = ctx.sequence::<ImageArt>("plate")?;
-    let range = match (plates.first(), plates.last()) {
-        (Some(a), Some(b)) => format!("{}–{}", a.0, b.0),
-        _ => "none".into(),
-    };
-    let wanted: Vec<i64> = if o.frames.is_empty() {
-        plates.iter().map(|(f, _)| *f).collect()
-    } else {
-        o.frames.iter().map(|&f| f as i64).collect()
-    };
-    let mut chosen = Vec::new();
-    for f in &wanted {
-        let plate = plates
-            .iter()
-            .find(|(g, _)| g == f)
-            .map(|(_, i)| &i.0)
-            .ok_or_else(|| {
-                NodeError::msg(format!(
-                    "param `frames`: the plate has no frame {f} (its frames are {range})"
-                ))
-            })?;
-        chosen.push((*f, camera_for(ctx, &art.scene, Some(*f))?, plate));
-    }
-    let views: Vec<View> = chosen
+    let frames: Vec<i64> = o.frames.iter().map(|&f| f as i64).collect();
+    let plates = plate_frames(&image_sequence(ctx, "plate")?, &frames)
+        .map_err(|e| NodeError::msg(format!("param `frames`: {e}")))?;
+    let cameras = plates
         .iter()
-        .map(|(frame, camera, plate)| View {
-            frame: *frame,
-            camera,
-            plate,
-        })
+        .map(|(f, _)| camera_for(ctx, &art.scene, Some(*f)))
+        .collect::<Result<Vec<_>, _>>()?;
+    let views: Vec<View> = plates
+        .iter()
+        .zip(&cameras)
+        .map(|(&(frame, plate), camera)| View::new(frame, camera, plate))
         .collect();
     let out = texture_local_scene_report(
         &art.scene,
@@ -149,10 +131,8 @@ fn run_catcher_texture(ctx: &mut Context<'_>) -> Result<(), NodeError> {
         &o,
         ctx.seed(),
         Some(ctx.cancel_flag()),
-    )
-    .map_err(|e| NodeError::msg(e.to_string()))?;
-    let (scene, dome) = (out.scene, art.dome.clone());
-    ctx.output("scene", SceneArt { scene, dome });
+    )?;
+    ctx.output("scene", SceneArt::new(out.scene, art.dome.clone()));
     ctx.output("albedo", ImageArt(out.albedo));
     ctx.output("seen", ImageArt(out.seen));
     ctx.output("report", ReportArt(out.report));

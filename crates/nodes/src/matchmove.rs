@@ -3,6 +3,7 @@
 //! defaults) live in `vfxgraph_vision::matchmove`.
 
 use vfxgraph_engine::{Context, Mode, NodeError, NodeSpec, Registry};
+use vfxgraph_imaging::draw::svg::solve_error_svg;
 use vfxgraph_params::Options;
 use vfxgraph_vision::formats;
 use vfxgraph_vision::matchmove::{
@@ -12,7 +13,6 @@ use vfxgraph_vision::matchmove::{
 
 use crate::artifacts::{CameraPathArt, IntrinsicsArt, PointCloudArt, ReportArt};
 use crate::tracking::TracksArt;
-use crate::{output_path, FnNode};
 
 /// Whether a solve node scores its cameras (`relax`, `global_bundle_adjust`; `matchmove`'s is
 /// [`MatchmoveOptions::score`]).
@@ -46,26 +46,24 @@ pub(crate) struct RelaxParams {
     score: Score,
 }
 
+/// A solve node's spec: `matchmove`'s (K optional), or one that refines a solved path
+/// (`cameras_in`: K and the path required).
 fn solve_node(name: &'static str, doc: &'static str, cameras_in: bool) -> NodeSpec {
     let spec = NodeSpec::new(name, doc)
         .mode(Mode::Once)
         .input_of::<TracksArt>("tracks", "the feature tracks");
-    let spec = if name == "matchmove" {
+    let spec = if cameras_in {
+        spec.input_of::<IntrinsicsArt>("intrinsics", "K, shared by every frame")
+            .input_of::<CameraPathArt>(
+                "cameras",
+                "a solved path covering every frame of the tracks",
+            )
+    } else {
         spec.optional_input_of::<IntrinsicsArt>(
             "intrinsics",
             "K and the lens shared by every frame: exact, or a start (focal: refine); optional \
              with focal: unknown and the image size",
         )
-    } else {
-        spec.input_of::<IntrinsicsArt>("intrinsics", "K, shared by every frame")
-    };
-    let spec = if cameras_in {
-        spec.input_of::<CameraPathArt>(
-            "cameras",
-            "a solved path covering every frame of the tracks",
-        )
-    } else {
-        spec
     };
     spec.output_of::<CameraPathArt>("cameras", "K and [R|t] of every frame")
         .output_of::<PointCloudArt>(
@@ -129,19 +127,16 @@ fn run_global(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 
 fn run_write_cameras(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: formats::WriteCamerasOptions = ctx.options()?;
-    let path = output_path(ctx, "path")?;
+    let path = ctx.path("path");
     let cams = &ctx.input::<CameraPathArt>("cameras")?.0;
     formats::write_camera_path(&path, cams, o.format)?;
     Ok(())
 }
 
 fn run_plot(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let path = output_path(ctx, "path")?;
     let report = &ctx.input::<ReportArt>("report")?.0;
-    let svg = crate::plot::solve_error_svg(report).map_err(NodeError::msg)?;
-    vfxgraph_engine::fsutil::atomic_write(&path, svg.as_bytes())
-        .map_err(|e| NodeError::msg(format!("{}: {e}", path.display())))?;
-    Ok(())
+    let svg = solve_error_svg(report).map_err(NodeError::msg)?;
+    crate::write_output(ctx, "path", svg.as_bytes())
 }
 
 /// Registers the nodes of this module.
@@ -157,7 +152,7 @@ pub fn register(r: &mut Registry) {
     )
     .seeded()
     .options::<MatchmoveOptions>();
-    r.register_node(FnNode::new(spec, run_matchmove));
+    r.register_fn(spec, run_matchmove);
 
     let spec = solve_node(
         "relax",
@@ -167,7 +162,7 @@ pub fn register(r: &mut Registry) {
         true,
     )
     .options::<RelaxParams>();
-    r.register_node(FnNode::new(spec, run_relax));
+    r.register_fn(spec, run_relax);
 
     let spec = solve_node(
         "global_bundle_adjust",
@@ -177,9 +172,9 @@ pub fn register(r: &mut Registry) {
         true,
     )
     .options::<GlobalParams>();
-    r.register_node(FnNode::new(spec, run_global));
+    r.register_fn(spec, run_global);
 
-    r.register_node(FnNode::new(
+    r.register_fn(
         NodeSpec::new(
             "write_cameras",
             "Writes a camera path: the book's cameras file (`Frame i`, R rows, t) or JSON (with K \
@@ -190,9 +185,9 @@ pub fn register(r: &mut Registry) {
         .options::<formats::WriteCamerasOptions>()
         .input_of::<CameraPathArt>("cameras", "the path to write"),
         run_write_cameras,
-    ));
+    );
 
-    r.register_node(FnNode::new(
+    r.register_fn(
         NodeSpec::new(
             "plot_solve_error",
             "Plots a solve's report as SVG: reprojection RMS per frame and inliers per frame \
@@ -205,7 +200,7 @@ pub fn register(r: &mut Registry) {
             "the report of matchmove, relax or global_bundle_adjust",
         ),
         run_plot,
-    ));
+    );
 }
 
 #[cfg(test)]

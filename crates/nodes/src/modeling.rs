@@ -7,7 +7,6 @@ use vfxgraph_vision::formats::marked_points::{
 use vfxgraph_vision::modeling::point_cloud_calibrate;
 
 use crate::artifacts::{json_artifact, CameraPathArt, IntrinsicsArt, Points3dArt, ReportArt};
-use crate::FnNode;
 
 json_artifact!(
     /// Points marked by hand on several frames (`marks`).
@@ -18,8 +17,8 @@ json_artifact!(
 
 /// Registers the artifact and nodes of this module.
 pub fn register(r: &mut Registry) {
-    r.register_artifact::<MarkedPointsArt>();
-    r.register_node(FnNode::new(
+    register_json_artifacts(r);
+    r.register_fn(
         NodeSpec::new(
             "read_marks",
             "Reads marked points: the book's `points2d.txt` (`Frame f` / `Npoints n` / n lines \
@@ -31,17 +30,12 @@ pub fn register(r: &mut Registry) {
         .input_file_param("path", "marked-points file")
         .output_of::<MarkedPointsArt>("marks", "the marks"),
         |ctx| {
-            let path = ctx.path("path");
-            let marks = if vfxgraph_vision::formats::is_json(&path) {
-                vfxgraph_vision::formats::read_json(&path)?
-            } else {
-                read_marked_points(&path)?
-            };
+            let marks = read_marked_points(&ctx.path("path"))?;
             ctx.output("marks", MarkedPointsArt(marks));
             Ok(())
         },
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "write_marks",
             "Writes marked points as the book's `points2d.txt`, or JSON when the name ends \
@@ -51,13 +45,10 @@ pub fn register(r: &mut Registry) {
         .input_of::<MarkedPointsArt>("marks", "the marks"),
         |ctx| {
             let marks = &ctx.input::<MarkedPointsArt>("marks")?.0;
-            Ok(write_marked_points(
-                &crate::output_path(ctx, "path")?,
-                marks,
-            )?)
+            Ok(write_marked_points(&ctx.path("path"), marks)?)
         },
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "point_cloud_calibrate",
             "Point-cloud calibration (book chapter 8): each marked point triangulated from the \
@@ -89,5 +80,5 @@ pub fn register(r: &mut Registry) {
             ctx.output("report", ReportArt(rep));
             Ok(())
         },
-    ));
+    );
 }

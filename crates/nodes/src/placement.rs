@@ -14,7 +14,6 @@ use vfxgraph_vision::formats::CameraPath;
 
 use crate::artifacts::{CameraPathArt, ImageArt, Points3dArt, ReportArt};
 use crate::render::{rows, SceneArt};
-use crate::FnNode;
 
 /// The `points3d` input as render points.
 pub(crate) fn measured(ctx: &Context<'_>) -> Result<Vec<Vec3>, NodeError> {
@@ -25,14 +24,8 @@ pub(crate) fn measured(ctx: &Context<'_>) -> Result<Vec<Vec3>, NodeError> {
 /// The cameras of a solved path as viewers of a catcher: their centres, and the first one as a
 /// render camera (its K, R, t) when `with_view` and the path has intrinsics.
 fn viewers(path: &CameraPath, with_view: bool) -> Result<Viewers, NodeError> {
-    let centres = path
-        .frames
-        .iter()
-        .map(|f| {
-            let c = f.pose.center();
-            Vec3::new(c.x, c.y, c.z)
-        })
-        .collect();
+    let centres = path.frames.iter().map(|f| f.pose.center());
+    let centres = centres.map(|c| Vec3::new(c.x, c.y, c.z)).collect();
     let first = match (path.frames.first(), &path.intrinsics) {
         (Some(f), Some(k)) if with_view => Some(Camera::from_krt(
             rows(&k.k()),
@@ -48,7 +41,7 @@ fn viewers(path: &CameraPath, with_view: bool) -> Result<Viewers, NodeError> {
 
 /// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
-    r.register_node(FnNode::new(
+    r.register_fn(
         NodeSpec::new(
             "place_scene",
             "Moves a designed scene onto measured points (book ch. 8, §10.10): the similarity \
@@ -78,8 +71,8 @@ pub fn register(r: &mut Registry) {
              residuals and the relative RMS",
         ),
         run_place_scene,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "catcher_from_points",
             "A shadow catcher through measured ground points (book ch. 8, §10.10): 3 points \
@@ -116,7 +109,7 @@ pub fn register(r: &mut Registry) {
             "the catcher's corners, frame (origin, axes, unit), planarity and the placed objects",
         ),
         run_catcher_from_points,
-    ));
+    );
 }
 
 fn run_place_scene(ctx: &mut Context<'_>) -> Result<(), NodeError> {
@@ -129,10 +122,8 @@ fn run_place_scene(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let image = ctx.input_opt::<ImageArt>("dome_image")?.map(|i| &i.0);
     let p = place_scene(design, image, &measured(ctx)?, &o)
         .map_err(|e| NodeError::msg(format!("place_scene: {e}")))?;
-    let report = p.report();
-    let (scene, dome) = (p.scene, p.dome);
-    ctx.output("scene", SceneArt { scene, dome });
-    ctx.output("report", ReportArt(report));
+    ctx.output("report", ReportArt(p.report()));
+    ctx.output("scene", SceneArt::new(p.scene, p.dome));
     Ok(())
 }
 
@@ -151,10 +142,8 @@ fn run_catcher_from_points(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let image = ctx.input_opt::<ImageArt>("dome_image")?.map(|i| &i.0);
     let c = catcher_from_points(&pts, &viewers, design, image, &o)
         .map_err(|e| NodeError::msg(format!("catcher_from_points: {e}")))?;
-    let report = c.report();
-    let (scene, dome) = (c.scene, c.dome);
-    ctx.output("scene", SceneArt { scene, dome });
-    ctx.output("report", ReportArt(report));
+    ctx.output("report", ReportArt(c.report()));
+    ctx.output("scene", SceneArt::new(c.scene, c.dome));
     Ok(())
 }
 

@@ -13,11 +13,10 @@ use vfxgraph_vision::camera_path::{
 
 use crate::artifacts::{CameraPathArt, IntrinsicsArt};
 use crate::modeling::MarkedPointsArt;
-use crate::FnNode;
 
 /// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
-    r.register_node(FnNode::new(
+    r.register_fn(
         NodeSpec::new(
             "synthetic_camera_path",
             "A smooth synthetic camera path with known truth: the camera orbits a target about \
@@ -33,8 +32,8 @@ pub fn register(r: &mut Registry) {
         .output_of::<CameraPathArt>("cameras", "the true cameras, with K")
         .output_of::<IntrinsicsArt>("intrinsics", "K and the image size"),
         run_synthetic_camera_path,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "project_marks",
             "Simulated user clicks (book chapter 8's marked points): the 3-D `points` projected \
@@ -56,7 +55,7 @@ pub fn register(r: &mut Registry) {
         .input_of::<CameraPathArt>("cameras", "the true cameras (with K)")
         .output_of::<MarkedPointsArt>("marks", "the marks"),
         run_project_marks,
-    ));
+    );
 }
 
 fn run_synthetic_camera_path(ctx: &mut Context<'_>) -> Result<(), NodeError> {

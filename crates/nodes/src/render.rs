@@ -4,8 +4,6 @@
 //! `tonemap` + PNG), optionally lit by a `dome` from the HDR nodes and seen by frame f's camera
 //! of a solved `camera_path`.
 
-use std::sync::Mutex;
-
 use nalgebra::Matrix3;
 
 use vfxgraph_engine::artifact::codec::{put_bytes, put_u64, Reader};
@@ -13,14 +11,13 @@ use vfxgraph_engine::artifact::{decode_json, encode_json};
 use vfxgraph_engine::{ArtifactType, Context, Mode, NodeError, NodeSpec, Registry, Threads};
 use vfxgraph_render::dome::{Dome, Light};
 use vfxgraph_render::{
-    camera_for_frame, read_scene_file, render, Camera, ImageSize, PathPose, RenderOptions, Scene,
-    SolvedK,
+    camera_for_frame, read_scene_file, render, with_sync_progress, Camera, ImageSize, PathPose,
+    RenderError, RenderOptions, Scene, SolvedK,
 };
 use vfxgraph_vision::formats::FramePose;
 
 use crate::artifacts::{CameraPathArt, ImageArt, IntrinsicsArt};
 use crate::hdr::DomeArt;
-use crate::FnNode;
 
 /// A scene (`scene`): camera, objects, lights, dome, shadow catchers (book §9.13, §10), with
 /// the dome image it names when that image could be read.
@@ -31,6 +28,13 @@ pub struct SceneArt {
     /// The loaded, oriented dome of `scene.dome` (`None` without a dome, or when its image was
     /// not found: then `render` needs a `dome` input).
     pub dome: Option<Dome>,
+}
+
+impl SceneArt {
+    /// A scene with its loaded dome.
+    pub fn new(scene: Scene, dome: Option<Dome>) -> Self {
+        SceneArt { scene, dome }
+    }
 }
 
 impl ArtifactType for SceneArt {
@@ -65,7 +69,7 @@ impl ArtifactType for SceneArt {
             t => return Err(format!("bad dome tag {t}")),
         };
         r.finish()?;
-        Ok(SceneArt { scene, dome })
+        Ok(SceneArt::new(scene, dome))
     }
 }
 
@@ -83,7 +87,7 @@ pub(crate) fn scene_inputs(spec: NodeSpec, docs: [&'static str; 3]) -> NodeSpec 
 /// Registers the artifact and nodes of this module.
 pub fn register(r: &mut Registry) {
     r.register_artifact::<SceneArt>();
-    r.register_node(FnNode::new(
+    r.register_fn(
         NodeSpec::new(
             "read_scene",
             "Reads a scene file, by extension: the book's S3D `.scn` language (scene/hdrscene, \
@@ -107,8 +111,8 @@ pub fn register(r: &mut Registry) {
         )
         .output_of::<SceneArt>("scene", "the scene"),
         run_read_scene,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         scene_inputs(
             NodeSpec::new(
                 "render",
@@ -139,39 +143,29 @@ pub fn register(r: &mut Registry) {
         .output_of::<ImageArt>("image", "radiance, linear RGB")
         .output_of::<ImageArt>("variance", "per-pixel variance of the mean, linear RGB"),
         run_render,
-    ));
+    );
 }
 
 fn run_read_scene(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let file = read_scene_file(&ctx.path("path")).map_err(|e| NodeError::msg(e.to_string()))?;
+    let file = read_scene_file(&ctx.path("path"))?;
     // The OBJ meshes and dome image it read are part of the cache key (an edit reruns).
     for f in &file.files {
         ctx.declare_input_file(f)?;
     }
-    let (scene, dome) = (file.scene, file.dome);
-    ctx.output("scene", SceneArt { scene, dome });
+    ctx.output("scene", SceneArt::new(file.scene, file.dome));
     Ok(())
 }
 
-/// The camera of this instance: the scene's, or frame f's pose of `cameras` with K from
-/// `intrinsics`, the path's own K, or the scene camera (book §2.8), then the size override.
-pub(crate) fn instance_camera(ctx: &Context<'_>, scene: &Scene) -> Result<Camera, NodeError> {
-    camera_for(ctx, scene, ctx.frame())
-}
-
-/// [`instance_camera`] for frame `frame`: vfxgraph-render's `camera_for_frame` over the
-/// `cameras` and `intrinsics` inputs (K: `intrinsics`, else the path's own K).
+/// The camera of frame `frame` (this instance's: `ctx.frame()`): the scene's, or that frame's
+/// pose of `cameras` with K from `intrinsics`, the path's own K, or the scene camera (book §2.8),
+/// then the size override (vfxgraph-render's `camera_for_frame`).
 pub(crate) fn camera_for(
     ctx: &Context<'_>,
     scene: &Scene,
     frame: Option<i64>,
 ) -> Result<Camera, NodeError> {
     let path = ctx.input_opt::<CameraPathArt>("cameras")?.map(|p| &p.0);
-    let k = match ctx.input_opt::<IntrinsicsArt>("intrinsics")? {
-        Some(k) => Some(&k.0),
-        None => path.and_then(|p| p.intrinsics.as_ref()),
-    };
-    let k = k.map(|k| SolvedK {
+    let k = crate::intrinsics_or_path_k(ctx, path)?.map(|k| SolvedK {
         k: rows(&k.k()),
         size: k.width.zip(k.height).map(|(w, h)| (w as usize, h as usize)),
         distortion: k.distortion,
@@ -185,7 +179,7 @@ pub(crate) fn camera_for(
         frame,
         &size,
     )
-    .map_err(|e| NodeError::msg(e.to_string()))
+    .map_err(NodeError::from)
 }
 
 /// A matrix as the render crate takes it: an array of its rows.
@@ -214,42 +208,18 @@ pub(crate) fn pick_light<'a>(
     Light::pick(input_dome, art.dome.as_ref(), &art.scene).map_err(NodeError::msg)
 }
 
-/// Runs `f` with a `Sync` progress callback forwarding to `ctx.progress` (the engine's
-/// callback is not `Sync`; calls are serialized through a mutex).
-pub(crate) fn with_sync_progress<R>(
-    ctx: &Context<'_>,
-    f: impl FnOnce(&(dyn Fn(f32) + Sync)) -> R,
-) -> R {
-    let progress = Mutex::new(|x: f32| ctx.progress(x));
-    f(&|x| {
-        if let Ok(cb) = progress.lock() {
-            cb(x)
-        }
-    })
-}
-
-/// An error when a render dropped non-finite samples (a bug in the tracer, not in the scene).
-pub(crate) fn check_finite(nonfinite: u64) -> Result<(), NodeError> {
-    if nonfinite > 0 {
-        return Err(NodeError::msg(format!(
-            "{nonfinite} samples had non-finite radiance (a bug: please report the scene)"
-        )));
-    }
-    Ok(())
-}
-
 fn run_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: RenderOptions = ctx.options()?;
     let art = ctx.input::<SceneArt>("scene")?;
     let light = pick_light(ctx, art)?;
-    let camera = instance_camera(ctx, &art.scene)?;
+    let camera = camera_for(ctx, &art.scene, ctx.frame())?;
     let (world, settings) = (o.world(&art.scene), o.settings(ctx.seed()));
-    let out = with_sync_progress(ctx, |progress| {
+    let progress = |x| ctx.progress(x);
+    let out = with_sync_progress(progress, |progress| {
         let cancel = Some(ctx.cancel_flag());
         render(&world, light.env(), &camera, &settings, progress, cancel)
-    })
-    .map_err(|e| NodeError::msg(e.to_string()))?;
-    check_finite(out.stats.nonfinite)?;
+    })?;
+    RenderError::check_finite(out.stats.nonfinite)?;
     ctx.output("image", ImageArt(out.image));
     ctx.output("variance", ImageArt(out.variance));
     Ok(())

@@ -6,21 +6,17 @@ use vfxgraph_engine::artifact::codec::{put_bytes, put_u64, Reader};
 use vfxgraph_engine::{
     ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, Registry,
 };
-use vfxgraph_imaging::io::{encode_exr_layers, LayersOptions};
+use vfxgraph_imaging::io::LayersOptions;
 use vfxgraph_imaging::{read_image, Image};
-use vfxgraph_params::Choice;
 use vfxgraph_render::catcher_fit::{fit_catcher, FitCatcherOptions};
 use vfxgraph_render::differential::{
     composite, differential_render, CompositeOptions, DifferentialLayers, DifferentialOptions,
 };
-use vfxgraph_render::ImageSize;
+use vfxgraph_render::plate::plate_frames;
+use vfxgraph_render::{with_sync_progress, RenderError};
 
-use crate::artifacts::{ImageArt, ReportArt};
-use crate::render::{
-    camera_for, check_finite, instance_camera, pick_light, scene_inputs, with_sync_progress,
-    SceneArt,
-};
-use crate::{output_path, FnNode};
+use crate::artifacts::{image_sequence, put_image, ImageArt, ReportArt};
+use crate::render::{camera_for, pick_light, scene_inputs, SceneArt};
 
 /// Named images of one size (`layers`): what a compositor reads from a multi-layer EXR.
 #[derive(Clone, Debug, PartialEq)]
@@ -35,7 +31,7 @@ impl ArtifactType for LayersArt {
         for (name, img) in &self.0 {
             put_bytes(out, name.as_bytes());
             let mut b = Vec::new();
-            ImageArt(img.clone()).encode(&mut b);
+            put_image(&mut b, img);
             put_bytes(out, &b);
         }
     }
@@ -53,28 +49,18 @@ impl ArtifactType for LayersArt {
     }
 }
 
-/// The image size override params (`width`, `height`) of a node that renders.
-pub(crate) fn size_params(spec: NodeSpec) -> NodeSpec {
-    spec.options::<ImageSize>()
-}
-
-/// The inputs of the shot's renders ([`scene_inputs`]).
-pub(crate) fn light_and_camera_inputs(spec: NodeSpec) -> NodeSpec {
-    scene_inputs(
-        spec,
-        [
-            "objects and shadow catchers",
-            "the solved camera path (K from `intrinsics`, the path, or the scene camera)",
-            "K (and image size) replacing the path's and the scene camera's",
-        ],
-    )
-}
+/// The docs of the shot's renders' scene, cameras and intrinsics inputs ([`scene_inputs`]).
+pub(crate) const SHOT_INPUTS: [&str; 3] = [
+    "objects and shadow catchers",
+    "the solved camera path (K from `intrinsics`, the path, or the scene camera)",
+    "K (and image size) replacing the path's and the scene camera's",
+];
 
 /// Registers the artifact and nodes of this module.
 pub fn register(r: &mut Registry) {
     r.register_artifact::<LayersArt>();
-    r.register_node(FnNode::new(
-        light_and_camera_inputs(
+    r.register_fn(
+        scene_inputs(
             NodeSpec::new(
                 "fit_catcher",
                 "Fits the shadow catchers' diffuse colour to the plate (book §10.10, the \
@@ -95,6 +81,7 @@ pub fn register(r: &mut Registry) {
                 "the plate frame (and camera) to fit on",
             ))
             .options::<FitCatcherOptions>(),
+            SHOT_INPUTS,
         )
         .sequence_input_of::<ImageArt>(
             "plate",
@@ -103,9 +90,9 @@ pub fn register(r: &mut Registry) {
         .output_of::<SceneArt>("scene", "the scene with the fitted catcher colour")
         .output_of::<ReportArt>("report", "the fit"),
         run_fit_catcher,
-    ));
-    r.register_node(FnNode::new(
-        light_and_camera_inputs(
+    );
+    r.register_fn(
+        scene_inputs(
             NodeSpec::new(
                 "differential_render",
                 "Differential rendering (book §10.10; Debevec 1998), one frame per instance: \
@@ -127,6 +114,7 @@ pub fn register(r: &mut Registry) {
                 bytes_per_pixel: 400,
             })
             .options::<DifferentialOptions>(),
+            SHOT_INPUTS,
         )
         .optional_input_of::<ImageArt>("plate", "this frame's plate (linear radiance)")
         .output_of::<ImageArt>("image", "the composite (linear RGB)")
@@ -145,8 +133,8 @@ pub fn register(r: &mut Registry) {
         )
         .output_of::<ReportArt>("report", "counters and time"),
         run_differential_render,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "composite",
             "Composites the layers of `differential_render` over a plate (book §10.10) without \
@@ -162,8 +150,8 @@ pub fn register(r: &mut Registry) {
         .optional_input_of::<ImageArt>("plate", "the frame's plate")
         .output_of::<ImageArt>("image", "the composite, linear RGB"),
         run_composite,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "write_layers",
             "Writes named layers as one multi-layer OpenEXR file (single part; layer `name` \
@@ -176,7 +164,7 @@ pub fn register(r: &mut Registry) {
         .options::<LayersOptions>()
         .input_of::<LayersArt>("layers", "the layers"),
         run_write_layers,
-    ));
+    );
 }
 
 fn run_fit_catcher(ctx: &mut Context<'_>) -> Result<(), NodeError> {
@@ -184,28 +172,8 @@ fn run_fit_catcher(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let art = ctx.input::<SceneArt>("scene")?;
     let light = pick_light(ctx, art)?;
     let frame = ctx.params().i64("frame");
-    let plates = ctx.sequence::<ImageArt>("plate")?;
-    let plate = plates
-        .iter()
-        .find(|(f, _)| *f == frame)
-        .map(|(_, p)| &p.0)
-        .ok_or_else(|| {
-            NodeError::msg(format!(
-                "the plate has no frame {frame} (it has {} frames{})",
-                plates.len(),
-                match (plates.first(), plates.last()) {
-                    (Some(a), Some(b)) => format!(", {}–{}", a.0, b.0),
-                    _ => String::new(),
-                }
-            ))
-        })?;
+    let plate = plate_frames(&image_sequence(ctx, "plate")?, &[frame])?[0].1;
     let camera = camera_for(ctx, &art.scene, Some(frame))?;
-    if (plate.width, plate.height) != (camera.width, camera.height) {
-        return Err(NodeError::msg(format!(
-            "plate frame {frame} is {}×{} but the camera renders {}×{} (set width/height)",
-            plate.width, plate.height, camera.width, camera.height
-        )));
-    }
     let (scene, fit) = fit_catcher(
         &art.scene,
         light.env(),
@@ -215,10 +183,8 @@ fn run_fit_catcher(ctx: &mut Context<'_>) -> Result<(), NodeError> {
         Some(ctx.cancel_flag()),
     )
     .map_err(|e| NodeError::msg(format!("frame {frame}: {e}")))?;
-    let report = fit.report(frame);
-    let dome = art.dome.clone();
-    ctx.output("scene", SceneArt { scene, dome });
-    ctx.output("report", ReportArt(report));
+    ctx.output("scene", SceneArt::new(scene, art.dome.clone()));
+    ctx.output("report", ReportArt(fit.report(frame)));
     Ok(())
 }
 
@@ -226,11 +192,12 @@ fn run_differential_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: DifferentialOptions = ctx.options()?;
     let art = ctx.input::<SceneArt>("scene")?;
     let light = pick_light(ctx, art)?;
-    let camera = instance_camera(ctx, &art.scene)?;
+    let camera = camera_for(ctx, &art.scene, ctx.frame())?;
     let plate = plate_of(ctx)?;
     let plate = plate.as_ref();
     let settings = o.settings(ctx.seed());
-    let out = with_sync_progress(ctx, |progress| {
+    let progress = |x| ctx.progress(x);
+    let out = with_sync_progress(progress, |progress| {
         differential_render(
             &art.scene,
             light.env(),
@@ -240,31 +207,15 @@ fn run_differential_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
             progress,
             Some(ctx.cancel_flag()),
         )
-    })
-    .map_err(|e| NodeError::msg(e.to_string()))?;
-    check_finite(out.stats.nonfinite)?;
+    })?;
+    RenderError::check_finite(out.stats.nonfinite)?;
     let l = &out.layers;
     let image = l
         .composite_or_render(plate, o.mode)
         .map_err(NodeError::msg)?;
     let layers = l.named(&image);
     let shadow = layers[2].1.clone();
-    let s = out.stats;
-    let report = serde_json::json!({
-        "frame": ctx.frame(),
-        "width": camera.width,
-        "height": camera.height,
-        "spp": settings.spp,
-        "max_depth": settings.max_depth,
-        "mode": o.mode.choice(),
-        "plate": plate.is_some(),
-        "traced_pixels": s.traced_pixels,
-        "mean_spp_traced": s.samples as f64 / s.traced_pixels.max(1) as f64,
-        "pixels": s.pixels,
-        "paths_with_objects": s.paths_with,
-        "paths_without_objects": s.paths_without,
-        "seconds": s.seconds,
-    });
+    let report = out.report(ctx.frame(), &camera, &settings, o.mode, plate.is_some());
     ctx.output("image", ImageArt(image));
     ctx.output("beauty", ImageArt(l.beauty.clone()));
     ctx.output("shadow", ImageArt(shadow));
@@ -278,26 +229,18 @@ fn plate_of(ctx: &Context<'_>) -> Result<Option<Image>, NodeError> {
     if let Some(p) = ctx.input_opt::<ImageArt>("plate")? {
         return Ok(Some(p.0.clone()));
     }
-    if ctx.params().str("plate").is_empty() {
-        return Ok(None);
-    }
-    let path = ctx.path("plate");
-    read_image(&path)
-        .map(Some)
-        .map_err(|e| NodeError::msg(format!("plate: {e}")))
+    let file = (!ctx.params().str("plate").is_empty()).then(|| ctx.path("plate"));
+    let read =
+        |p: std::path::PathBuf| read_image(&p).map_err(|e| NodeError::msg(format!("plate: {e}")));
+    file.map(read).transpose()
 }
 
 fn run_composite(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: CompositeOptions = ctx.options()?;
     let layers = &ctx.input::<LayersArt>("layers")?.0;
     let l = DifferentialLayers::from_named(layers).map_err(NodeError::msg)?;
-    let plate = match plate_of(ctx)? {
-        Some(p) => p,
-        None => {
-            let g = o.grey as f32;
-            Image::from_fn(l.beauty.width, l.beauty.height, 3, |_, _, _| g)
-        }
-    };
+    let (w, h, g) = (l.beauty.width, l.beauty.height, o.grey as f32);
+    let plate = plate_of(ctx)?.unwrap_or_else(|| Image::from_fn(w, h, 3, |_, _, _| g));
     let image = composite(&l, &plate, o.mode).map_err(NodeError::msg)?;
     ctx.output("image", ImageArt(image));
     Ok(())
@@ -306,16 +249,11 @@ fn run_composite(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 fn run_write_layers(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: LayersOptions = ctx.options()?;
     crate::image_io::check_pattern(ctx)?;
-    let layers = &ctx.input::<LayersArt>("layers")?.0;
-    if layers.is_empty() {
-        return Err(NodeError::msg("no layers to write"));
-    }
-    // The first layer is also written under the bare channel names (what viewers show).
-    let mut named: Vec<(&str, &Image)> = vec![("", &layers[0].1)];
-    named.extend(layers.iter().map(|(n, i)| (n.as_str(), i)));
-    let bytes = encode_exr_layers(&named, &o.exr())?;
-    vfxgraph_imaging::io::write_atomic(&output_path(ctx, "path")?, &bytes)?;
-    Ok(())
+    let bytes = o.encode(&ctx.input::<LayersArt>("layers")?.0)?;
+    Ok(vfxgraph_imaging::io::write_atomic(
+        &ctx.path("path"),
+        &bytes,
+    )?)
 }
 
 #[cfg(test)]

@@ -37,7 +37,8 @@ pub fn params(spec: &NodeSpec, set: &[(&str, ParamValue)]) -> Params {
 /// Options struct `T`'s params as node `node` declares them: each of `T`'s params is in the
 /// node's spec with the same type, default and doc, and the node's declared defaults read back
 /// into `T` give `T::default()` (so no default is written anywhere but `T`'s `Default`).
-pub fn check_defaults<T>(node: &str)
+/// Returns the names of `T`'s params.
+pub fn check_defaults<T>(node: &str) -> Vec<&'static str>
 where
     T: vfxgraph_params::Options + Default + PartialEq + std::fmt::Debug,
 {
@@ -53,4 +54,5 @@ where
     }
     let read = T::read(&params(&sp, &[])).unwrap_or_else(|e| panic!("{node}: {e}"));
     assert_eq!(read, T::default(), "{node}: declared defaults read back");
+    T::params().iter().map(|d| d.name).collect()
 }

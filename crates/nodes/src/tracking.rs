@@ -1,41 +1,29 @@
 //! Feature-tracking nodes (book chapter 6): `klt_track`, `read_tracks`, `write_tracks`,
 //! `draw_tracks`, and the `tracks` artifact.
 
-use vfxgraph_engine::artifact::{decode_json, encode_json};
 use vfxgraph_engine::stream::Stream;
-use vfxgraph_engine::{ArtifactType, Context, Mode, NodeError, NodeSpec, Registry};
+use vfxgraph_engine::{Context, Mode, NodeError, NodeSpec, Registry};
 use vfxgraph_vision::klt::{
     draw_tracks, track_loaded, DrawTracksOptions, GrayImage, TrackerParams, Tracks,
     WriteTracksOptions,
 };
 
-use crate::artifacts::ImageArt;
-use crate::FnNode;
+use crate::artifacts::{json_artifact, ImageArt};
 
-/// Feature tracks over a frame sequence (`tracks`): stable ids, per-frame observations, why
-/// each track ended (book chapter 6; canonical encoding: the native JSON model).
-#[derive(Clone, Debug, PartialEq)]
-pub struct TracksArt(pub Tracks);
-
-impl ArtifactType for TracksArt {
-    const NAME: &'static str = "tracks";
-    const DOC: &'static str = "Feature tracks (book ch. 6): frame numbers, feature slots, and \
-        tracks with a stable id, a slot, the first frame, one (x, y) per frame (pixel centres \
-        at integers, y down) and how the track was lost.";
-    fn encode(&self, out: &mut Vec<u8>) {
-        encode_json(&self.0, out);
-    }
-    fn decode(bytes: &[u8]) -> Result<Self, String> {
-        let t: Tracks = decode_json(bytes)?;
-        t.validate().map_err(|e| e.to_string())?;
-        Ok(TracksArt(t))
-    }
+json_artifact! {
+    /// Feature tracks over a frame sequence (`tracks`): stable ids, per-frame observations, why
+    /// each track ended (book chapter 6; canonical encoding: the native JSON model).
+    TracksArt(Tracks), "tracks",
+    "Feature tracks (book ch. 6): frame numbers, feature slots, and tracks with a stable id, a \
+     slot, the first frame, one (x, y) per frame (pixel centres at integers, y down) and how the \
+     track was lost.",
+    check = Tracks::validate;
 }
 
 /// Registers the artifact and nodes of this module.
 pub fn register(r: &mut Registry) {
-    r.register_artifact::<TracksArt>();
-    r.register_node(FnNode::new(
+    register_json_artifacts(r);
+    r.register_fn(
         klt_spec(
             "klt_track",
             &TrackerParams::default(),
@@ -49,8 +37,8 @@ pub fn register(r: &mut Registry) {
                  drift_correction: 0` is the book's tracker.",
         ),
         run_klt_track,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "read_tracks",
             "Reads tracks: the book's `f.txt` format (`Features per frame = N`, `Frame i`, \
@@ -62,8 +50,8 @@ pub fn register(r: &mut Registry) {
         .input_file_param("path", "the tracks file")
         .output_of::<TracksArt>("tracks", "the tracks"),
         run_read_tracks,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "write_tracks",
             "Writes tracks atomically: `book` = the book's f.txt (status 0 tracked, -1 lost; \
@@ -74,8 +62,8 @@ pub fn register(r: &mut Registry) {
         .options::<WriteTracksOptions>()
         .input_of::<TracksArt>("tracks", "the tracks"),
         run_write_tracks,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "draw_tracks",
             "Draws the tracks over each frame for a person to look at: each live track's path \
@@ -88,7 +76,7 @@ pub fn register(r: &mut Registry) {
         .input_of::<TracksArt>("tracks", "the tracks")
         .output_of::<ImageArt>("image", "the frame with tracks drawn (RGB)"),
         run_draw_tracks,
-    ));
+    );
 }
 
 /// The spec of `klt_track` and of its OpenCV cross-check `klt_track_opencv`: the params of
@@ -164,7 +152,7 @@ fn run_draw_tracks(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 mod tests {
     use super::*;
     use crate::testing::{params, spec};
-    use vfxgraph_engine::{InputValue, ParamValue, Value};
+    use vfxgraph_engine::{ArtifactType, InputValue, ParamValue, Value};
     use vfxgraph_imaging::draw::id_colour;
     use vfxgraph_imaging::Image;
 

@@ -8,11 +8,10 @@ use vfxgraph_vision::klt::opencv::track_sequence_opencv;
 use vfxgraph_vision::klt::{GrayImage, TrackerParams};
 
 use crate::tracking::{gray_frames, klt_spec, TracksArt};
-use crate::FnNode;
 
 /// Registers `klt_track_opencv`.
 pub fn register(r: &mut Registry) {
-    r.register_node(FnNode::new(
+    r.register_fn(
         klt_spec(
             "klt_track_opencv",
             &TrackerParams {
@@ -26,7 +25,7 @@ pub fn register(r: &mut Registry) {
              are tracked as 8-bit gray. Only in a build with the `opencv` cargo feature.",
         ),
         run_klt_track_opencv,
-    ));
+    );
 }
 
 fn run_klt_track_opencv(ctx: &mut Context<'_>) -> Result<(), NodeError> {

@@ -7,11 +7,10 @@ use vfxgraph_engine::{Context, Mode, NodeError, NodeSpec, Registry, Threads};
 use vfxgraph_video::{open_shared, write_video, ReadVideoOptions, WriteVideoOptions};
 
 use crate::artifacts::ImageArt;
-use crate::FnNode;
 
 /// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
-    r.register_node(FnNode::new(
+    r.register_fn(
         NodeSpec::new(
             "read_video",
             "Reads frame f of the graph's range from an H.264 .mp4 file (frame 0 is the first \
@@ -24,8 +23,8 @@ pub fn register(r: &mut Registry) {
         .options::<ReadVideoOptions>()
         .output_of::<ImageArt>("sequence", "the frame's image"),
         run_read_video,
-    ));
-    r.register_node(FnNode::new(
+    );
+    r.register_fn(
         NodeSpec::new(
             "write_video",
             "Writes the frames of a sequence, in frame order, as an H.264 .mp4 a person can \
@@ -40,26 +39,21 @@ pub fn register(r: &mut Registry) {
         .options::<WriteVideoOptions>()
         .sequence_input_of::<ImageArt>("sequence", "the frames, in order"),
         run_write_video,
-    ));
+    );
 }
 
 fn run_read_video(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: ReadVideoOptions = ctx.options()?;
-    let video =
-        open_shared(&ctx.path("path"), o.backend).map_err(|e| NodeError::msg(e.to_string()))?;
-    let img = video
-        .frame(ctx.frame().unwrap_or(0))
-        .map_err(|e| NodeError::msg(e.to_string()))?;
+    let video = open_shared(&ctx.path("path"), o.backend)?;
+    let img = video.frame(ctx.frame().unwrap_or(0))?;
     ctx.output("sequence", ImageArt(img));
     Ok(())
 }
 
 fn run_write_video(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: WriteVideoOptions = ctx.options()?;
-    let frames = ctx.sequence::<ImageArt>("sequence")?;
-    let frames: Vec<(i64, &vfxgraph_imaging::Image)> =
-        frames.iter().map(|(f, img)| (*f, &img.0)).collect();
-    write_video(&ctx.path("path"), &frames, &o).map_err(|e| NodeError::msg(e.to_string()))
+    let frames = crate::artifacts::image_sequence(ctx, "sequence")?;
+    Ok(write_video(&ctx.path("path"), &frames, &o)?)
 }
 
 #[cfg(test)]

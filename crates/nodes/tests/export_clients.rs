@@ -15,14 +15,26 @@ use std::process::Command;
 
 use nalgebra::{Point3, Vector3};
 use serde_json::json;
-use vfxgraph_nodes::export::export;
+use vfxgraph_params::Choice;
 use vfxgraph_vision::camera::{Camera, Intrinsics, Pose};
-use vfxgraph_vision::export::{colmap, SceneOptions, Shot, UpAxis};
+use vfxgraph_vision::export::files::write;
+use vfxgraph_vision::export::{colmap, ExportFormat, SceneOptions, Shot, UpAxis};
 use vfxgraph_vision::formats::{CameraPath, FramePose};
 use vfxgraph_vision::klt::{Track, Tracks};
 use vfxgraph_vision::lens::Distortion;
 use vfxgraph_vision::points::PointCloud;
 use vfxgraph_vision::rotation::axis_angle_to_r;
+
+/// Writes `shot` in the format named `format` (`colmap`, `blender`, `usd`, `nuke`, `json`, `ply`).
+fn export(
+    format: &str,
+    path: &Path,
+    shot: &Shot,
+    o: &SceneOptions,
+) -> Result<Vec<PathBuf>, vfxgraph_vision::VisionError> {
+    let f = ExportFormat::from_choice(format).expect("an export format");
+    write(f, path, shot, o)
+}
 
 fn repo() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")

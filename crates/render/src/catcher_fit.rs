@@ -36,7 +36,7 @@ pub enum FitError {
     )]
     NotSeen,
     /// The plate does not match the camera.
-    #[error("the plate is {pw}×{ph} but the camera renders {cw}×{ch}")]
+    #[error("the plate is {pw}×{ph} but the camera renders {cw}×{ch} (set width/height)")]
     PlateSize {
         /// Plate width.
         pw: usize,

@@ -103,6 +103,17 @@ pub struct View<'a> {
     pub plate: &'a Image,
 }
 
+impl<'a> View<'a> {
+    /// Frame `frame`'s view: its camera and plate.
+    pub fn new(frame: i64, camera: &'a Camera, plate: &'a Image) -> Self {
+        View {
+            frame,
+            camera,
+            plate,
+        }
+    }
+}
+
 /// Settings of [`catcher_texture`] (the `catcher_texture` node's params, through
 /// [`crate::local_scene::LocalTextureOptions`]).
 #[derive(Clone, Copy, Debug, PartialEq, vfxgraph_params::Options)]

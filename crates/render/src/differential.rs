@@ -751,5 +751,6 @@ pub fn composite(
     Ok(out)
 }
 
+mod report;
 #[cfg(test)]
 mod tests;

@@ -27,6 +27,7 @@ pub mod local_scene;
 pub mod math;
 pub mod obj;
 pub mod placement;
+pub mod plate;
 pub mod proxy;
 pub mod ray;
 pub mod render;
@@ -47,8 +48,8 @@ pub use environment::{ConstantEnvironment, Environment, EnvironmentSample};
 pub use integrator::{PathTracer, Strategy};
 pub use math::{Rgb, Vec3};
 pub use render::{
-    mix_seed, render, Objects, RenderError, RenderOptions, RenderOutput, RenderSettings,
-    RenderStats,
+    mix_seed, render, with_sync_progress, Objects, RenderError, RenderOptions, RenderOutput,
+    RenderSettings, RenderStats,
 };
 pub use scene::{AreaLight, DomeSpec, Object, Scene, Shape};
 pub use scene_file::{read_scene_file, SceneFile, SceneFileError};

@@ -30,6 +30,19 @@ pub enum RenderError {
     /// The camera is invalid.
     #[error(transparent)]
     Camera(#[from] crate::camera::CameraError),
+    /// Samples of non-finite radiance were dropped: a bug in the tracer, not in the scene.
+    #[error("{0} samples had non-finite radiance (a bug: please report the scene)")]
+    NonFinite(u64),
+}
+
+impl RenderError {
+    /// [`RenderError::NonFinite`] when a render dropped `nonfinite` samples.
+    pub fn check_finite(nonfinite: u64) -> Result<(), RenderError> {
+        match nonfinite {
+            0 => Ok(()),
+            n => Err(RenderError::NonFinite(n)),
+        }
+    }
 }
 
 /// Render settings.
@@ -293,5 +306,19 @@ pub fn render(
             nonfinite: nonfinite.into_inner(),
             seconds: start.elapsed().as_secs_f64(),
         },
+    })
+}
+
+/// Runs `f` with a `Sync` progress callback (what the renders take) forwarding to `progress`,
+/// which need not be `Sync`: calls are serialized through a mutex.
+pub fn with_sync_progress<R>(
+    progress: impl Fn(f32) + Send,
+    f: impl FnOnce(&(dyn Fn(f32) + Sync)) -> R,
+) -> R {
+    let progress = std::sync::Mutex::new(progress);
+    f(&|x| {
+        if let Ok(cb) = progress.lock() {
+            cb(x)
+        }
     })
 }

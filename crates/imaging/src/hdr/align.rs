@@ -434,6 +434,15 @@ pub fn align_exposures(
     Ok((apply_shifts(stack, &shifts)?, shifts))
 }
 
+/// The `align_exposures` report of `shifts` found on a stack of `len` exposures: the reference
+/// exposure and each exposure's shift, `aligned(x, y) = exposure(x - dx, y - dy)`.
+pub fn align_report(opts: &AlignOptions, len: usize, shifts: &[(i64, i64)]) -> serde_json::Value {
+    serde_json::json!({
+        "reference": opts.reference.unwrap_or(len / 2),
+        "shifts": shifts.iter().map(|&(x, y)| [x, y]).collect::<Vec<_>>(),
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

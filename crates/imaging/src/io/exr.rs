@@ -336,6 +336,17 @@ impl LayersOptions {
             ..Default::default()
         }
     }
+
+    /// Encodes named layers of one size as `write_layers` writes them: the first also under
+    /// the bare channel names (what viewers show), then each under its name.
+    pub fn encode(&self, layers: &[(String, Image)]) -> Result<Vec<u8>, ImageError> {
+        let (_, first) = layers
+            .first()
+            .ok_or_else(|| ImageError::encode(Format::Exr, "no layers to write"))?;
+        let mut named: Vec<(&str, &Image)> = vec![("", first)];
+        named.extend(layers.iter().map(|(n, i)| (n.as_str(), i)));
+        encode_exr_layers(&named, &self.exr())
+    }
 }
 
 /// Encode named layers of one size as a single-part multi-layer OpenEXR file (the layout

@@ -1,13 +1,19 @@
 //! The export and import operations as a whole: the format choices, the `export_cameras`
 //! options ([`ExportOptions`]: the scene transform, the image size when K lacks it, the plate's
-//! and ST-map's names) and the files a format makes ([`files`]) or reads ([`read`]).
+//! and ST-map's names), the shot they export ([`ExportOptions::shot`]), the files a format
+//! makes ([`files`]) and writes ([`write`]), what it reports ([`report`]) and what is read back
+//! ([`read`]).
 
 use std::path::{Path, PathBuf};
 
-use super::{blender, colmap, json, nuke, ply, usd, SceneOptions, Shot};
+use vfxgraph_imaging::Image;
+use vfxgraph_params::Choice;
+
+use super::{blender, colmap, colors, json, nuke, ply, usd, SceneOptions, Shot};
 use crate::camera::Intrinsics;
 use crate::error::{Result, VisionError};
 use crate::formats::{self, CameraPath};
+use crate::klt::Tracks;
 use crate::points::PointCloud;
 
 /// An export format.
@@ -79,6 +85,31 @@ impl ExportOptions {
         }
     }
 
+    /// The shot to export: `path` seen by `k` (sized by the plate's first frame or the
+    /// options), with `cloud`, `tracks` and the options' names; validated; its points coloured
+    /// from `plate` (frame number, linear-light image) when both are given.
+    pub fn shot(
+        &self,
+        k: Intrinsics,
+        path: CameraPath,
+        cloud: Option<PointCloud>,
+        tracks: Option<Tracks>,
+        plate: &[(i64, &Image)],
+    ) -> Result<Shot> {
+        let plate_size = plate
+            .first()
+            .map(|(_, i)| (i.width as u32, i.height as u32));
+        let mut shot = Shot::new(self.sized(k, plate_size)?, path);
+        shot.cloud = cloud;
+        shot.tracks = tracks;
+        self.name(&mut shot);
+        shot.validate()?;
+        if !plate.is_empty() && shot.cloud.is_some() {
+            shot.colors = Some(colors::sample_point_colors(&shot, plate));
+        }
+        Ok(shot)
+    }
+
     /// The shot's names from the options: the plate's pattern and the ST-map (empty: none).
     pub fn name(&self, shot: &mut Shot) {
         if !self.image_names.is_empty() {
@@ -133,6 +164,48 @@ pub fn files(
         ExportFormat::Json => one(json::format(shot, o.fps)?),
         ExportFormat::Ply => one(ply::format(shot)?),
     }
+}
+
+/// Writes `shot` in `format` at `path`: each of its [`files`] handed to `put` (the others first,
+/// the file `path` names last, so its presence means the export is whole); returns the files
+/// written.
+pub fn write_with<E: From<VisionError>>(
+    format: ExportFormat,
+    path: &Path,
+    shot: &Shot,
+    o: &SceneOptions,
+    mut put: impl FnMut(&Path, &str) -> std::result::Result<(), E>,
+) -> std::result::Result<Vec<PathBuf>, E> {
+    let out = files(format, path, shot, o)?;
+    for (p, text) in out.iter().skip(1).chain(out.first()) {
+        put(p, text)?;
+    }
+    Ok(out.into_iter().map(|(p, _)| p).collect())
+}
+
+/// [`write_with`] writing each file atomically ([`formats::write_text`]).
+pub fn write(
+    format: ExportFormat,
+    path: &Path,
+    shot: &Shot,
+    o: &SceneOptions,
+) -> Result<Vec<PathBuf>> {
+    write_with(format, path, shot, o, formats::write_text)
+}
+
+/// The report of an export: format, files written, frames, points, image size, whether the
+/// points were coloured, the lens.
+pub fn report(format: ExportFormat, shot: &Shot, files: &[PathBuf]) -> serde_json::Value {
+    serde_json::json!({
+        "format": format.choice(),
+        "files": files.iter().map(|f| f.display().to_string()).collect::<Vec<_>>(),
+        "frames": shot.path.frames.len(),
+        "points": shot.cloud.as_ref().map_or(0, |c| c.points.len()),
+        "width": shot.intrinsics.width,
+        "height": shot.intrinsics.height,
+        "coloured": shot.colors.is_some(),
+        "lens": shot.intrinsics.distortion.name(),
+    })
 }
 
 /// Reads a solve made elsewhere: COLMAP's text model at `path` (its cameras.txt; K from the
