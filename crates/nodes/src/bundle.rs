@@ -1,52 +1,11 @@
 //! Bundle adjustment nodes (book §7.7): `bundle_adjust`, `read_cameras`.
 
-use vfxgraph_engine::{Mode, NodeError, NodeSpec, Registry};
-use vfxgraph_params::{Choice, Options};
-use vfxgraph_vision::bundle::{adjust_sequence, LinearSolverKind, Loss, SolverOptions};
+use vfxgraph_engine::{Mode, NodeSpec, Registry};
+use vfxgraph_vision::bundle::{adjust_sequence, SequenceAdjustOptions};
 use vfxgraph_vision::formats;
-use vfxgraph_vision::matchmove::global::RobustLoss;
 
 use crate::artifacts::{CameraPathArt, IntrinsicsArt, PointCloudArt, ReportArt};
 use crate::tracking::TracksArt;
-
-/// The linear solver of `bundle_adjust` (vfxgraph-vision's `LinearSolverKind`, by its short
-/// names).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Choice)]
-pub(crate) enum SolverChoice {
-    Auto,
-    Dense,
-    Sparse,
-    Iterative,
-}
-
-/// The params of `bundle_adjust`.
-#[derive(Debug, PartialEq, Options)]
-pub(crate) struct BundleAdjustParams {
-    /// robust loss on the reprojection error
-    loss: RobustLoss,
-    /// where the robust loss starts to down-weight (pixels)
-    #[param(range = 1e-6..=1e6)]
-    loss_scale_px: f64,
-    /// cap on Levenberg–Marquardt steps
-    #[param(range = 0..=10_000)]
-    max_iterations: usize,
-    /// also refine f and the principal point (one block shared by all frames)
-    refine_intrinsics: bool,
-    /// linear solver of the reduced camera system
-    solver: SolverChoice,
-}
-
-impl Default for BundleAdjustParams {
-    fn default() -> Self {
-        BundleAdjustParams {
-            loss: RobustLoss::Huber,
-            loss_scale_px: 2.0,
-            max_iterations: 50,
-            refine_intrinsics: false,
-            solver: SolverChoice::Auto,
-        }
-    }
-}
 
 /// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
@@ -63,7 +22,7 @@ pub fn register(r: &mut Registry) {
         .input_of::<PointCloudArt>("points", "initial points (with track ids)")
         .input_of::<crate::tracking::TracksArt>("tracks", "the observations")
         .input_of::<IntrinsicsArt>("intrinsics", "K shared by every frame")
-        .options::<BundleAdjustParams>()
+        .options::<SequenceAdjustOptions>()
         .output_of::<CameraPathArt>("cameras", "refined cameras")
         .output_of::<PointCloudArt>("points", "refined points, errors filled in")
         .output_of::<IntrinsicsArt>("intrinsics", "K (refined if asked)")
@@ -72,27 +31,14 @@ pub fn register(r: &mut Registry) {
             "initial/final cost and RMS, iterations, time, termination, per-camera and per-point error",
         ),
         |ctx| {
-            let o: BundleAdjustParams = ctx.options()?;
-            let scale = o.loss_scale_px;
-            let loss = match o.loss {
-                RobustLoss::None => Loss::Trivial,
-                RobustLoss::Huber => Loss::Huber { scale },
-                RobustLoss::Cauchy => Loss::Cauchy { scale },
-            };
-            let options = SolverOptions {
-                max_iterations: o.max_iterations,
-                loss,
-                linear_solver: LinearSolverKind::parse(o.solver.choice())
-                    .ok_or_else(|| NodeError::msg("unknown solver"))?,
-                ..SolverOptions::default()
-            };
+            let o: SequenceAdjustOptions = ctx.options()?;
             let out = adjust_sequence(
                 &ctx.input::<CameraPathArt>("cameras")?.0,
                 &ctx.input::<PointCloudArt>("points")?.0,
                 &ctx.input::<TracksArt>("tracks")?.0,
                 &ctx.input::<IntrinsicsArt>("intrinsics")?.0,
                 o.refine_intrinsics,
-                &options,
+                &o.solver_options(),
             )?;
             let mut report = serde_json::to_value(&out.report)?;
             // The per-step log is for benchmarks; keep the artifact small.

@@ -109,14 +109,17 @@ mod tests {
             "matchmove",
             check_defaults::<vfxgraph_vision::matchmove::MatchmoveOptions>,
         ),
-        ("relax", check_defaults::<crate::matchmove::RelaxParams>),
+        (
+            "relax",
+            check_defaults::<vfxgraph_vision::matchmove::RelaxParams>,
+        ),
         (
             "bundle_adjust",
-            check_defaults::<crate::bundle::BundleAdjustParams>,
+            check_defaults::<vfxgraph_vision::bundle::SequenceAdjustOptions>,
         ),
         (
             "global_bundle_adjust",
-            check_defaults::<crate::matchmove::GlobalParams>,
+            check_defaults::<vfxgraph_vision::matchmove::GlobalParams>,
         ),
         (
             "write_cameras",

@@ -4,47 +4,14 @@
 
 use vfxgraph_engine::{Context, Mode, NodeError, NodeSpec, Registry};
 use vfxgraph_imaging::draw::svg::solve_error_svg;
-use vfxgraph_params::Options;
 use vfxgraph_vision::formats;
 use vfxgraph_vision::matchmove::{
-    adjust_path, matchmove_with_lens, relax_path, GlobalOptions, MatchmoveOptions, RelaxOptions,
-    Solve,
+    adjust_path, matchmove_with_lens, relax_path, solve_progress, GlobalParams, MatchmoveOptions,
+    RelaxParams, Solve,
 };
 
 use crate::artifacts::{CameraPathArt, IntrinsicsArt, PointCloudArt, ReportArt};
 use crate::tracking::TracksArt;
-
-/// Whether a solve node scores its cameras (`relax`, `global_bundle_adjust`; `matchmove`'s is
-/// [`MatchmoveOptions::score`]).
-#[derive(Debug, PartialEq, Options)]
-pub(crate) struct Score {
-    /// score the cameras against every track into the report
-    score: bool,
-}
-
-impl Default for Score {
-    fn default() -> Self {
-        Score { score: true }
-    }
-}
-
-/// The params of `global_bundle_adjust`.
-#[derive(Debug, Default, PartialEq, Options)]
-pub(crate) struct GlobalParams {
-    #[param(flatten)]
-    score: Score,
-    #[param(flatten)]
-    global: GlobalOptions,
-}
-
-/// The params of `relax`.
-#[derive(Debug, Default, PartialEq, Options)]
-pub(crate) struct RelaxParams {
-    #[param(flatten)]
-    relax: RelaxOptions,
-    #[param(flatten)]
-    score: Score,
-}
 
 /// A solve node's spec: `matchmove`'s (K optional), or one that refines a solved path
 /// (`cameras_in`: K and the path required).
@@ -94,13 +61,7 @@ fn run_matchmove(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let k = ctx.input_opt::<IntrinsicsArt>("intrinsics")?.map(|k| &k.0);
     let k = o.lens.initial_intrinsics(k)?;
     let solve = matchmove_with_lens(tracks, &k, &o.lens, &o, &|stage, done, total| {
-        // Fragments are most of the work; the global adjustment the rest.
-        let f = if stage == "fragments" {
-            0.7 * done as f32 / total.max(1) as f32
-        } else {
-            0.7 + 0.3 * done as f32 / total.max(1) as f32
-        };
-        ctx.progress(f);
+        ctx.progress(solve_progress(stage, done, total))
     })?;
     set_solve(ctx, solve)
 }

@@ -4,6 +4,30 @@
 //! ½·Σ ρ(sᵢ). The `scale` is in pixels: residuals below it are treated (almost) quadratically.
 
 use serde::{Deserialize, Serialize};
+use vfxgraph_params::Choice;
+
+/// A robust loss by name, as a node's param chooses it; [`RobustLoss::at`] gives it a scale.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Choice)]
+#[serde(rename_all = "lowercase")]
+pub enum RobustLoss {
+    /// Plain least squares.
+    None,
+    /// Huber's loss.
+    Huber,
+    /// Cauchy's loss.
+    Cauchy,
+}
+
+impl RobustLoss {
+    /// The loss with scale `scale` px.
+    pub fn at(self, scale: f64) -> Loss {
+        match self {
+            RobustLoss::None => Loss::Trivial,
+            RobustLoss::Huber => Loss::Huber { scale },
+            RobustLoss::Cauchy => Loss::Cauchy { scale },
+        }
+    }
+}
 
 /// A robust loss with its scale in pixels (Ceres' `HuberLoss(a)`, `CauchyLoss(a)`).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]

@@ -56,13 +56,13 @@ pub use covariance::{intrinsics_covariance, IntrinsicsCovariance};
 pub use error::BundleError;
 pub use linear_solver::LinearSolverKind;
 pub use lm::{solve, SolverOptions};
-pub use loss::Loss;
+pub use loss::{Loss, RobustLoss};
 pub use problem::{
     CameraModel, CameraPose, Gauge, Intrinsics, Observation, Point, Prior, PriorTerm, Problem,
 };
 pub use report::{SolverReport, TerminationReason};
 pub use residual::INTRINSICS;
-pub use sequence::{adjust_sequence, AdjustedSequence};
+pub use sequence::{adjust_sequence, AdjustedSequence, SequenceAdjustOptions, SolverChoice};
 
 #[cfg(test)]
 mod tests;

@@ -5,15 +5,77 @@
 use std::collections::HashMap;
 
 use nalgebra::{Vector2, Vector3};
+use vfxgraph_params::{Choice, Options};
 
 use super::error::BundleError;
+use super::linear_solver::LinearSolverKind;
 use super::lm::{solve, SolverOptions};
+use super::loss::RobustLoss;
 use super::problem::{CameraModel, CameraPose, Gauge, Intrinsics, Observation, Point, Problem};
 use super::report::SolverReport;
 use crate::camera::Pose;
 use crate::formats::cameras::{CameraPath, FramePose};
 use crate::klt::Tracks;
 use crate::points::PointCloud;
+
+/// The linear solver by the short names of the `bundle_adjust` node.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Choice)]
+pub enum SolverChoice {
+    /// [`LinearSolverKind::Auto`].
+    Auto,
+    /// [`LinearSolverKind::DenseSchur`].
+    Dense,
+    /// [`LinearSolverKind::SparseSchur`].
+    Sparse,
+    /// [`LinearSolverKind::IterativeSchur`].
+    Iterative,
+}
+
+/// The options of [`adjust_sequence`], as the `bundle_adjust` node declares them.
+#[derive(Debug, PartialEq, Options)]
+pub struct SequenceAdjustOptions {
+    /// robust loss on the reprojection error
+    pub loss: RobustLoss,
+    /// where the robust loss starts to down-weight (pixels)
+    #[param(range = 1e-6..=1e6)]
+    pub loss_scale_px: f64,
+    /// cap on Levenberg–Marquardt steps
+    #[param(range = 0..=10_000)]
+    pub max_iterations: usize,
+    /// also refine f and the principal point (one block shared by all frames)
+    pub refine_intrinsics: bool,
+    /// linear solver of the reduced camera system
+    pub solver: SolverChoice,
+}
+
+impl Default for SequenceAdjustOptions {
+    fn default() -> Self {
+        SequenceAdjustOptions {
+            loss: RobustLoss::Huber,
+            loss_scale_px: 2.0,
+            max_iterations: 50,
+            refine_intrinsics: false,
+            solver: SolverChoice::Auto,
+        }
+    }
+}
+
+impl SequenceAdjustOptions {
+    /// The solver's options.
+    pub fn solver_options(&self) -> SolverOptions {
+        SolverOptions {
+            max_iterations: self.max_iterations,
+            loss: self.loss.at(self.loss_scale_px),
+            linear_solver: match self.solver {
+                SolverChoice::Auto => LinearSolverKind::Auto,
+                SolverChoice::Dense => LinearSolverKind::DenseSchur,
+                SolverChoice::Sparse => LinearSolverKind::SparseSchur,
+                SolverChoice::Iterative => LinearSolverKind::IterativeSchur,
+            },
+            ..SolverOptions::default()
+        }
+    }
+}
 
 /// What [`adjust_sequence`] returns.
 #[derive(Clone, Debug)]

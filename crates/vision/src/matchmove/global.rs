@@ -16,7 +16,7 @@
 use nalgebra::Vector3;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-use vfxgraph_params::{Choice, Options};
+use vfxgraph_params::Options;
 
 use super::{bundle_adjust_indexed, reprojection_error, triangulate_views};
 use crate::bundle::Loss;
@@ -24,17 +24,7 @@ use crate::camera::{Intrinsics, Pose};
 use crate::error::{Result, VisionError};
 use crate::klt::Tracks;
 
-/// The robust loss of the adjustment.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Choice)]
-#[serde(rename_all = "lowercase")]
-pub enum RobustLoss {
-    /// Plain least squares.
-    None,
-    /// Huber's loss.
-    Huber,
-    /// Cauchy's loss.
-    Cauchy,
-}
+pub use crate::bundle::loss::RobustLoss;
 
 /// The global adjustment's constants.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Options)]
@@ -103,15 +93,7 @@ impl GlobalOptions {
     }
 
     pub(crate) fn loss(&self) -> Loss {
-        match self.loss {
-            RobustLoss::None => Loss::Trivial,
-            RobustLoss::Huber => Loss::Huber {
-                scale: self.loss_scale,
-            },
-            RobustLoss::Cauchy => Loss::Cauchy {
-                scale: self.loss_scale,
-            },
-        }
+        self.loss.at(self.loss_scale)
     }
 }
 

@@ -39,6 +39,7 @@ use std::time::Instant;
 use nalgebra::{Matrix3x4, Point2, Vector3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use vfxgraph_params::Options;
 
 use crate::camera::{Intrinsics, Pose};
 use crate::error::{Result, VisionError};
@@ -344,6 +345,54 @@ pub fn finish_solve(
         cloud,
         report,
     })
+}
+
+/// Whether a solve that refines a path scores its cameras (the `relax` and
+/// `global_bundle_adjust` nodes; [`MatchmoveOptions::score`] is `matchmove`'s).
+#[derive(Debug, PartialEq, Options)]
+pub struct Score {
+    /// score the cameras against every track into the report
+    pub score: bool,
+}
+
+impl Default for Score {
+    fn default() -> Self {
+        Score { score: true }
+    }
+}
+
+/// The params of [`adjust_path`] (the `global_bundle_adjust` node).
+#[derive(Debug, Default, PartialEq, Options)]
+pub struct GlobalParams {
+    /// Scoring.
+    #[param(flatten)]
+    pub score: Score,
+    /// The adjustment.
+    #[param(flatten)]
+    pub global: GlobalOptions,
+}
+
+/// The params of [`relax_path`] (the `relax` node).
+#[derive(Debug, Default, PartialEq, Options)]
+pub struct RelaxParams {
+    /// The relaxation.
+    #[param(flatten)]
+    pub relax: RelaxOptions,
+    /// Scoring.
+    #[param(flatten)]
+    pub score: Score,
+}
+
+/// The fraction done of a [`matchmove`] that reached `done` of `total` in `stage` (its
+/// progress callback's arguments): the fragments are most of the work (70 %), the global
+/// adjustment the rest.
+pub fn solve_progress(stage: &str, done: usize, total: usize) -> f32 {
+    let part = done as f32 / total.max(1) as f32;
+    if stage == "fragments" {
+        0.7 * part
+    } else {
+        0.7 + 0.3 * part
+    }
 }
 
 /// The book's relaxation (§7.14, [`relax()`]) of a solved path, as a [`Solve`]. A lens on `k`
