@@ -13,7 +13,10 @@
 //! temporary.
 //!
 //! Its own crate because both the engine and the algorithm crates (imaging, vision, video) write
-//! files, and neither may depend on the other; it depends on nothing.
+//! files, and neither may depend on the other; it depends on nothing. For the same reason it
+//! holds the frame patterns of file names ([`frame_pattern`]), which graphs and exports share.
+
+pub mod frame_pattern;
 
 use std::fs;
 use std::io::{self, Write};

@@ -29,6 +29,7 @@ pub mod ply;
 pub mod usd;
 
 use nalgebra::{Matrix3, Matrix4, Point3, UnitQuaternion, Vector3};
+pub use vfxgraph_fsutil::frame_pattern::format_frame;
 
 use crate::camera::{Intrinsics, Pose};
 use crate::error::{Result, VisionError};
@@ -465,40 +466,6 @@ pub fn rotation_from_wxyz(q: [f64; 4]) -> Result<Matrix3<f64>> {
     }
     let u = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(q[0], q[1], q[2], q[3]));
     Ok(*u.to_rotation_matrix().matrix())
-}
-
-/// Fills a frame pattern (`%04d`, `%d`, or a run of `#` whose length is the width).
-pub fn format_frame(pattern: &str, frame: i64) -> String {
-    let b = pattern.as_bytes();
-    let mut out = String::with_capacity(pattern.len() + 4);
-    let mut i = 0;
-    while i < b.len() {
-        if b[i] == b'%' {
-            let mut j = i + 1;
-            while j < b.len() && b[j].is_ascii_digit() {
-                j += 1;
-            }
-            if j < b.len() && b[j] == b'd' {
-                let width: usize = pattern[i + 1..j].parse().unwrap_or(0);
-                out.push_str(&format!("{frame:0width$}"));
-                i = j + 1;
-                continue;
-            }
-        } else if b[i] == b'#' {
-            let mut j = i;
-            while j < b.len() && b[j] == b'#' {
-                j += 1;
-            }
-            let width = j - i;
-            out.push_str(&format!("{frame:0width$}"));
-            i = j;
-            continue;
-        }
-        let ch = pattern[i..].chars().next().unwrap_or('?');
-        out.push(ch);
-        i += ch.len_utf8();
-    }
-    out
 }
 
 /// A number as the exporters write it: the shortest text that reads back as the same f64, in
