@@ -294,40 +294,26 @@ pub fn registry() -> Registry {
         .mode(Mode::Once)
         .input(PortSpec::sequence("items", "float", ""))
         .output(PortSpec::one("out", "float", ""))));
+    // A number from a text file named by the `path` param.
+    let read_num = |name, doc| {
+        NodeSpec::new(name, doc)
+            .input_file_param("path", "")
+            .output(PortSpec::one("out", "float", ""))
+    };
+    r.register_node(ReadNum(read_num("read_num", "a number from a text file")));
     r.register_node(ReadNum(
-        NodeSpec::new("read_num", "a number from a text file")
-            .param(ParamSpec::required(
-                "path",
-                ParamType::Path(PathRole::Input),
-                "",
-            ))
-            .output(PortSpec::one("out", "float", "")),
-    ));
-    r.register_node(ReadNum(
-        NodeSpec::new(
+        read_num(
             "read_num_uncached",
             "read_num, its outputs kept out of the cache",
         )
-        .uncached()
-        .param(ParamSpec::required(
-            "path",
-            ParamType::Path(PathRole::Input),
-            "",
-        ))
-        .output(PortSpec::one("out", "float", "")),
+        .uncached(),
     ));
     r.register_node(ReadNumCounted(ReadNum(
-        NodeSpec::new(
+        read_num(
             "read_num_counted",
             "read_num_uncached, counting its computations",
         )
-        .uncached()
-        .param(ParamSpec::required(
-            "path",
-            ParamType::Path(PathRole::Input),
-            "",
-        ))
-        .output(PortSpec::one("out", "float", "")),
+        .uncached(),
     )));
     r.register_node(SumEveryOther(
         NodeSpec::new(
