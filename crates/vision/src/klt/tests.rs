@@ -389,18 +389,27 @@ fn identical_tracks_with_one_and_many_threads() {
         fb_threshold: Some(1.0),
         ..TrackerParams::default()
     };
-    let run = |threads: usize| {
+    let pool = |threads: usize| {
         rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()
             .unwrap()
-            .install(|| track_sequence(&seq, &params, |_| {}).unwrap())
     };
+    let run =
+        |threads: usize| pool(threads).install(|| track_sequence(&seq, &params, |_| {}).unwrap());
     let one = run(1);
     let many = run(7);
     assert!(one.tracks.len() >= 100);
     assert_eq!(one, many);
     assert_eq!(one.to_native(), many.to_native());
+    // The frames loaded one at a time, the next while one is tracked (the streamed plate of
+    // `klt_track`): the same tracks.
+    let load = |k: usize| Ok::<_, KltError>((k as i64, frames[k].clone()));
+    for threads in [1, 7] {
+        let loaded =
+            pool(threads).install(|| track_loaded(frames.len(), load, &params, |_| {}).unwrap());
+        assert_eq!(loaded, one, "{threads} threads");
+    }
 }
 
 #[test]
