@@ -24,11 +24,6 @@ impl<'a> Deferred<'a> {
         Deferred(Arc::new(read))
     }
 
-    /// A value already at hand.
-    pub fn ready(v: Value) -> Self {
-        Deferred::new(move || Ok(v.clone()))
-    }
-
     /// Produces the value.
     pub fn read(&self) -> Result<Value, String> {
         (self.0)()

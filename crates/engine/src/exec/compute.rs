@@ -59,8 +59,8 @@ impl Runner<'_> {
                         })
                         .collect(),
                 ),
-                // In parallel: values not in memory are loaded or recomputed (an uncached
-                // reader's frames are decoded again).
+                // In parallel: values not in memory are loaded or computed (an uncached
+                // reader's frames are decoded here).
                 DepKind::Seq(r) => InputValue::Sequence(
                     r.clone()
                         .into_par_iter()

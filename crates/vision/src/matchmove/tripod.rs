@@ -226,10 +226,14 @@ pub fn rule_out_pan(
     options: &MotionOptions,
     seed: u64,
 ) -> Result<Option<Parallax>> {
-    let pairs = fit_pairs(tracks, None, seed)?;
-    let homography: Vec<f64> = pairs.iter().map(|p| p.homography_px).collect();
-    let p = decision(pairs, &homography, options);
+    let p = by_homography(fit_pairs(tracks, None, seed)?, options);
     Ok((!p.rotation_only).then_some(p))
+}
+
+/// The decision of [`rule_out_pan`] on the pairs of [`fit_pairs`] without K.
+fn by_homography(pairs: Vec<PairParallax>, options: &MotionOptions) -> Parallax {
+    let homography: Vec<f64> = pairs.iter().map(|p| p.homography_px).collect();
+    decision(pairs, &homography, options)
 }
 
 /// The decision of [`measure_parallax`] on the pairs' parallaxes `parallax`.
@@ -332,6 +336,8 @@ pub(crate) fn rule_out_pan_at_any_focal(
 ) -> Result<Option<Parallax>> {
     use rayon::prelude::*;
     let diag = super::lens_solve::image_diagonal(k)?;
+    // The frame pairs `pairs` holds (fit_pairs keeps them in order, dropping those it could
+    // not fit), with their index in frame_pairs (their seed).
     let fp: Vec<(usize, (usize, usize))> = frame_pairs(tracks)
         .into_iter()
         .enumerate()
@@ -382,16 +388,10 @@ pub(crate) fn rule_out_pan_at_any_focal(
     };
     let with_rotation: Vec<PairParallax> = pairs
         .iter()
-        .map(|p| {
-            let r = fp
-                .iter()
-                .zip(&at_best)
-                .find(|((_, (a, b)), _)| [tracks.frames[*a], tracks.frames[*b]] == p.frames)
-                .map_or(f64::NAN, |(_, r)| *r);
-            PairParallax {
-                rotation_px: r,
-                ..p.clone()
-            }
+        .zip(&at_best)
+        .map(|(p, &rotation_px)| PairParallax {
+            rotation_px,
+            ..p.clone()
         })
         .collect();
     let p = decision(with_rotation, &at_best, options);
@@ -745,8 +745,7 @@ pub fn decide(
                     Ok(p) => p,
                     Err(e) => return Ok((None, None, Some(format!("parallax not measured: {e}")))),
                 };
-                let homography: Vec<f64> = pairs.iter().map(|p| p.homography_px).collect();
-                let h = decision(pairs.clone(), &homography, &options.motion);
+                let h = by_homography(pairs.clone(), &options.motion);
                 if !h.rotation_only {
                     return Ok((None, None, Some(h.describe())));
                 }
