@@ -35,11 +35,10 @@ nodes:
   unknown:
     type: matchmove
     inputs: {tracks: track.tracks}
-    params: {focal: unknown, distortion: k1k2, width: 960, height: 540, track_weighting: true}
+    params: {focal: unknown, distortion: k1k2, width: 960, height: 540}
   known:
     type: matchmove
     inputs: {tracks: track.tracks, intrinsics: lens.intrinsics}
-    params: {track_weighting: true}
 YAML
 "$bin" run "$work/graph.yaml" -q
 seconds() {

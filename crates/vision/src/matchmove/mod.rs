@@ -31,6 +31,7 @@ pub mod relax;
 pub mod report;
 pub mod score;
 pub mod synthetic;
+pub mod track_weights;
 pub mod tripod;
 pub mod zoom;
 

@@ -366,8 +366,11 @@ fn solve_tangential_shot(
 /// `distortion: brown` recovers the tangential terms with the radial ones and the focal length
 /// (principal point known), on tracks of 0.1 px noise: the tangential terms move a pixel by a
 /// few pixels at most, and at the default 0.5 px this shot determines them to ±0.0005–0.0012
-/// only (as the report's standard deviations say). Measured: focal 0.14 % low, k1 −0.1589, p1
-/// 0.00185, p2 −0.00157, rotation max 0.012°, centre max 0.083 % of the path.
+/// only (as the report's standard deviations say). Measured: focal 0.38 % low (1.76 px
+/// standard deviation reported), k1 −0.1600, p1 0.00208, p2 −0.00167, rotation max 0.023°,
+/// centre max 0.13 % of the path. (Unweighted, as before the track weighting became the
+/// default: 0.14 %, 0.012°, 0.083 % — this seed is the unweighted adjustment's luckiest of six;
+/// `track_weighting_beats_the_unweighted_adjustment` compares the two over all six.)
 #[test]
 fn tangential_distortion_is_recovered() {
     let (k_true, solve, max_rot, max_c) =
@@ -376,12 +379,12 @@ fn tangential_distortion_is_recovered() {
     let crate::lens::Distortion::BrownConrady { k1, p1, p2, .. } = k.distortion else {
         panic!("solved {:?}", k.distortion)
     };
-    assert!((k.f1 / k_true.f1 - 1.0).abs() < 0.003, "focal {}", k.f1);
+    assert!((k.f1 / k_true.f1 - 1.0).abs() < 0.0075, "focal {}", k.f1);
     assert!((k1 + 0.16).abs() < 0.0025, "k1 {k1}");
     assert!((p1 - 0.002).abs() < 0.0003, "p1 {p1}");
     assert!((p2 + 0.0015).abs() < 0.0003, "p2 {p2}");
-    assert!(max_rot < 0.025, "rotation error {max_rot}°");
-    assert!(max_c < 0.0017, "centre error {max_c}");
+    assert!(max_rot < 0.045, "rotation error {max_rot}°");
+    assert!(max_c < 0.0026, "centre error {max_c}");
 }
 
 /// `principal_point: refine` moves the principal point towards the truth (12 px right, 8 px
@@ -823,4 +826,82 @@ fn a_zoom_with_a_held_focal_or_a_lens_to_solve_is_refused() {
         .to_string();
         assert!(e.contains(expect), "{e}");
     }
+}
+
+/// The global adjustment's track weighting (`track_weighting`, on by default) against the
+/// unweighted adjustment over six seeded synthetic shots through a lens (0.1 px noise, 5 %
+/// drifting tracks, focal length and Brown–Conrady lens unknown, as
+/// [`tangential_distortion_is_recovered`]): one shot can favour either (seed 1 does the
+/// unweighted), the mean does not. Measured: mean |focal error| 0.18 % weighted against 0.36 %
+/// unweighted, mean worst rotation 0.015° against 0.041° (0.37×); at 0.5 px noise (not run
+/// here) 0.57 % against 0.85 % and 0.062° against 0.085°.
+#[test]
+fn track_weighting_beats_the_unweighted_adjustment() {
+    let lens = crate::lens::Distortion::BrownConrady {
+        k1: -0.16,
+        k2: 0.045,
+        k3: 0.0,
+        p1: 0.002,
+        p2: -0.0015,
+    };
+    let lens_options = LensOptions {
+        focal: FocalMode::Unknown,
+        distortion: DistortionMode::Brown,
+        ..LensOptions::default()
+    };
+    // (mean |focal error|, mean worst rotation) unweighted, then weighted.
+    let mut sums = [[0.0f64; 2]; 2];
+    let seeds = 1..=6u64;
+    for seed in seeds.clone() {
+        let shot = synthetic_shot(&ShotOptions {
+            frames: 60,
+            outlier_fraction: 0.05,
+            noise: 0.1,
+            seed,
+            ..ShotOptions::default()
+        });
+        let k_true = shot.k.clone().with_size(1280, 720).with_distortion(lens);
+        let mut tracks = shot.tracks.clone();
+        for p in tracks.tracks.iter_mut().flat_map(|t| t.points.iter_mut()) {
+            let q = k_true
+                .distort_pixel(&nalgebra::Point2::new(p[0], p[1]))
+                .unwrap();
+            *p = [q.x, q.y];
+        }
+        let start = Intrinsics::new(1000.0, 1000.0, shot.k.u0, shot.k.v0).with_size(1280, 720);
+        for (i, weighted) in [false, true].into_iter().enumerate() {
+            let mut options = MatchmoveOptions::default();
+            options.global.as_mut().unwrap().track_weighting = weighted;
+            let solve =
+                matchmove_with_lens(&tracks, &start, &lens_options, &options, &|_, _, _| {})
+                    .unwrap();
+            let est: Vec<Pose> = solve.path.frames.iter().map(|f| f.pose.clone()).collect();
+            let (rot, _) = aligned_errors(&est, &shot.truth);
+            let f = solve.path.intrinsics.clone().unwrap().f1;
+            let max_rot = rot.iter().cloned().fold(0.0, f64::max);
+            eprintln!(
+                "seed {seed}, weighted {weighted}: focal {f:.2} (1100), rotation max {max_rot:.4}°"
+            );
+            sums[i][0] += (f / k_true.f1 - 1.0).abs();
+            sums[i][1] += max_rot;
+        }
+    }
+    let n = seeds.count() as f64;
+    let [unweighted, weighted] = sums.map(|s| s.map(|v| v / n));
+    eprintln!(
+        "mean |focal error| {:.3} % weighted, {:.3} % unweighted; mean worst rotation {:.4}° \
+         weighted, {:.4}° unweighted",
+        100.0 * weighted[0],
+        100.0 * unweighted[0],
+        weighted[1],
+        unweighted[1]
+    );
+    assert!(
+        weighted[0] < 0.75 * unweighted[0],
+        "focal: {weighted:?} vs {unweighted:?}"
+    );
+    assert!(
+        weighted[1] < 0.6 * unweighted[1],
+        "rotation: {weighted:?} vs {unweighted:?}"
+    );
 }

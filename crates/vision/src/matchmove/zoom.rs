@@ -270,7 +270,8 @@ fn zoom_adjust(
     options: &super::global::GlobalOptions,
     sigma: f64,
 ) -> Result<(super::Poses, super::TrackPoints, Vec<f64>)> {
-    use super::global::{track_weights, triangulate_all};
+    use super::global::triangulate_all;
+    use super::track_weights::track_weights;
     options.check().map_err(VisionError::InvalidInput)?;
     let k_ref = with_focal(k, f_ref);
     let mut focals = focals.to_vec();
