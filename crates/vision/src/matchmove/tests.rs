@@ -240,9 +240,11 @@ fn distorted_shot(lens: crate::lens::Distortion) -> (super::synthetic::Synthetic
 
 /// An unknown focal length and Brown–Conrady k1, k2 are recovered from the tracks alone (the
 /// image size and principal point known): the synthetic shot (0.5 px noise, 5 % drifting tracks)
-/// through a strong barrel lens (≈ 40 px at the corners). Measured: focal 0.52 % high, k1 within
-/// 0.0014, k2 within 0.003, rotation max 0.026°, centre max 0.25 % of the path. The focal error
-/// is the noise's (0.04 % at 0.05 px, 0.34 % at 0.25 px): this shot constrains f weakly.
+/// through a strong barrel lens (≈ 40 px at the corners). Measured (the track weighting on, the
+/// default): focal 0.10 % high, k1 within 0.0018, k2 within 0.0034, rotation max 0.029°, centre
+/// max 0.15 % of the path. Unweighted (before it was the default): focal 0.52 % high, k1 within
+/// 0.0014, rotation 0.026°, centre 0.25 %, the focal error the noise's (0.04 % at 0.05 px,
+/// 0.34 % at 0.25 px): this shot constrains f weakly.
 #[test]
 fn unknown_focal_and_radial_distortion_are_recovered() {
     let lens = crate::lens::Distortion::BrownConrady {
@@ -285,11 +287,11 @@ fn unknown_focal_and_radial_distortion_are_recovered() {
         100.0 * max_c,
         solve.report.notes
     );
-    assert!(f_err < 0.01, "focal {} vs {}", k.f1, k_true.f1);
+    assert!(f_err < 0.0025, "focal {} vs {}", k.f1, k_true.f1);
     assert!((k1 + 0.16).abs() < 0.003, "k1 {k1}");
     assert!((k2 - 0.045).abs() < 0.006, "k2 {k2}");
     assert!(max_rot < 0.06, "rotation error {max_rot}°");
-    assert!(max_c < 0.005, "centre error {max_c}");
+    assert!(max_c < 0.003, "centre error {max_c}");
 }
 
 /// The synthetic shot through a Brown–Conrady lens with tangential terms (p1 = 0.002,
@@ -391,8 +393,8 @@ fn tangential_distortion_is_recovered() {
 /// up) and says how well the shot determines it: a hand-held shot constrains the principal
 /// point weakly (it trades with the rotations), so the test checks that every solved
 /// parameter is within 3 reported standard deviations of the truth — the estimate and its
-/// uncertainty agree. Measured: principal point (687.0, 340.0) for (651.5, 351.5), focal
-/// 1127 px for 1100, p1 0.0024, p2 −0.0001 for −0.0015: each within 3 of its reported
+/// uncertainty agree. Measured: principal point (671.6, 340.8) for (651.5, 351.5), focal
+/// 1111 px for 1100 (± 10.9), p1 0.0023, p2 −0.0003 for −0.0015: each within 3 of its reported
 /// standard deviations.
 #[test]
 fn a_refined_principal_point_agrees_with_its_reported_uncertainty() {
@@ -743,7 +745,7 @@ fn distortion_from_too_few_tracks_is_a_clear_error() {
 /// camera on a curved path (a zoom along a straight track or an orbit is not determined,
 /// [`super::zoom`]), 0.5 px noise and 5 % drifting tracks, solved with `zoom: true` and the
 /// focal length unknown (only the image size given). Measured: every frame's focal length
-/// within 0.19 % (the issue asks 1 %), rotation max 0.038°, centre max 0.21 % of the path.
+/// within 0.16 % (the issue asks 1 %), rotation max 0.038°, centre max 0.21 % of the path.
 #[test]
 fn a_zoom_is_solved_frame_by_frame() {
     let shot = synthetic_shot(&ShotOptions {
