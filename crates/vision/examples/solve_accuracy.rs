@@ -54,17 +54,15 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
                 if w.len() != 3 || g.len() != 3 {
                     return Err("points are x y z".into());
                 }
-                let q = sim.apply(&nalgebra::Point3::new(g[0], g[1], g[2]));
-                {
-                    let d = q - nalgebra::Point3::new(w[0], w[1], w[2]);
-                    Ok(format!(
-                        "{:.4} ({:.3} {:.3} {:.3})",
-                        d.norm(),
-                        d.x,
-                        d.y,
-                        d.z
-                    ))
-                }
+                let d = sim.apply(&nalgebra::Point3::new(g[0], g[1], g[2]))
+                    - nalgebra::Point3::new(w[0], w[1], w[2]);
+                Ok(format!(
+                    "{:.4} ({:.3} {:.3} {:.3})",
+                    d.norm(),
+                    d.x,
+                    d.y,
+                    d.z
+                ))
             })
             .collect::<Result<Vec<_>, Box<dyn std::error::Error>>>()?;
         points = format!(", \"point_errors\": [{}]", errors.join(", "));

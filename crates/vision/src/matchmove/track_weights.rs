@@ -115,7 +115,8 @@ pub fn residual_statistics(
     })
 }
 
-/// The weights of [`track_weights`] from the tracks' residual statistics.
+/// The weights of [`track_weights`] from the tracks' residual statistics (all 1 when no track
+/// has any).
 pub fn weights(stats: &[Option<TrackResiduals>]) -> Vec<f64> {
     let sigma: Vec<Option<f64>> = stats
         .iter()
@@ -124,7 +125,8 @@ pub fn weights(stats: &[Option<TrackResiduals>]) -> Vec<f64> {
     let mut sorted: Vec<f64> = sigma.iter().flatten().copied().collect();
     sorted.sort_by(f64::total_cmp);
     let Some(&reference) = sorted.get(sorted.len() / 2) else {
-        return vec![0.0; stats.len()];
+        // No track to measure: the unweighted adjustment (as before the weighting).
+        return vec![1.0; stats.len()];
     };
     stats
         .iter()
