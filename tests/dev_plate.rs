@@ -5,18 +5,19 @@
 //! renderer's own (`cameras_gt.json`) after the similarity that aligns a solve with the truth.
 //!
 //! Measured (release, this commit; the default feature count from the frame size, 400): every
-//! frame solved, rotation max 0.016°, centre max 0.094 % of the 1.38 m path — COLMAP's figures
-//! on this plate are 0.056–0.094°, 0.16–0.19 % (`scripts/bench/matchmove_vs_colmap.py`).
-//! Without the global adjustment's track weighting (`track_weighting: false`) 0.059°, 0.32 %.
-//! Before the noise-adaptive defaults the same graph kept 3 of 150 features by frame 8 and
-//! failed. Bounds: about 2× the figures.
+//! frame solved, rotation max 0.012°, centre max 0.051 % of the 1.38 m path — COLMAP's figures
+//! on this plate are 0.051–0.094°, 0.16–0.19 % (`scripts/bench/matchmove_vs_colmap.py`).
+//! Before the tracker ended the tracks whose drift correction fails, 0.016°, 0.094 %; without
+//! the global adjustment's track weighting as well, 0.059°, 0.32 %. Before the noise-adaptive
+//! defaults the same graph kept 3 of 150 features by frame 8 and failed. Bounds: about 2× the
+//! figures.
 
 mod common;
 
 use vfxgraph_vision::formats::{read_json, CameraPath};
 
-const ROTATION_BOUND_DEG: f64 = 0.032;
-const CENTRE_BOUND: f64 = 0.0019;
+const ROTATION_BOUND_DEG: f64 = 0.025;
+const CENTRE_BOUND: f64 = 0.0014;
 
 #[test]
 fn the_default_graph_solves_the_grainy_blender_plate() {
@@ -56,13 +57,13 @@ fn the_default_graph_solves_the_grainy_blender_plate() {
 /// (`focal: unknown, distortion: k1k2`), against the renderer's cameras and lens (f = 920 px,
 /// k1 = −0.16).
 ///
-/// Measured (this commit, the default 400 features): focal 919.18 px (−0.09 %), k1 −0.1645,
-/// k2 0.056, rotation max 0.092°, centre max 0.19 % of the path — the goals (0.5 %,
+/// Measured (this commit, the default 400 features): focal 921.5 px (+0.16 %), k1 −0.1642,
+/// k2 0.057, rotation max 0.034°, centre max 0.085 % of the path — the goals (0.5 %,
 /// 0.01, 0.1°, 0.5 %) are met. The rotation errors bend smoothly along the path with the lens's
 /// remaining error (its tangential terms are not solved by `k1k2`; given the true lens the same
-/// tracks solve to 0.042°). Without the track weighting: 917.2 px, −0.171, 0.24°, 0.49 %.
-/// Bounds: the focal, k1 and rotation goals (the last 1.09× the figure), 2× the
-/// centre error.
+/// tracks solve to 0.013°). Before the tracker ended the tracks whose drift correction fails:
+/// 919.2 px, −0.164, 0.092°, 0.19 %; without the track weighting as well, 917.2 px, −0.171,
+/// 0.24°, 0.49 %. Bounds: the focal and k1 goals, 2× the rotation and centre errors.
 #[test]
 fn an_unknown_lens_is_solved_from_the_distorted_plate() {
     let tmp = tempfile::tempdir().unwrap();
@@ -93,6 +94,6 @@ fn an_unknown_lens_is_solved_from_the_distorted_plate() {
     );
     assert!(f_err.abs() < 0.005, "focal {}", k.f1);
     assert!((k1 + 0.16).abs() < 0.01, "k1 {k1}");
-    assert!(max_rot < 0.1, "rotation errors (°): {rot:?}");
-    assert!(max_cen < 0.0039, "centre errors (m): {cen:?}");
+    assert!(max_rot < 0.067, "rotation errors (°): {rot:?}");
+    assert!(max_cen < 0.0024, "centre errors (m): {cen:?}");
 }

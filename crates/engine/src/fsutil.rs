@@ -17,7 +17,9 @@ use serde::{Deserialize, Serialize};
 
 use crate::artifact::Digest;
 
-pub use vfxgraph_fsutil::{atomic_write, atomic_write_parts, unique_token};
+pub use vfxgraph_fsutil::{
+    atomic_write, atomic_write_parts, atomic_write_parts_unsynced, unique_token,
+};
 
 /// Digest of a file's content (blake3 of the bytes, with a prefix so it differs from artifact
 /// digests).
@@ -88,8 +90,9 @@ impl FileHasher {
     fn remember(&self, entry: MemoEntry) {
         if let Some(p) = self.entry_path(&entry.path) {
             if let Ok(bytes) = serde_json::to_vec(&entry) {
-                // A failure only costs re-hashing later.
-                let _ = atomic_write(&p, &bytes);
+                // A failure only costs re-hashing later; unsynced, as the cache's other files
+                // (a damaged entry fails to parse and is re-hashed).
+                let _ = atomic_write_parts_unsynced(&p, &[&bytes], None);
             }
         }
         self.memo

@@ -13,7 +13,10 @@
 //!
 //! Every write is a temporary file renamed into place, and an action is written only after all
 //! its objects, so a crash (even SIGKILL) leaves either a complete entry or none. Reads verify
-//! the object's digest; a mismatch is treated as a miss and the object removed.
+//! the object's digest; a mismatch is treated as a miss and the object removed. An action,
+//! record or memo entry that does not parse is a miss too — which is why the cache's writes
+//! skip the fsyncs of the project's other files (`atomic_write_parts_unsynced`): after a power
+//! loss a file written just before may be empty or garbage, and reads as absent.
 //!
 //! Many processes on many hosts may share one cache (NFS semantics: rename within a folder is
 //! atomic, no locks across hosts). No file is ever read, modified and written back: objects
@@ -30,7 +33,7 @@ use std::time::{Duration, SystemTime};
 use serde::{Deserialize, Serialize};
 
 use crate::artifact::{content_digest, Digest};
-use crate::fsutil::atomic_write_parts;
+use crate::fsutil::atomic_write_parts_unsynced;
 
 /// An object whose payload is stored as is.
 const OBJECT_MAGIC: &[u8; 5] = b"VFXO1";
@@ -161,9 +164,9 @@ impl Store {
 
     /// Writes `bytes` to `dest` with the one atomic writer, its temporary in `tmp/` (swept by
     /// [`Store::open`], never seen by the listings); on any failure (a full disk) the temporary
-    /// is removed and the error names `dest`.
+    /// is removed and the error names `dest`. Not fsynced: every read verifies (module docs).
     fn write_atomic(&self, dest: &Path, bytes: &[&[u8]]) -> io::Result<()> {
-        atomic_write_parts(dest, bytes, Some(&self.root.join("tmp")))
+        atomic_write_parts_unsynced(dest, bytes, Some(&self.root.join("tmp")))
             .map_err(|e| io::Error::new(e.kind(), format!("cannot write {}: {e}", dest.display())))
     }
 

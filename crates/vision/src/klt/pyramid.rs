@@ -10,7 +10,7 @@
 //! a [`Pyramid`] samples the point `p / 2^l` of level 0 at the same place in the scene.
 
 use rayon::prelude::*;
-use vfxgraph_imaging::color::{linear_to_srgb, luminance};
+use vfxgraph_imaging::color::{luminance, SrgbEncoder};
 use vfxgraph_imaging::Image;
 
 use super::KltError;
@@ -65,6 +65,7 @@ impl GrayImage {
         let (w, ch, cc) = (img.width, img.channels.max(1), img.color_channels());
         let mut data = vec![0.0f32; img.width * img.height];
         if w > 0 {
+            let srgb = SrgbEncoder::get();
             // One pass per row: the luminance of `Image::luminance`, then the curve.
             data.par_chunks_mut(w)
                 .zip(img.data.par_chunks(w * ch))
@@ -76,7 +77,7 @@ impl GrayImage {
                             p[0]
                         };
                         let v = if v.is_finite() { v } else { 0.0 };
-                        *o = 255.0 * linear_to_srgb(v.clamp(0.0, 1.0));
+                        *o = 255.0 * srgb.encode(v);
                     }
                 });
         }

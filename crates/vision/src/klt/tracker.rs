@@ -8,7 +8,7 @@
 //! does not depend on the number of threads.
 
 use super::corners::{good_features_to_track, CornerParams};
-use super::drift::Template;
+use super::drift::{AlignFailure, Template};
 use super::lucas_kanade::{track_points, LkParams};
 use super::pyramid::{GrayImage, Pyramid};
 use super::tracks::{LostReason, Tracks};
@@ -62,13 +62,14 @@ pub struct TrackerParams {
     /// (6.1).
     #[param(range = 0.0..=10_000.0)]
     pub border: f32,
-    /// re-align each step to the feature's first window and keep that position when it moves
-    /// less than this many pixels (no drift along long tracks); 0 = off, the book's
-    /// frame-to-frame tracker
+    /// re-align each step to the feature's first window; a feature that moves more than this
+    /// many pixels is lost (no drift along long tracks); 0 = off, the book's frame-to-frame
+    /// tracker
     ///
     /// Drift correction ([`super::drift`]): each step's position is re-aligned to the
-    /// feature's first window and moved when that moves it less than this many pixels
-    /// (`None`: frame-to-frame only, the book's tracker).
+    /// feature's first window and moved there when that moves it less than this many pixels;
+    /// otherwise the window no longer looks like the feature and the track is lost
+    /// ([`LostReason::Drift`]). `None`: frame-to-frame only, the book's tracker.
     #[param(range = 0.0..=1e3)]
     pub drift_correction: Option<f32>,
 }
@@ -333,12 +334,23 @@ impl Tracker {
                         if r.lost.is_some() {
                             return None;
                         }
-                        let (q, residual, warp) = t.align(drift_img, r.pos, 20)?;
-                        let moved = (q[0] - r.pos[0]).hypot(q[1] - r.pos[1]);
-                        (moved < bound && residual <= max_residual).then(|| {
-                            r.pos = q;
-                            (k, warp)
-                        })
+                        // A window the template no longer aligns to within the bound has
+                        // lost its feature (module `drift`): the track ends. One at the
+                        // image's edge cannot be aligned, and keeps its frame-to-frame step.
+                        match t.align(drift_img, r.pos, 20) {
+                            Ok((q, residual, warp))
+                                if (q[0] - r.pos[0]).hypot(q[1] - r.pos[1]) < bound
+                                    && residual <= max_residual =>
+                            {
+                                r.pos = q;
+                                Some((k, warp))
+                            }
+                            Err(AlignFailure::LeftImage) => None,
+                            _ => {
+                                r.lost = Some(LostReason::Drift);
+                                None
+                            }
+                        }
                     })
                     .collect();
                 // Each accepted template updates itself (and, for its first frames, averages

@@ -29,6 +29,9 @@ pub enum LostReason {
     Residual,
     /// Tracking back did not return to the start (forward–backward check).
     ForwardBackward,
+    /// The drift correction could not align the feature's first window within its bound: the
+    /// window no longer looks like the feature (Shi & Tomasi's feature monitoring).
+    Drift,
     /// Read from a file that does not say (the book's format).
     Unknown,
 }
@@ -41,6 +44,7 @@ impl LostReason {
             LostReason::Singular => "singular",
             LostReason::Residual => "residual",
             LostReason::ForwardBackward => "forward_backward",
+            LostReason::Drift => "drift",
             LostReason::Unknown => "unknown",
         }
     }
