@@ -241,10 +241,12 @@ fn distorted_shot(lens: crate::lens::Distortion) -> (super::synthetic::Synthetic
 /// An unknown focal length and Brown–Conrady k1, k2 are recovered from the tracks alone (the
 /// image size and principal point known): the synthetic shot (0.5 px noise, 5 % drifting tracks)
 /// through a strong barrel lens (≈ 40 px at the corners). Measured (the track weighting on, the
-/// default): focal 0.10 % high, k1 within 0.0018, k2 within 0.0034, rotation max 0.029°, centre
-/// max 0.15 % of the path. Unweighted (before it was the default): focal 0.52 % high, k1 within
-/// 0.0014, rotation 0.026°, centre 0.25 %, the focal error the noise's (0.04 % at 0.05 px,
-/// 0.34 % at 0.25 px): this shot constrains f weakly.
+/// default; the focal search over 12 frames): focal 0.005 % high, k1 within 0.0022, k2 within
+/// 0.0037, rotation max 0.038°, centre max 0.15 % of the path; with the search over 16 frames
+/// 0.10 %, 0.0018, 0.0034, 0.029°, 0.15 %. Unweighted (before it was the default): focal 0.52 %
+/// high, k1 within 0.0014, rotation 0.026°, centre 0.25 %, the focal error the noise's (0.04 % at
+/// 0.05 px, 0.34 % at 0.25 px): this shot constrains f weakly, so the focal bound (0.25 %) is
+/// the noise's scale, not 2× today's 0.005 %.
 #[test]
 fn unknown_focal_and_radial_distortion_are_recovered() {
     let lens = crate::lens::Distortion::BrownConrady {
