@@ -1,8 +1,9 @@
 //! The whole-sequence KLT tracker (book 6.2–6.5; the book's chapter 6.7 program): Shi–Tomasi
 //! corners in the first frame, pyramidal Lucas–Kanade from each frame to the next, disposal
 //! of windows that leave the image, become singular, or whose residual exceeds a threshold
-//! (and, optionally, that fail a forward–backward check), and replacement of each lost
-//! feature by a new corner that keeps the minimum distance to the live ones.
+//! (and, optionally, that fail a forward–backward check or whose drift correction no longer
+//! aligns them, module `drift`), and replacement of each lost feature by a new corner that
+//! keeps the minimum distance to the live ones.
 //!
 //! Pyramids are built once per frame; features are tracked in parallel (rayon). The result
 //! does not depend on the number of threads.
