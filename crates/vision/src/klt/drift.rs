@@ -21,10 +21,10 @@
 //! pixels over dozens of frames, smoothly enough to pass every frame-to-frame test. On the
 //! Blender dev plate (400 features, pinhole; `examples/track_accuracy.rs`) keeping them left
 //! 187 of 816 tracks over 1 px RMS against the true cameras (median 0.62 px); ending them,
-//! 13 of 738 (median 0.32 px), and the solves' worst rotation error fell from 0.016° to 0.013°
-//! (K given) and from 0.092° to 0.037° (lens unknown, distorted plate). Most of the ended
+//! 17 of 747 (median 0.32 px), and the solves' worst rotation error fell from 0.016° to 0.012°
+//! (K given) and from 0.092° to 0.034° (lens unknown, distorted plate). Most of the ended
 //! tracks are new corners that fail in their first or second frame (edges and grain that the
-//! corner detector picks again); the tracks seen ≥ 5 frames fell from 816 to 738.
+//! corner detector picks again); the tracks seen ≥ 5 frames fell from 816 to 747.
 //!
 //! Grainy footage (a render at few samples, high-ISO video) needs three more things, measured
 //! on the Blender dev plate (σ ≈ 10 gray levels) with `examples/track_accuracy.rs`, which
