@@ -3,18 +3,22 @@
 //! homologous points seen by two views with known K.
 
 pub mod essential;
+pub mod five_point;
 pub mod fundamental;
 pub mod homography;
+pub mod homography_pose;
 pub mod triangulation;
 
 pub use essential::{
     choose_pose, decompose_essential, essential_from_fundamental, fundamental_from_pose,
 };
+pub use five_point::essential_five_point;
 pub use fundamental::{
     algebraic_error, enforce_rank2, fundamental_8point, fundamental_8point_unnormalized,
     sampson_distance, EpipolarResidual, FundamentalEstimator,
 };
 pub use homography::{homography_dlt, HomographyEstimator};
+pub use homography_pose::{decompose_homography, PlanarMotion};
 pub use triangulation::{
     parallax_angle, triangulate, triangulate_linear, triangulate_linear_n, triangulate_nonlinear,
 };
