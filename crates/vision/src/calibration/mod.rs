@@ -4,12 +4,14 @@
 
 pub mod dlt;
 pub mod factor;
+pub mod p3p;
 pub mod resection;
 pub mod restricted;
 pub mod tsai;
 
 pub use dlt::{dlt, dlt_unnormalized};
 pub use factor::factor_camera;
+pub use p3p::{p3p, resect_p3p, P3pEstimator};
 pub use resection::{
     refine_known_k, resect_known_k, resect_ransac, DltEstimator, PoseEstimate, Resection,
 };
