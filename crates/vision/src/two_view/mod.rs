@@ -2,6 +2,7 @@
 //! relative pose, triangulation, and [`reconstruct_two_view`], which reconstructs a set of
 //! homologous points seen by two views with known K.
 
+pub mod calibrated;
 pub mod essential;
 pub mod five_point;
 pub mod fundamental;
@@ -9,6 +10,9 @@ pub mod homography;
 pub mod homography_pose;
 pub mod triangulation;
 
+pub use calibrated::{
+    relative_pose_calibrated, CalibratedOptions, CalibratedTwoView, RelativePose, StartModel,
+};
 pub use essential::{
     choose_pose, decompose_essential, essential_from_fundamental, fundamental_from_pose,
 };
