@@ -14,9 +14,10 @@ use rand_pcg::Pcg64;
 use serde::{Deserialize, Serialize};
 
 use super::fragments::Fragment;
-use super::pair::{best_pair, PairOptions};
+use super::pair::{best_pair, InitMethod, PairOptions, PairRejections};
 use super::{bundle_adjust_indexed, reprojection_error, through, triangulate_views};
-use crate::calibration::resect_known_k;
+use crate::calibration::{resect_known_k, resect_p3p};
+use crate::two_view::StartModel;
 use vfxgraph_params::Options;
 
 use crate::camera::{Intrinsics, Pose};
@@ -71,6 +72,10 @@ pub struct FragmentReport {
     pub inliers: usize,
     /// The best pair's frame numbers.
     pub pair: (i64, i64),
+    /// The model the best pair's motion came from (E, H, or the book's F).
+    pub start: StartModel,
+    /// Candidate motions not kept, by reason.
+    pub rejections: PairRejections,
     /// Its inliers.
     pub pair_inliers: usize,
     /// Candidate pairs evaluated, and how many failed the intrinsics test.
@@ -158,8 +163,13 @@ pub fn solve_fragment(
     let n = tracks.frames.len();
     let mut poses: Vec<Option<Pose>> = vec![None; n];
     let p3: Vec<Point3<f64>> = best.points.iter().map(|(_, x)| Point3::from(*x)).collect();
+    let calibrated = pair.init == InitMethod::Calibrated;
     let resection = RansacParams {
-        threshold: pair.resection_tolerance,
+        threshold: if calibrated {
+            pair.pnp_tolerance
+        } else {
+            pair.resection_tolerance
+        },
         max_iterations: 500,
         ..RansacParams::default()
     };
@@ -178,7 +188,12 @@ pub fn solve_fragment(
                 Point2::new(o[0], o[1])
             })
             .collect();
-        let est = resect_known_k(&p3, &p2, k, &resection, &mut rng).map_err(|e| {
+        let est = if calibrated {
+            resect_p3p(&p3, &p2, k, &resection, &mut rng)
+        } else {
+            resect_known_k(&p3, &p2, k, &resection, &mut rng)
+        };
+        let est = est.map_err(|e| {
             VisionError::Degenerate(format!(
                 "{}: resection of frame {} failed: {e}",
                 describe(),
@@ -236,6 +251,8 @@ pub fn solve_fragment(
             features: frag.features.len(),
             inliers,
             pair: (tracks.frames[best.pair.0], tracks.frames[best.pair.1]),
+            start: best.model,
+            rejections: best.rejections.clone(),
             pair_inliers: best.points.len(),
             candidates: best.candidates,
             rejected_by_k: best.rejected_k,

@@ -20,6 +20,7 @@
 //! [`MatchmoveOptions`] with the book's value as default.
 
 pub mod adjust;
+pub mod corpus;
 pub mod extend;
 pub mod fragment;
 pub mod fragments;
@@ -60,7 +61,7 @@ pub use lens_solve::{
     estimate_focal, matchmove_with_lens, undistort_tracks, DistortionMode, FocalMode, LensOptions,
     PrincipalPoint,
 };
-pub use pair::PairOptions;
+pub use pair::{InitMethod, PairOptions, PairRejections};
 pub use relax::{relax, RelaxOptions};
 pub use report::{SolveReport, StageTime};
 pub use score::{score_cameras, BookScore};

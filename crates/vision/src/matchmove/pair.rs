@@ -27,17 +27,39 @@ use super::fragments::{mean_displacement, Fragment};
 use super::{derive_seed, through};
 use vfxgraph_params::Options;
 
-use crate::calibration::{factor_camera, refine_known_k, resect_ransac};
+use crate::calibration::{factor_camera, refine_known_k, resect_ransac, P3pEstimator};
 use crate::camera::Intrinsics;
 use crate::error::{Result, VisionError};
 use crate::klt::Tracks;
-use crate::ransac::RansacParams;
-use crate::two_view::{reconstruct_two_view, EpipolarResidual, TwoViewOptions};
+use crate::ransac::{ransac, RansacParams};
+use crate::two_view::{
+    reconstruct_two_view, relative_pose_calibrated, CalibratedOptions, EpipolarResidual,
+    StartModel, TwoViewOptions,
+};
+
+/// How a fragment's reconstruction starts.
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default, vfxgraph_params::Choice,
+)]
+#[serde(rename_all = "lowercase")]
+pub enum InitMethod {
+    /// With K known: the five-point E or the homography's motions for the pair
+    /// ([`relative_pose_calibrated`]), P3P for every frame ([`P3pEstimator`]); sound on planar
+    /// sets.
+    #[default]
+    Calibrated,
+    /// The book's: the 8-point F, E = KᵀFK (§7.2), the 6-point DLT for every frame and the
+    /// intrinsics-consistency test (§7.3–7.6). Degenerate on planar sets.
+    Book,
+}
 
 /// The best-pair search's constants.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Options)]
 #[serde(default)]
 pub struct PairOptions {
+    /// how a fragment's reconstruction starts: calibrated (5-point E or H, P3P) or the book's
+    /// (8-point F, 6-point DLT)
+    pub init: InitMethod,
     /// candidate pairs moved more than this on average, px (§7.2)
     ///
     /// Book: 4.
@@ -61,6 +83,9 @@ pub struct PairOptions {
     /// Book: 15.
     #[param(range = 1e-3..=1e4)]
     pub resection_tolerance: f64,
+    /// resection RANSAC threshold of the calibrated start (P3P), px
+    #[param(range = 1e-3..=1e4)]
+    pub pnp_tolerance: f64,
     /// intrinsics-consistency test: largest entry difference of a frame's DLT K' from K
     ///
     /// Book: 100.
@@ -85,6 +110,8 @@ pub struct PairOptions {
 impl Default for PairOptions {
     fn default() -> Self {
         PairOptions {
+            init: InitMethod::Calibrated,
+            pnp_tolerance: 4.0,
             min_displacement: 4.0,
             stride: 6,
             epipolar_threshold: 1.5,
@@ -98,11 +125,28 @@ impl Default for PairOptions {
     }
 }
 
+/// Why candidate pairs were not kept, by reason (a fragment's report).
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct PairRejections {
+    /// No two-view reconstruction (too few consistent matches).
+    pub two_view: usize,
+    /// No parallax: a rotation about the camera centre explains the pair.
+    pub zero_baseline: usize,
+    /// The book's start: a frame's DLT camera failed the intrinsics-consistency test.
+    pub intrinsics: usize,
+    /// Too few features stayed inliers through every frame of the fragment.
+    pub too_few: usize,
+    /// Could no longer beat the best pair (not resected further).
+    pub beaten: usize,
+}
+
 /// The winning pair and its seed reconstruction.
 #[derive(Clone, Debug)]
 pub struct BestPair {
     /// Frame indices (into `Tracks::frames`) of the pair.
     pub pair: (usize, usize),
+    /// The model the pair's motion came from.
+    pub model: StartModel,
     /// Inlier features (indices into `Fragment::features`) and their 3D points, in the frame
     /// of camera i (which is [I|0]); camera j has a unit baseline.
     pub points: Vec<(usize, Vector3<f64>)>,
@@ -111,6 +155,8 @@ pub struct BestPair {
     /// Pairs rejected by the intrinsics-consistency test, of those whose frames were resected
     /// (a pair that could no longer beat the best is not resected further).
     pub rejected_k: usize,
+    /// Candidate motions not kept, by reason (a planar pair may give two motions).
+    pub rejections: PairRejections,
 }
 
 /// Why a pair was not kept.
@@ -127,6 +173,7 @@ enum PairFailure {
 struct TwoViewSeed {
     feats: Vec<usize>,
     p3: Vec<Point3<f64>>,
+    model: StartModel,
     rng: Pcg64,
 }
 
@@ -138,7 +185,8 @@ fn beaten(count: usize, n: usize, bound: Bound) -> bool {
     bound.is_some_and(|(best, at)| count < best || (count == best && n > at))
 }
 
-/// Stage one of a pair: the two-view reconstruction, or why it failed.
+/// Stage one of a pair: its two-view reconstructions (one, or two motions of a planar pair
+/// for the frames to tell apart), or why it failed.
 fn two_view_stage(
     k: &Intrinsics,
     frag: &Fragment,
@@ -147,7 +195,7 @@ fn two_view_stage(
     j: usize,
     options: &PairOptions,
     seed: u64,
-) -> std::result::Result<TwoViewSeed, PairFailure> {
+) -> std::result::Result<Vec<TwoViewSeed>, PairFailure> {
     let mut rng = Pcg64::seed_from_u64(seed);
     let (li, lj) = (i - frag.first, j - frag.first);
     let a: Vec<Point2<f64>> = obs
@@ -158,13 +206,39 @@ fn two_view_stage(
         .iter()
         .map(|o| Point2::new(o[lj][0], o[lj][1]))
         .collect();
+    let ransac = RansacParams {
+        threshold: options.epipolar_threshold,
+        max_iterations: options.ransac_iterations.max(1),
+        min_iterations: 20.min(options.ransac_iterations.max(1)),
+        ..RansacParams::default()
+    };
+    if options.init == InitMethod::Calibrated {
+        let calibrated = CalibratedOptions {
+            ransac: RansacParams {
+                local_optimization: true,
+                ..ransac
+            },
+            min_inliers: options.min_inliers.max(6),
+            ..CalibratedOptions::default()
+        };
+        let rec =
+            relative_pose_calibrated(&a, &b, k, &calibrated, options.min_parallax_deg, &mut rng)
+                .map_err(PairFailure::TwoView)?;
+        let seeds: Vec<TwoViewSeed> = rec
+            .candidates
+            .into_iter()
+            .enumerate()
+            .map(|(c, cand)| TwoViewSeed {
+                feats: cand.inliers,
+                p3: cand.points.into_iter().map(Point3::from).collect(),
+                model: cand.model,
+                rng: Pcg64::seed_from_u64(derive_seed(seed, 11, c as u64)),
+            })
+            .collect();
+        return Ok(seeds);
+    }
     let two_view = TwoViewOptions {
-        ransac: RansacParams {
-            threshold: options.epipolar_threshold,
-            max_iterations: options.ransac_iterations.max(1),
-            min_iterations: 20.min(options.ransac_iterations.max(1)),
-            ..RansacParams::default()
-        },
+        ransac,
         residual: EpipolarResidual::Sampson,
         refine_pose: true,
         refine_points: true,
@@ -181,7 +255,12 @@ fn two_view_stage(
     if feats.len() < options.min_inliers.max(6) {
         return Err(PairFailure::TooFew);
     }
-    Ok(TwoViewSeed { feats, p3, rng })
+    Ok(vec![TwoViewSeed {
+        feats,
+        p3,
+        model: StartModel::Fundamental,
+        rng,
+    }])
 }
 
 /// Stage two of pair `n`: every frame of the fragment resected from its points; its inlier
@@ -197,8 +276,19 @@ fn resection_stage(
     n: usize,
     bound: Bound,
 ) -> std::result::Result<Vec<(usize, Vector3<f64>)>, PairFailure> {
-    let TwoViewSeed { feats, p3, mut rng } = seed;
+    let TwoViewSeed {
+        feats, p3, mut rng, ..
+    } = seed;
     let mut inlier = vec![true; feats.len()];
+    let pnp = P3pEstimator::new(k);
+    let pnp_params = RansacParams {
+        threshold: options.pnp_tolerance,
+        max_iterations: 200,
+        min_iterations: 10,
+        refit_rounds: 1,
+        local_optimization: false,
+        ..RansacParams::default()
+    };
     let res_params = RansacParams {
         threshold: options.resection_tolerance,
         max_iterations: 200,
@@ -214,6 +304,22 @@ fn resection_stage(
             .iter()
             .map(|&q| Point2::new(obs[q][lf][0], obs[q][lf][1]))
             .collect();
+        if options.init == InitMethod::Calibrated {
+            let data: Vec<_> = p3.iter().copied().zip(p2.iter().copied()).collect();
+            let res =
+                ransac(&pnp, &data, &pnp_params, &mut rng).map_err(|_| PairFailure::TooFew)?;
+            for (flag, r) in inlier.iter_mut().zip(&res.inliers) {
+                *flag &= *r;
+            }
+            let count = inlier.iter().filter(|&&x| x).count();
+            if count < options.min_inliers {
+                return Err(PairFailure::TooFew);
+            }
+            if beaten(count, n, bound) {
+                return Err(PairFailure::Beaten);
+            }
+            continue;
+        }
         let res =
             resect_ransac(&p3, &p2, &res_params, &mut rng).map_err(|_| PairFailure::TooFew)?;
         let cam = factor_camera(&res.p).map_err(|_| PairFailure::IntrinsicsTest)?;
@@ -314,8 +420,12 @@ pub fn best_pair(
             options.min_displacement
         )));
     }
-    // Stage one, every pair: the two-view reconstructions.
-    let mut staged: Vec<(usize, std::result::Result<TwoViewSeed, PairFailure>)> = pairs
+    // Stage one, every pair: the two-view reconstructions. A pair may give more than one
+    // candidate motion (a planar pair's two): candidate `c` of pair `p` is numbered
+    // p·MAX_CANDIDATES + c, the order ties are broken in.
+    const MAX_CANDIDATES: usize = 4;
+    let mut rejections = PairRejections::default();
+    let stage_one: Vec<(usize, std::result::Result<Vec<TwoViewSeed>, PairFailure>)> = pairs
         .par_iter()
         .enumerate()
         .map(|(n, &(i, j))| {
@@ -323,60 +433,82 @@ pub fn best_pair(
             (n, s)
         })
         .collect();
-    // Stage two, the frames' resections, most two-view inliers first, a batch of pairs at a
-    // time: a pair's inliers only fall as its frames are resected, so one that starts (or
-    // falls) below the best finished pair's — or level with it and later in the order, as
-    // ties go to the earlier pair — cannot win and is dropped. The batches are fixed (not
-    // the thread count), so the winner — the pair with the most inliers after every frame,
-    // the earliest on ties — is the one evaluating every pair would find, on any machine.
+    let mut staged: Vec<(usize, TwoViewSeed)> = Vec::new();
+    for (n, r) in stage_one {
+        match r {
+            Ok(seeds) => staged.extend(
+                seeds
+                    .into_iter()
+                    .take(MAX_CANDIDATES)
+                    .enumerate()
+                    .map(|(c, s)| (n * MAX_CANDIDATES + c, s)),
+            ),
+            Err(PairFailure::TwoView(VisionError::ZeroBaseline)) => rejections.zero_baseline += 1,
+            Err(PairFailure::TooFew) => rejections.too_few += 1,
+            Err(_) => rejections.two_view += 1,
+        }
+    }
+    // Stage two, the frames' resections, most two-view inliers first, a batch of candidates
+    // at a time: a candidate's inliers only fall as its frames are resected, so one that
+    // starts (or falls) below the best finished one's — or level with it and later in the
+    // order, as ties go to the earlier — cannot win and is dropped. The batches are fixed
+    // (not the thread count), so the winner — the candidate with the most inliers after every
+    // frame, the earliest on ties — is the one evaluating every candidate would find, on any
+    // machine.
     const BATCH: usize = 4;
-    staged.sort_by_key(|(n, s)| {
-        (
-            std::cmp::Reverse(s.as_ref().map_or(0, |s| s.feats.len())),
-            *n,
-        )
-    });
+    staged.sort_by_key(|(n, s)| (std::cmp::Reverse(s.feats.len()), *n));
     type Seed = Vec<(usize, Vector3<f64>)>;
-    let mut best: Option<(usize, Seed)> = None;
-    let (mut zero_baseline, mut rejected_k) = (0usize, 0usize);
+    let mut best: Option<(usize, Seed, StartModel)> = None;
     let mut rest = staged.into_iter().peekable();
     while rest.peek().is_some() {
-        let bound: Bound = best.as_ref().map(|(n, p)| (p.len(), *n));
+        let bound: Bound = best.as_ref().map(|(n, p, _)| (p.len(), *n));
         let batch: Vec<_> = rest.by_ref().take(BATCH).collect();
-        let results: Vec<(usize, std::result::Result<Seed, PairFailure>)> = batch
+        let results: Vec<(usize, StartModel, std::result::Result<Seed, PairFailure>)> = batch
             .into_par_iter()
             .map(|(n, s)| {
-                let r = s.and_then(|s| {
-                    if beaten(s.feats.len(), n, bound) {
-                        return Err(PairFailure::Beaten);
-                    }
-                    resection_stage(k, frag, &obs, s, options, n, bound)
-                });
-                (n, r)
+                let model = s.model;
+                if beaten(s.feats.len(), n, bound) {
+                    return (n, model, Err(PairFailure::Beaten));
+                }
+                (
+                    n,
+                    model,
+                    resection_stage(k, frag, &obs, s, options, n, bound),
+                )
             })
             .collect();
-        for (n, r) in results {
+        for (n, model, r) in results {
             match r {
                 Ok(points) => {
                     if best
                         .as_ref()
                         .is_none_or(|b| !beaten(points.len(), n, Some((b.1.len(), b.0))))
                     {
-                        best = Some((n, points));
+                        if best.is_some() {
+                            rejections.beaten += 1;
+                        }
+                        best = Some((n, points, model));
+                    } else {
+                        rejections.beaten += 1;
                     }
                 }
-                Err(PairFailure::TwoView(VisionError::ZeroBaseline)) => zero_baseline += 1,
-                Err(PairFailure::IntrinsicsTest) => rejected_k += 1,
-                Err(_) => {}
+                Err(PairFailure::IntrinsicsTest) => rejections.intrinsics += 1,
+                Err(PairFailure::Beaten) => rejections.beaten += 1,
+                Err(PairFailure::TooFew) => rejections.too_few += 1,
+                Err(PairFailure::TwoView(_)) => rejections.two_view += 1,
             }
         }
     }
+    let rejected_k = rejections.intrinsics;
+    let zero_baseline = rejections.zero_baseline;
     match best {
-        Some((n, points)) => Ok(BestPair {
-            pair: pairs[n],
+        Some((n, points, model)) => Ok(BestPair {
+            pair: pairs[n / MAX_CANDIDATES],
+            model,
             points,
             candidates: pairs.len(),
             rejected_k,
+            rejections,
         }),
         None if zero_baseline * 2 >= pairs.len() => Err(VisionError::Degenerate(format!(
             "{}: no parallax — {} of {} frame pairs are explained by a rotation about the camera \
@@ -386,10 +518,14 @@ pub fn best_pair(
             pairs.len()
         ))),
         None => Err(VisionError::Degenerate(format!(
-            "{}: none of {} frame pairs gave a consistent reconstruction ({} failed the \
-             intrinsics test)",
+            "{}: none of {} frame pairs gave a consistent reconstruction (no two-view \
+             reconstruction: {}, no parallax: {}, too few features consistent through every \
+             frame: {}, intrinsics test: {})",
             describe(),
             pairs.len(),
+            rejections.two_view,
+            rejections.zero_baseline,
+            rejections.too_few,
             rejected_k
         ))),
     }

@@ -105,7 +105,6 @@ pub fn synthetic_shot(o: &ShotOptions) -> SyntheticShot {
         .map(|&f| Intrinsics::new(f, f, 639.5, 359.5).with_size(1280, 720))
         .collect();
     let k = ks[0].clone();
-    let (w, h) = (1280.0, 720.0);
     let truth: Vec<Pose> = (0..o.frames).map(|i| pose_at(i, o.frames, o)).collect();
     let scene: Vec<Vector3<f64>> = (0..6000)
         .map(|_| {
@@ -116,29 +115,76 @@ pub fn synthetic_shot(o: &ShotOptions) -> SyntheticShot {
             )
         })
         .collect();
-    let project = |f: usize, x: &Vector3<f64>| super::project(&ks[f], &truth[f], x);
+    let project = |f: usize, pi: usize| super::project(&ks[f], &truth[f], &scene[pi]);
+    let sim = TrackSim {
+        frames: o.frames,
+        slots: o.slots,
+        size: (1280.0, 720.0),
+        noise: o.noise,
+        outlier_fraction: o.outlier_fraction,
+        drift: o.drift,
+        mean_track_length: o.mean_track_length,
+    };
+    let (tracks, outliers) = simulate_tracks(&sim, scene.len(), &project, &mut rng);
+    SyntheticShot {
+        tracks,
+        k,
+        focals,
+        truth,
+        outliers,
+    }
+}
+
+/// How features are tracked in [`simulate_tracks`].
+#[derive(Clone, Debug)]
+pub struct TrackSim {
+    /// Frames.
+    pub frames: usize,
+    /// Feature slots per frame.
+    pub slots: usize,
+    /// Image width and height, pixels.
+    pub size: (f64, f64),
+    /// Pixel noise σ.
+    pub noise: f64,
+    /// Fraction of new tracks that drift (outliers).
+    pub outlier_fraction: f64,
+    /// Drift per frame of an outlier track, pixels (random walk σ).
+    pub drift: f64,
+    /// Mean track lifetime, frames (geometric).
+    pub mean_track_length: f64,
+}
+
+/// KLT-like tracks of `points` scene points (module docs) whose image in frame f is
+/// `project(f, point)` (`None`: not visible); returns the tracks and the outlier tracks' ids.
+pub fn simulate_tracks(
+    sim: &TrackSim,
+    points: usize,
+    project: &dyn Fn(usize, usize) -> Option<[f64; 2]>,
+    rng: &mut Pcg64,
+) -> (Tracks, Vec<u64>) {
+    let (w, h) = sim.size;
     let inside = |q: [f64; 2]| q[0] >= 8.0 && q[0] < w - 8.0 && q[1] >= 8.0 && q[1] < h - 8.0;
     // Live features: (track index, point index, drift, remaining life).
     type Live = (usize, usize, [f64; 2], usize);
-    let mut live: Vec<Option<Live>> = vec![None; o.slots];
+    let mut live: Vec<Option<Live>> = vec![None; sim.slots];
     let mut tracks: Vec<Track> = Vec::new();
     let mut outliers = Vec::new();
-    for f in 0..o.frames {
+    for f in 0..sim.frames {
         // Advance or lose live features.
-        for slot in 0..o.slots {
+        for slot in 0..sim.slots {
             let Some((ti, pi, mut drift, life)) = live[slot] else {
                 continue;
             };
-            let q = project(f, &scene[pi]);
+            let q = project(f, pi);
             let lost = match q {
                 Some(q) if inside(q) && life > 0 => {
                     if tracks[ti].points.len() > 1 && outliers.contains(&tracks[ti].id) {
-                        drift[0] += o.drift * gaussian(&mut rng);
-                        drift[1] += o.drift * gaussian(&mut rng);
+                        drift[0] += sim.drift * gaussian(rng);
+                        drift[1] += sim.drift * gaussian(rng);
                     }
                     tracks[ti].points.push([
-                        q[0] + drift[0] + o.noise * gaussian(&mut rng),
-                        q[1] + drift[1] + o.noise * gaussian(&mut rng),
+                        q[0] + drift[0] + sim.noise * gaussian(rng),
+                        q[1] + drift[1] + sim.noise * gaussian(rng),
                     ]);
                     live[slot] = Some((ti, pi, drift, life - 1));
                     None
@@ -161,13 +207,13 @@ pub fn synthetic_shot(o: &ShotOptions) -> SyntheticShot {
             .flatten()
             .map(|(ti, ..)| *tracks[*ti].points.last().unwrap())
             .collect();
-        for slot in 0..o.slots {
+        for slot in 0..sim.slots {
             if live[slot].is_some() {
                 continue;
             }
             for _ in 0..50 {
-                let pi = rng.random_range(0..scene.len());
-                let Some(q) = project(f, &scene[pi]) else {
+                let pi = rng.random_range(0..points);
+                let Some(q) = project(f, pi) else {
                     continue;
                 };
                 if !inside(q)
@@ -178,14 +224,14 @@ pub fn synthetic_shot(o: &ShotOptions) -> SyntheticShot {
                     continue;
                 }
                 let id = tracks.len() as u64;
-                if rng.random::<f64>() < o.outlier_fraction {
+                if rng.random::<f64>() < sim.outlier_fraction {
                     outliers.push(id);
                 }
                 let u: f64 = rng.random::<f64>().max(1e-9);
-                let life = (-u.ln() * o.mean_track_length) as usize + 2;
+                let life = (-u.ln() * sim.mean_track_length) as usize + 2;
                 let obs = [
-                    q[0] + o.noise * gaussian(&mut rng),
-                    q[1] + o.noise * gaussian(&mut rng),
+                    q[0] + sim.noise * gaussian(rng),
+                    q[1] + sim.noise * gaussian(rng),
                 ];
                 tracks.push(Track {
                     id,
@@ -200,15 +246,12 @@ pub fn synthetic_shot(o: &ShotOptions) -> SyntheticShot {
             }
         }
     }
-    SyntheticShot {
-        tracks: Tracks {
-            frames: (0..o.frames as i64).collect(),
-            slots: o.slots,
+    (
+        Tracks {
+            frames: (0..sim.frames as i64).collect(),
+            slots: sim.slots,
             tracks,
         },
-        k,
-        focals,
-        truth,
         outliers,
-    }
+    )
 }
