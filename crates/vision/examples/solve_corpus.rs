@@ -31,6 +31,7 @@ struct Outcome {
     seconds: f64,
     rotation_only: bool,
     notes: Vec<String>,
+    warnings: Vec<String>,
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -85,6 +86,7 @@ fn solve(spec: &PlateSpec, options: &MatchmoveOptions) -> Outcome {
         seconds,
         rotation_only: false,
         notes: Vec::new(),
+        warnings: Vec::new(),
     };
     let solve = match r {
         Ok(s) => s,
@@ -94,6 +96,12 @@ fn solve(spec: &PlateSpec, options: &MatchmoveOptions) -> Outcome {
         }
     };
     out.notes = solve.report.notes.clone();
+    out.warnings = solve.report.warnings.clone();
+    if std::env::var("VFXGRAPH_PLATE").is_ok() {
+        for f in &solve.report.fragments {
+            eprintln!("{f:?}");
+        }
+    }
     out.rotation_only = solve.report.rotation_only;
     let poses = poses_by_index(&plate.tracks, &solve.path);
     if poses.iter().any(|p| p.is_none()) {
@@ -124,10 +132,16 @@ fn solve(spec: &PlateSpec, options: &MatchmoveOptions) -> Outcome {
 }
 
 fn table(title: &str, groups: &BTreeMap<String, Vec<&Outcome>>) {
-    println!("\n{title:<14} plates solved wrong>1°  rot p50°  rot p95°  rot max°  centre p95");
+    println!(
+        "\n{title:<14} plates solved warned silent>1°  rot p50°  rot p95°  rot max°  centre p95"
+    );
     for (k, v) in groups {
         let solved: Vec<&&Outcome> = v.iter().filter(|o| o.status == "solved").collect();
-        let wrong = solved.iter().filter(|o| o.rotation_max_deg > 1.0).count();
+        let warned = solved.iter().filter(|o| !o.warnings.is_empty()).count();
+        let wrong = solved
+            .iter()
+            .filter(|o| o.rotation_max_deg > 1.0 && o.warnings.is_empty())
+            .count();
         let rot: Vec<f64> = solved.iter().map(|o| o.rotation_max_deg).collect();
         let cen: Vec<f64> = solved
             .iter()
@@ -135,9 +149,10 @@ fn table(title: &str, groups: &BTreeMap<String, Vec<&Outcome>>) {
             .filter(|c| c.is_finite())
             .collect();
         println!(
-            "{k:<14} {:>6} {:>6} {:>8} {:>9.3} {:>9.3} {:>9.3} {:>10.4}",
+            "{k:<14} {:>6} {:>6} {:>6} {:>10} {:>9.3} {:>9.3} {:>9.3} {:>10.4}",
             v.len(),
             solved.len(),
+            warned,
             wrong,
             quantile(&rot, 0.5),
             quantile(&rot, 0.95),
@@ -156,7 +171,12 @@ fn main() {
         options.pair.init = serde_json::from_value(serde_json::Value::String(init.clone()))
             .expect("init: calibrated or book");
     }
-    let specs = corpus(count, seed);
+    let mut specs = corpus(count, seed);
+    // VFXGRAPH_PLATE=part: only the plates whose name holds it, with their fragments printed.
+    let only = std::env::var("VFXGRAPH_PLATE").ok();
+    if let Some(part) = &only {
+        specs.retain(|s| s.name().contains(part.as_str()));
+    }
     let t0 = Instant::now();
     let outcomes: Vec<Outcome> = specs.par_iter().map(|s| solve(s, &options)).collect();
     let wall = t0.elapsed().as_secs_f64();
@@ -177,15 +197,18 @@ fn main() {
     let mut all = BTreeMap::new();
     all.insert("all".to_string(), outcomes.iter().collect::<Vec<_>>());
     table("corpus", &all);
-    println!("\nnot solved or over 1°:");
+    println!("\nnot solved, over 1° or warned:");
     for o in &outcomes {
-        if o.status != "solved" || o.rotation_max_deg > 1.0 {
+        if o.status != "solved" || o.rotation_max_deg > 1.0 || !o.warnings.is_empty() {
             println!(
-                "  {:<34} {:>7} {:>8.3}° {}",
+                "  {:<44} {:>7} {:>8.3}° {} {}",
                 o.name,
                 o.status,
                 o.rotation_max_deg,
-                o.error.as_deref().unwrap_or("")
+                o.error.as_deref().unwrap_or(""),
+                o.warnings
+                    .first()
+                    .map_or(String::new(), |w| w.chars().take(140).collect())
             );
         }
     }

@@ -38,6 +38,10 @@ pub enum VisionError {
     /// An input value is not finite or out of its domain.
     #[error("invalid input: {0}")]
     InvalidInput(String),
+    /// A sequence's frames show no parallax (the camera turned about its centre or did not
+    /// move): there is no depth to reconstruct, and a rotation-only solve applies.
+    #[error("no parallax: {0}")]
+    NoParallax(String),
     /// RANSAC found no model with enough inliers.
     #[error(
         "robust estimation failed: best consensus {best} of {total}, at least {needed} needed"

@@ -440,7 +440,7 @@ pub const MOTIONS: [MoveKind; 9] = [
 
 /// `count` plate specs: every set × motion pairing in turn (so any 63 consecutive plates
 /// cover them all), each with its own seed drawn from `seed`, a length from 8 to 200 frames,
-/// a focal length from 450 (wide) to 1400 px, 0.2–1 px of noise and up to 10 % outliers.
+/// a focal length from 450 (wide) to 1400 px, 0.1–0.6 px of noise and up to 10 % outliers.
 pub fn corpus(count: usize, seed: u64) -> Vec<PlateSpec> {
     let mut rng = Pcg64::seed_from_u64(seed);
     let lengths = [8usize, 16, 30, 60, 90, 120, 200];
@@ -454,7 +454,7 @@ pub fn corpus(count: usize, seed: u64) -> Vec<PlateSpec> {
                 frames: lengths[rng.random_range(0..lengths.len())],
                 features: [150, 250, 400][rng.random_range(0..3)],
                 focal: [450.0, 700.0, 900.0, 1400.0][rng.random_range(0..4)],
-                noise: uniform(&mut rng, 0.2, 1.0),
+                noise: uniform(&mut rng, 0.1, 0.6),
                 outliers: uniform(&mut rng, 0.0, 0.1),
                 seed: rng.random::<u64>() >> 1,
             }

@@ -1,6 +1,6 @@
 //! Cameras for frames no fragment solved (not in the book, which discards its last fragment):
 //! each unposed frame next to a posed one is resected from the reconstructed points it observes
-//! (RANSAC on the DLT, K fixed, then refined), and tracks that gain enough posed observations are
+//! (RANSAC on P3P with K known, then refined: sound on a planar set), and tracks that gain enough posed observations are
 //! triangulated, sweeping outwards until every frame has a camera or no frame can be resected.
 
 use nalgebra::{Point2, Point3, Vector3};
@@ -8,7 +8,7 @@ use rand::SeedableRng;
 use rand_pcg::Pcg64;
 
 use super::{reprojection_error, triangulate_views};
-use crate::calibration::resect_known_k;
+use crate::calibration::resect_p3p;
 use crate::camera::{Intrinsics, Pose};
 use crate::error::{Result, VisionError};
 use crate::klt::Tracks;
@@ -85,7 +85,7 @@ fn resect_frame(
         max_iterations: 1000,
         ..RansacParams::default()
     };
-    let est = resect_known_k(&p3, &p2, k, &params, rng).ok()?;
+    let est = resect_p3p(&p3, &p2, k, &params, rng).ok()?;
     (est.num_inliers >= MIN_RESECTION_INLIERS).then_some(est.camera.pose)
 }
 

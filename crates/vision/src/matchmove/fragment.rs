@@ -14,7 +14,7 @@ use rand_pcg::Pcg64;
 use serde::{Deserialize, Serialize};
 
 use super::fragments::Fragment;
-use super::pair::{best_pair, InitMethod, PairOptions, PairRejections};
+use super::pair::{best_pair, InitMethod, PairOptions, PairRejections, AMBIGUITY_RATIO};
 use super::{bundle_adjust_indexed, reprojection_error, through, triangulate_views};
 use crate::calibration::{resect_known_k, resect_p3p};
 use crate::two_view::StartModel;
@@ -61,6 +61,23 @@ impl RefineOptions {
     }
 }
 
+/// A second motion of the fragment's best pair that, refined, fits the fragment about as well
+/// as the one kept (within [`AMBIGUOUS_RMS_RATIO`] of its RMS, with as many features): the
+/// tracks do not decide between them, and the cameras are uncertain to the difference.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Ambiguity {
+    /// Features the other solution keeps.
+    pub inliers: usize,
+    /// Its RMS reprojection error, pixels.
+    pub rms: f64,
+    /// The largest difference between the two solutions' rotations (relative to the
+    /// fragment's first frame), degrees.
+    pub rotation_deg: f64,
+}
+
+/// Two refined solutions whose RMS errors are within this ratio fit equally well.
+pub const AMBIGUOUS_RMS_RATIO: f64 = 1.1;
+
 /// Figures of one fragment's solve.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct FragmentReport {
@@ -76,6 +93,8 @@ pub struct FragmentReport {
     pub start: StartModel,
     /// Candidate motions not kept, by reason.
     pub rejections: PairRejections,
+    /// Another motion that explains the fragment nearly as well (the solve is then uncertain).
+    pub ambiguity: Option<Ambiguity>,
     /// Its inliers.
     pub pair_inliers: usize,
     /// Candidate pairs evaluated, and how many failed the intrinsics test.
@@ -143,26 +162,26 @@ fn retriangulate(
     points
 }
 
-/// Solves one fragment (module docs): best pair, resection, refinement cycles.
-pub fn solve_fragment(
+/// Cameras and points of a fragment from a seed reconstruction (inlier features, as indices
+/// into the fragment's, and their points): every frame resected, then the refinement cycles.
+fn refine_seed(
     tracks: &Tracks,
     k: &Intrinsics,
     frag: &Fragment,
     pair: &PairOptions,
     refine: &RefineOptions,
-    seed: u64,
-) -> Result<FragmentSolution> {
+    seed_points: &[(usize, Vector3<f64>)],
+    rng: &mut Pcg64,
+) -> Result<Refined> {
     let describe = || {
         format!(
             "fragment of frames {}..{}",
             tracks.frames[frag.first], tracks.frames[frag.last]
         )
     };
-    let best = best_pair(tracks, k, frag, pair, seed)?;
-    let mut rng = Pcg64::seed_from_u64(super::derive_seed(seed, 3, 0));
     let n = tracks.frames.len();
     let mut poses: Vec<Option<Pose>> = vec![None; n];
-    let p3: Vec<Point3<f64>> = best.points.iter().map(|(_, x)| Point3::from(*x)).collect();
+    let p3: Vec<Point3<f64>> = seed_points.iter().map(|(_, x)| Point3::from(*x)).collect();
     let calibrated = pair.init == InitMethod::Calibrated;
     let resection = RansacParams {
         threshold: if calibrated {
@@ -179,8 +198,7 @@ pub fn solve_fragment(
         .take(frag.last + 1)
         .skip(frag.first)
     {
-        let p2: Vec<Point2<f64>> = best
-            .points
+        let p2: Vec<Point2<f64>> = seed_points
             .iter()
             .map(|(q, _)| {
                 let o = tracks.tracks[frag.features[*q]].points
@@ -189,9 +207,9 @@ pub fn solve_fragment(
             })
             .collect();
         let est = if calibrated {
-            resect_p3p(&p3, &p2, k, &resection, &mut rng)
+            resect_p3p(&p3, &p2, k, &resection, rng)
         } else {
-            resect_known_k(&p3, &p2, k, &resection, &mut rng)
+            resect_known_k(&p3, &p2, k, &resection, rng)
         };
         let est = est.map_err(|e| {
             VisionError::Degenerate(format!(
@@ -203,7 +221,7 @@ pub fn solve_fragment(
         *slot = Some(est.camera.pose);
     }
     let mut points: Vec<Option<Vector3<f64>>> = vec![None; tracks.tracks.len()];
-    for (q, x) in &best.points {
+    for (q, x) in seed_points {
         points[frag.features[*q]] = Some(*x);
     }
     let in_fragment = |_: usize, f: usize| {
@@ -241,6 +259,79 @@ pub fn solve_fragment(
             refine.ba_iterations,
         )?;
     }
+    Ok(Refined {
+        inliers: points.iter().filter(|p| p.is_some()).count(),
+        poses,
+        points,
+        rms: report.final_rms,
+    })
+}
+
+/// A fragment's refined cameras and points.
+struct Refined {
+    poses: Vec<Option<Pose>>,
+    points: Vec<Option<Vector3<f64>>>,
+    inliers: usize,
+    rms: f64,
+}
+
+/// Largest angle, over the fragment's frames, between two solutions' rotations relative to
+/// the fragment's first frame, degrees.
+fn rotation_difference(a: &Refined, b: &Refined, frag: &Fragment) -> f64 {
+    let (Some(a0), Some(b0)) = (&a.poses[frag.first], &b.poses[frag.first]) else {
+        return f64::NAN;
+    };
+    (frag.first..=frag.last)
+        .filter_map(|f| {
+            let (pa, pb) = (a.poses[f].as_ref()?, b.poses[f].as_ref()?);
+            Some(crate::rotation::rotation_angle_between(
+                &(pa.r * a0.r.transpose()),
+                &(pb.r * b0.r.transpose()),
+            ))
+        })
+        .fold(0.0, f64::max)
+        .to_degrees()
+}
+
+/// Solves one fragment (module docs): best pair, resection, refinement cycles.
+pub fn solve_fragment(
+    tracks: &Tracks,
+    k: &Intrinsics,
+    frag: &Fragment,
+    pair: &PairOptions,
+    refine: &RefineOptions,
+    seed: u64,
+) -> Result<FragmentSolution> {
+    let best = best_pair(tracks, k, frag, pair, seed)?;
+    let mut rng = Pcg64::seed_from_u64(super::derive_seed(seed, 3, 0));
+    let mut main = refine_seed(tracks, k, frag, pair, refine, &best.points, &mut rng)?;
+    // A second motion of the pair that kept nearly as many features is refined too: the
+    // better fit wins, and one that fits about as well makes the fragment ambiguous.
+    let mut ambiguity = None;
+    if let Some(alt_points) = &best.alternative {
+        let mut rng = Pcg64::seed_from_u64(super::derive_seed(seed, 3, 1));
+        if let Ok(alt) = refine_seed(tracks, k, frag, pair, refine, alt_points, &mut rng) {
+            let degrees = rotation_difference(&main, &alt, frag);
+            let alt_better =
+                alt.inliers > main.inliers || (alt.inliers == main.inliers && alt.rms < main.rms);
+            let close = alt.inliers as f64 >= AMBIGUITY_RATIO * main.inliers as f64
+                && main.inliers as f64 >= AMBIGUITY_RATIO * alt.inliers as f64
+                && alt.rms <= AMBIGUOUS_RMS_RATIO * main.rms
+                && main.rms <= AMBIGUOUS_RMS_RATIO * alt.rms;
+            let (winner, other) = if alt_better { (alt, main) } else { (main, alt) };
+            if close && degrees > 0.05 {
+                ambiguity = Some(Ambiguity {
+                    inliers: other.inliers,
+                    rms: other.rms,
+                    rotation_deg: degrees,
+                });
+            }
+            main = winner;
+        }
+    }
+    let Refined {
+        poses, points, rms, ..
+    } = main;
     let inliers = points.iter().filter(|p| p.is_some()).count();
     Ok(FragmentSolution {
         fragment: frag.clone(),
@@ -253,10 +344,11 @@ pub fn solve_fragment(
             pair: (tracks.frames[best.pair.0], tracks.frames[best.pair.1]),
             start: best.model,
             rejections: best.rejections.clone(),
+            ambiguity,
             pair_inliers: best.points.len(),
             candidates: best.candidates,
             rejected_by_k: best.rejected_k,
-            rms: report.final_rms,
+            rms,
             scale: 1.0,
         },
     })

@@ -84,6 +84,16 @@ fn features_through(tracks: &Tracks, first: usize, last: usize) -> Vec<usize> {
         .collect()
 }
 
+/// The fragment of frames `first..=last` with the tracks seen in all of them.
+pub(crate) fn fragment_of(tracks: &Tracks, first: usize, last: usize, is_last: bool) -> Fragment {
+    Fragment {
+        first,
+        last,
+        features: features_through(tracks, first, last),
+        is_last,
+    }
+}
+
 /// Mean displacement between frames `a` and `b` of the given tracks, pixels.
 pub(crate) fn mean_displacement(tracks: &Tracks, features: &[usize], a: usize, b: usize) -> f64 {
     if features.is_empty() {

@@ -397,7 +397,21 @@ pub fn matchmove_with_lens(
         return Ok(solve);
     }
     let motion = super::StageTime::new("motion", t0);
-    let mut solve = general_with_lens(tracks, k, held, lens, options, progress)?;
+    let mut solve = match general_with_lens(tracks, k.clone(), held, lens, options, progress) {
+        Ok(s) => s,
+        // No fragment had parallax although the motion test saw some: the camera barely
+        // moved (a slow push, a hand-held hold), which a rotation-only solve models best.
+        Err(VisionError::NoParallax(why)) if options.motion.solve == super::SolveMode::Auto => {
+            let mut solve =
+                super::tripod::solve_rotations(tracks, &k, held, options, None, progress)?;
+            solve.report.warnings.push(format!(
+                "no part of the shot has parallax enough to reconstruct in 3D ({why}); solved \
+                 as a nodal pan: the rotations hold, the camera's small travel is not recovered"
+            ));
+            solve
+        }
+        Err(e) => return Err(e),
+    };
     if let Some(note) = note {
         solve.report.stages.insert(0, motion);
         solve.report.notes.push(note);

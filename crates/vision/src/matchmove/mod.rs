@@ -53,7 +53,7 @@ pub(crate) use adjust::{
     adjust_with_block, adjust_with_blocks, bundle_adjust_indexed, bundle_adjust_lens,
     intrinsics_of_block, lens_block, solved_intrinsics, BlockCovariance, Held,
 };
-pub use fragment::{solve_fragment, FragmentSolution, RefineOptions};
+pub use fragment::{solve_fragment, Ambiguity, FragmentSolution, RefineOptions};
 pub use fragments::{split_fragments, Fragment, FragmentOptions};
 pub use global::{global_bundle_adjust, GlobalOptions};
 pub use junction::{join_fragments, ScaleOptions};
@@ -241,39 +241,63 @@ pub fn matchmove(
     let t0 = Instant::now();
     let done = std::sync::atomic::AtomicUsize::new(0);
     progress("fragments", 0, fragments.len());
-    let solutions: Vec<Result<FragmentSolution>> = fragments
+    let attempts: Vec<Attempt> = fragments
         .par_iter()
         .enumerate()
         .map(|(i, frag)| {
-            let r = solve_fragment(
+            let r = solve_with_retries(
                 tracks,
                 k,
                 frag,
-                &options.pair,
-                &options.refine,
+                options,
                 derive_seed(options.seed, 1, i as u64),
+                0,
             );
             let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
             progress("fragments", d, fragments.len());
             r
         })
         .collect();
-    // The remainder at the end may be too short to solve on its own: its frames are then
-    // resected from the joined cloud by the extension stage.
     let mut notes = Vec::new();
-    let mut kept = Vec::new();
-    for (frag, r) in fragments.iter().zip(solutions) {
-        match r {
-            Ok(s) => kept.push(s),
-            Err(e) if frag.is_last && !kept.is_empty() => notes.push(format!(
-                "the last fragment (frames {}..{}) could not be solved on its own ({e}); its \
-                 frames were resected from the reconstructed points",
+    let mut warnings = Vec::new();
+    let mut pieces: Vec<std::result::Result<FragmentSolution, (Fragment, VisionError)>> =
+        Vec::new();
+    for a in attempts {
+        notes.extend(a.notes);
+        pieces.extend(a.pieces);
+    }
+    // The longest run of consecutive solved pieces is joined; the frames of pieces that could
+    // not be started are registered to its structure by the extension stage.
+    let solutions = longest_run(&mut pieces);
+    if solutions.is_empty() {
+        return Err(no_start_error(tracks, &pieces));
+    }
+    for p in &pieces {
+        if let Err((frag, e)) = p {
+            notes.push(format!(
+                "frames {}..{} could not be started on their own ({e}); their cameras were \
+                 resected from the structure of their neighbours",
                 tracks.frames[frag.first], tracks.frames[frag.last]
-            )),
-            Err(e) => return Err(e),
+            ));
         }
     }
-    let solutions = kept;
+    for s in &solutions {
+        if let Some(a) = &s.report.ambiguity {
+            warnings.push(format!(
+                "frames {}..{}: a second motion explains the tracks nearly as well ({} of {} \
+                 features; its rotation differs by {:.2}° over the pair {}–{}): the cameras may \
+                 be wrong by up to that — a plane seen along a straight path does not decide \
+                 between them; track features off the plane, or give a longer shot",
+                s.report.frames.0,
+                s.report.frames.1,
+                a.inliers,
+                s.report.inliers.max(s.report.pair_inliers),
+                a.rotation_deg,
+                s.report.pair.0,
+                s.report.pair.1
+            ));
+        }
+    }
     stages.push(StageTime::new("fragment calibration", t0));
 
     let t0 = Instant::now();
@@ -307,6 +331,7 @@ pub fn matchmove(
     );
     let mut solve = finish_solve(tracks, k, &poses, &points, tolerance, stages, options.score)?;
     solve.report.notes = notes;
+    solve.report.warnings = warnings;
     solve.report.fragments = solutions
         .iter()
         .zip(&joined.scales)
@@ -317,6 +342,171 @@ pub fn matchmove(
         })
         .collect();
     Ok(solve)
+}
+
+/// What became of one fragment: its pieces in order (itself, or the halves it was split into),
+/// each solved or with the error that stopped it, and the retries taken.
+struct Attempt {
+    pieces: Vec<std::result::Result<FragmentSolution, (Fragment, VisionError)>>,
+    notes: Vec<String>,
+}
+
+/// Shortest piece a failing fragment is split into, frames.
+const MIN_PIECE_FRAMES: usize = 6;
+
+/// Solves a fragment; a fragment whose start fails is retried with every frame pair (when the
+/// options search a stride), then split in two halves that share their middle frame (each
+/// solved the same way, down to [`MIN_PIECE_FRAMES`]).
+fn solve_with_retries(
+    tracks: &Tracks,
+    k: &Intrinsics,
+    frag: &Fragment,
+    options: &MatchmoveOptions,
+    seed: u64,
+    depth: u64,
+) -> Attempt {
+    let describe = |f: &Fragment| format!("{}..{}", tracks.frames[f.first], tracks.frames[f.last]);
+    let mut notes = Vec::new();
+    let first = solve_fragment(tracks, k, frag, &options.pair, &options.refine, seed);
+    let err = match first {
+        Ok(s) => {
+            return Attempt {
+                pieces: vec![Ok(s)],
+                notes,
+            }
+        }
+        Err(e) => e,
+    };
+    if matches!(err, VisionError::NoParallax(_)) {
+        return Attempt {
+            pieces: vec![Err((frag.clone(), err))],
+            notes,
+        };
+    }
+    if options.pair.stride > 1 {
+        let all = PairOptions {
+            stride: 1,
+            ..options.pair.clone()
+        };
+        if let Ok(s) = solve_fragment(tracks, k, frag, &all, &options.refine, seed) {
+            notes.push(format!(
+                "frames {}: started from every frame pair (the stride of {} found none: {err})",
+                describe(frag),
+                options.pair.stride
+            ));
+            return Attempt {
+                pieces: vec![Ok(s)],
+                notes,
+            };
+        }
+    }
+    if frag.len() >= 2 * MIN_PIECE_FRAMES - 1 && depth < 3 {
+        let mid = (frag.first + frag.last) / 2;
+        let halves = [
+            fragments::fragment_of(tracks, frag.first, mid, false),
+            fragments::fragment_of(tracks, mid, frag.last, frag.is_last),
+        ];
+        notes.push(format!(
+            "frames {} split at {} ({err})",
+            describe(frag),
+            tracks.frames[mid]
+        ));
+        let mut pieces = Vec::new();
+        for (h, half) in halves.iter().enumerate() {
+            let a = solve_with_retries(
+                tracks,
+                k,
+                half,
+                options,
+                derive_seed(seed, 20 + h as u64, depth),
+                depth + 1,
+            );
+            pieces.extend(a.pieces);
+            notes.extend(a.notes);
+        }
+        return Attempt { pieces, notes };
+    }
+    Attempt {
+        pieces: vec![Err((frag.clone(), err))],
+        notes,
+    }
+}
+
+/// Takes out the longest run (in frames) of consecutive solved pieces, the earliest on ties.
+fn longest_run(
+    pieces: &mut [std::result::Result<FragmentSolution, (Fragment, VisionError)>],
+) -> Vec<FragmentSolution> {
+    let mut best: Option<(usize, usize, usize)> = None; // (frames, start, end)
+    let mut i = 0;
+    while i < pieces.len() {
+        if pieces[i].is_err() {
+            i += 1;
+            continue;
+        }
+        let start = i;
+        let mut frames = 0;
+        while i < pieces.len() {
+            match &pieces[i] {
+                Ok(s) => frames += s.fragment.len() - 1,
+                Err(_) => break,
+            }
+            i += 1;
+        }
+        if best.is_none_or(|b| frames + 1 > b.0) {
+            best = Some((frames + 1, start, i));
+        }
+    }
+    let Some((_, start, end)) = best else {
+        return Vec::new();
+    };
+    let mut run = Vec::new();
+    for p in &mut pieces[start..end] {
+        let frag = match p {
+            Ok(s) => s.fragment.clone(),
+            Err((f, _)) => f.clone(),
+        };
+        let taken = std::mem::replace(p, Err((frag, VisionError::InvalidInput("joined".into()))));
+        if let Ok(s) = taken {
+            run.push(s);
+        }
+    }
+    run
+}
+
+/// The error of a shot no part of which could be started: which frames, why, what to try.
+fn no_start_error(
+    tracks: &Tracks,
+    pieces: &[std::result::Result<FragmentSolution, (Fragment, VisionError)>],
+) -> VisionError {
+    let reasons: Vec<String> = pieces
+        .iter()
+        .filter_map(|p| p.as_ref().err())
+        .map(|(f, e)| {
+            format!(
+                "frames {}..{}: {e}",
+                tracks.frames[f.first], tracks.frames[f.last]
+            )
+        })
+        .collect();
+    let all_flat = pieces
+        .iter()
+        .all(|p| matches!(p, Err((_, VisionError::NoParallax(_)))));
+    let advice = if all_flat {
+        "the camera shows no parallax anywhere: solve it as a nodal pan (motion solve: tripod), \
+         or give a shot whose camera moves"
+    } else {
+        "track more features (or a longer shot), check that K (or the lens) is right, or lower \
+         min_frames so that fragments are shorter"
+    };
+    let text = format!(
+        "no part of the shot could be started — {}; {advice}",
+        reasons.join("; ")
+    );
+    if all_flat {
+        VisionError::NoParallax(text)
+    } else {
+        VisionError::Degenerate(text)
+    }
 }
 
 /// Builds the [`Solve`] of poses and points: the path (with K), the cloud, and the report with

@@ -157,7 +157,13 @@ pub struct BestPair {
     pub rejected_k: usize,
     /// Candidate motions not kept, by reason (a planar pair may give two motions).
     pub rejections: PairRejections,
+    /// Another motion of the same pair (a planar pair's second) whose points stay inliers in
+    /// every frame nearly as often ([`AMBIGUITY_RATIO`]): its inlier features and points.
+    pub alternative: Option<Vec<(usize, Vector3<f64>)>>,
 }
+
+/// A second motion keeping this fraction of the winner's features is refined too.
+pub const AMBIGUITY_RATIO: f64 = 0.9;
 
 /// Why a pair was not kept.
 enum PairFailure {
@@ -170,6 +176,7 @@ enum PairFailure {
 
 /// A pair's two-view reconstruction: its features (indices into the fragment's) and their
 /// points, and its random stream, which the frames' resections go on drawing from.
+#[derive(Clone)]
 struct TwoViewSeed {
     feats: Vec<usize>,
     p3: Vec<Point3<f64>>,
@@ -414,7 +421,7 @@ pub fn best_pair(
         )
     };
     if pairs.is_empty() {
-        return Err(VisionError::Degenerate(format!(
+        return Err(VisionError::NoParallax(format!(
             "{}: no frame pair whose features moved more than {} px",
             describe(),
             options.min_displacement
@@ -457,6 +464,8 @@ pub fn best_pair(
     // machine.
     const BATCH: usize = 4;
     staged.sort_by_key(|(n, s)| (std::cmp::Reverse(s.feats.len()), *n));
+    // Kept to test the winner against its pair's other motions.
+    let siblings: Vec<(usize, TwoViewSeed)> = staged.clone();
     type Seed = Vec<(usize, Vector3<f64>)>;
     let mut best: Option<(usize, Seed, StartModel)> = None;
     let mut rest = staged.into_iter().peekable();
@@ -501,6 +510,18 @@ pub fn best_pair(
     }
     let rejected_k = rejections.intrinsics;
     let zero_baseline = rejections.zero_baseline;
+    // The winning pair's other motions, resected through every frame without the bound: one
+    // that keeps nearly as many features may explain the fragment as well (a plane seen along
+    // a straight path keeps the homography's twofold ambiguity in every frame); the fragment's
+    // refinement decides ([`super::fragment`]).
+    let alternative = best.as_ref().and_then(|(bn, points, _)| {
+        siblings
+            .iter()
+            .filter(|(n, _)| n / MAX_CANDIDATES == bn / MAX_CANDIDATES && n != bn)
+            .filter_map(|(n, s)| resection_stage(k, frag, &obs, s.clone(), options, *n, None).ok())
+            .filter(|kept| kept.len() as f64 >= AMBIGUITY_RATIO * points.len() as f64)
+            .max_by_key(|kept| kept.len())
+    });
     match best {
         Some((n, points, model)) => Ok(BestPair {
             pair: pairs[n / MAX_CANDIDATES],
@@ -509,9 +530,10 @@ pub fn best_pair(
             candidates: pairs.len(),
             rejected_k,
             rejections,
+            alternative,
         }),
-        None if zero_baseline * 2 >= pairs.len() => Err(VisionError::Degenerate(format!(
-            "{}: no parallax — {} of {} frame pairs are explained by a rotation about the camera \
+        None if zero_baseline * 2 >= pairs.len() => Err(VisionError::NoParallax(format!(
+            "{}: {} of {} frame pairs are explained by a rotation about the camera \
              centre (a tripod pan cannot be matchmoved in 3D)",
             describe(),
             zero_baseline,

@@ -79,6 +79,10 @@ pub struct SolveReport {
     pub score: Option<BookScore>,
     /// Fallbacks taken and other remarks, for a person to read.
     pub notes: Vec<String>,
+    /// What makes the solve uncertain (an ambiguous start, frames poorly determined): a
+    /// person must look before trusting the cameras.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
     /// The camera was solved as a nodal pan: rotations only, every centre at the origin
     /// ([`super::tripod`]).
     #[serde(default)]
@@ -180,6 +184,7 @@ pub fn solve_report(
         fragments: Vec::new(),
         score: None,
         notes: Vec::new(),
+        warnings: Vec::new(),
         rotation_only: false,
         intrinsics: Vec::new(),
     }

@@ -262,12 +262,18 @@ pub fn relative_pose_calibrated<R: Rng + ?Sized>(
             needed: options.min_inliers,
         });
     };
-    if !(best.median_parallax_deg >= min_parallax_deg) {
+    let floor = options.ambiguity_ratio * best.inliers.len() as f64;
+    candidates.retain(|c| c.inliers.len() as f64 >= floor);
+    // A planar pair's two motions see different parallax in the same image motion (a small
+    // push read as a sideways move has more): the pair has a baseline when any of them does,
+    // and none is dropped for its own, which would favour the wrong one.
+    let parallax = candidates
+        .iter()
+        .map(|c| c.median_parallax_deg)
+        .fold(0.0, f64::max);
+    if !(parallax >= min_parallax_deg) {
         return Err(VisionError::ZeroBaseline);
     }
-    let floor = options.ambiguity_ratio * best.inliers.len() as f64;
-    candidates
-        .retain(|c| c.inliers.len() as f64 >= floor && c.median_parallax_deg >= min_parallax_deg);
     Ok(CalibratedTwoView {
         candidates,
         essential_inliers,
