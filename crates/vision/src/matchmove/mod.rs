@@ -268,19 +268,28 @@ pub fn matchmove(
     }
     // The longest run of consecutive solved pieces is joined; the frames of pieces that could
     // not be started are registered to its structure by the extension stage.
-    let solutions = longest_run(&mut pieces);
-    if solutions.is_empty() {
+    let run = longest_run(&pieces);
+    if run.is_empty() {
         return Err(no_start_error(tracks, &pieces));
     }
-    for p in &pieces {
-        if let Err((frag, e)) = p {
+    for (i, p) in pieces.iter().enumerate() {
+        let frag = match p {
+            Err((frag, e)) => Some((frag, e.to_string())),
+            Ok(s) if !run.contains(&i) => Some((
+                &s.fragment,
+                "not joined to the longest solved run of the shot".to_string(),
+            )),
+            Ok(_) => None,
+        };
+        if let Some((frag, why)) = frag {
             notes.push(format!(
-                "frames {}..{} could not be started on their own ({e}); their cameras were \
+                "frames {}..{} could not be started on their own ({why}); their cameras were \
                  resected from the structure of their neighbours",
                 tracks.frames[frag.first], tracks.frames[frag.last]
             ));
         }
     }
+    let solutions: Vec<FragmentSolution> = pieces.drain(run).filter_map(|p| p.ok()).collect();
     for s in &solutions {
         if let Some(a) = &s.report.ambiguity {
             warnings.push(format!(
@@ -432,10 +441,11 @@ fn solve_with_retries(
     }
 }
 
-/// Takes out the longest run (in frames) of consecutive solved pieces, the earliest on ties.
+/// The longest run (in frames) of consecutive solved pieces, the earliest on ties, as a range
+/// of piece indices (empty when no piece was solved).
 fn longest_run(
-    pieces: &mut [std::result::Result<FragmentSolution, (Fragment, VisionError)>],
-) -> Vec<FragmentSolution> {
+    pieces: &[std::result::Result<FragmentSolution, (Fragment, VisionError)>],
+) -> std::ops::Range<usize> {
     let mut best: Option<(usize, usize, usize)> = None; // (frames, start, end)
     let mut i = 0;
     while i < pieces.len() {
@@ -444,33 +454,16 @@ fn longest_run(
             continue;
         }
         let start = i;
-        let mut frames = 0;
-        while i < pieces.len() {
-            match &pieces[i] {
-                Ok(s) => frames += s.fragment.len() - 1,
-                Err(_) => break,
-            }
+        let mut frames = 1;
+        while let Some(Ok(s)) = pieces.get(i) {
+            frames += s.fragment.len() - 1;
             i += 1;
         }
-        if best.is_none_or(|b| frames + 1 > b.0) {
-            best = Some((frames + 1, start, i));
+        if best.is_none_or(|b| frames > b.0) {
+            best = Some((frames, start, i));
         }
     }
-    let Some((_, start, end)) = best else {
-        return Vec::new();
-    };
-    let mut run = Vec::new();
-    for p in &mut pieces[start..end] {
-        let frag = match p {
-            Ok(s) => s.fragment.clone(),
-            Err((f, _)) => f.clone(),
-        };
-        let taken = std::mem::replace(p, Err((frag, VisionError::InvalidInput("joined".into()))));
-        if let Ok(s) = taken {
-            run.push(s);
-        }
-    }
-    run
+    best.map_or(0..0, |(_, start, end)| start..end)
 }
 
 /// The error of a shot no part of which could be started: which frames, why, what to try.

@@ -195,9 +195,15 @@ pub(crate) fn solve_zoom(
         focals.last().copied().unwrap_or(f0)
     ));
     let k_ref = with_focal(k, f0);
+    // The rounds start from focal lengths that are still wrong: the book's start (whose DLT
+    // estimates each frame's K) tolerates that, where the calibrated one takes K as exact.
     let inner = MatchmoveOptions {
         global: None,
         score: false,
+        pair: super::PairOptions {
+            init: super::InitMethod::Book,
+            ..options.pair.clone()
+        },
         ..options.clone()
     };
     let mut solved = None;
