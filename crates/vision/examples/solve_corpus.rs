@@ -11,11 +11,8 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 use serde::Serialize;
-use vfxgraph_vision::camera_path::aligned_pose_errors;
-use vfxgraph_vision::matchmove::corpus::{corpus, generate, PlateSpec};
+use vfxgraph_vision::matchmove::corpus::{corpus, generate, score, PlateSpec};
 use vfxgraph_vision::matchmove::{matchmove_with_lens, poses_by_index, MatchmoveOptions};
-use vfxgraph_vision::rotation::rotation_angle_between;
-use vfxgraph_vision::Pose;
 
 #[derive(Serialize)]
 struct Outcome {
@@ -34,14 +31,6 @@ struct Outcome {
     warnings: Vec<String>,
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
 fn quantile(v: &[f64], q: f64) -> f64 {
     if v.is_empty() {
         return f64::NAN;
@@ -49,19 +38,6 @@ fn quantile(v: &[f64], q: f64) -> f64 {
     let mut v = v.to_vec();
     v.sort_by(f64::total_cmp);
     v[((v.len() - 1) as f64 * q).round() as usize]
-}
-
-/// Rotation errors relative to the first frame (a solve's frame is arbitrary; for a camera
-/// that does not move, no similarity can be fitted).
-fn relative_rotation_errors(est: &[Pose], truth: &[Pose]) -> Vec<f64> {
-    est.iter()
-        .zip(truth)
-        .map(|(e, t)| {
-            let re = e.r * est[0].r.transpose();
-            let rt = t.r * truth[0].r.transpose();
-            rotation_angle_between(&re, &rt).to_degrees()
-        })
-        .collect()
 }
 
 fn solve(spec: &PlateSpec, options: &MatchmoveOptions) -> Outcome {
@@ -104,29 +80,14 @@ fn solve(spec: &PlateSpec, options: &MatchmoveOptions) -> Outcome {
     }
     out.rotation_only = solve.report.rotation_only;
     let poses = poses_by_index(&plate.tracks, &solve.path);
-    if poses.iter().any(|p| p.is_none()) {
+    let sc = score(&plate, &poses, solve.report.rotation_only);
+    out.rotation_max_deg = sc.rotation_max_deg;
+    out.rotation_median_deg = sc.rotation_median_deg;
+    out.centre_max_rel = sc.centre_max_rel.unwrap_or(f64::NAN);
+    if !sc.complete {
         out.status = "partial".into();
         return out;
     }
-    let est: Vec<Pose> = poses.into_iter().map(|p| p.unwrap()).collect();
-    let extent = plate
-        .truth
-        .iter()
-        .map(|p| (p.center() - plate.truth[0].center()).norm())
-        .fold(0.0, f64::max);
-    let rot = if extent > 1e-9 && !solve.report.rotation_only {
-        match aligned_pose_errors(&est, &plate.truth) {
-            Ok((_, rot, cen)) => {
-                out.centre_max_rel = cen.iter().copied().fold(0.0, f64::max) / extent;
-                rot
-            }
-            Err(_) => relative_rotation_errors(&est, &plate.truth),
-        }
-    } else {
-        relative_rotation_errors(&est, &plate.truth)
-    };
-    out.rotation_max_deg = rot.iter().copied().fold(0.0, f64::max);
-    out.rotation_median_deg = median(rot);
     out.status = "solved".into();
     out
 }
