@@ -4,7 +4,9 @@
 //!
 //! `cargo run --release -p vfxgraph-vision --example solve_corpus -- [count] [seed] [init] [json]`
 //! (defaults: 126 plates, seed 1, the default start; `init` is `calibrated` or `book`; `json`
-//! writes every plate's result to that file).
+//! writes every plate's result to that file). With `VFXGRAPH_CORPUS_EXPORT=DIR` every plate's
+//! tracks, K and true cameras are written to `DIR/<name>.json` as well, for
+//! `scripts/bench/corpus_vs_colmap.py`.
 
 use std::collections::BTreeMap;
 use std::time::Instant;
@@ -40,8 +42,43 @@ fn quantile(v: &[f64], q: f64) -> f64 {
     v[((v.len() - 1) as f64 * q).round() as usize]
 }
 
+/// Writes a plate for another solver: K, image size, tracks and the true cameras.
+fn export(dir: &str, plate: &vfxgraph_vision::matchmove::corpus::Plate) {
+    let tracks: Vec<serde_json::Value> = plate
+        .tracks
+        .tracks
+        .iter()
+        .map(|t| serde_json::json!({"id": t.id, "first": t.first, "points": t.points}))
+        .collect();
+    let truth: Vec<serde_json::Value> = plate
+        .truth
+        .iter()
+        .map(|p| {
+            let r: Vec<Vec<f64>> = (0..3)
+                .map(|i| (0..3).map(|j| p.r[(i, j)]).collect())
+                .collect();
+            serde_json::json!({"r": r, "t": [p.t.x, p.t.y, p.t.z]})
+        })
+        .collect();
+    let doc = serde_json::json!({
+        "name": plate.spec.name(),
+        "spec": plate.spec,
+        "k": [plate.k.f1, plate.k.u0, plate.k.v0],
+        "size": [vfxgraph_vision::matchmove::corpus::SIZE.0, vfxgraph_vision::matchmove::corpus::SIZE.1],
+        "frames": plate.truth.len(),
+        "tracks": tracks,
+        "truth": truth,
+    });
+    let path = std::path::Path::new(dir).join(format!("{}.json", plate.spec.name()));
+    std::fs::write(path, serde_json::to_string(&doc).unwrap()).unwrap();
+}
+
 fn solve(spec: &PlateSpec, options: &MatchmoveOptions) -> Outcome {
     let plate = generate(spec);
+    if let Ok(dir) = std::env::var("VFXGRAPH_CORPUS_EXPORT") {
+        std::fs::create_dir_all(&dir).unwrap();
+        export(&dir, &plate);
+    }
     let t0 = Instant::now();
     let r = matchmove_with_lens(
         &plate.tracks,
