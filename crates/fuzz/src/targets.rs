@@ -491,6 +491,7 @@ fn sample_tracks() -> Tracks {
     Tracks {
         frames: vec![10, 11, 12, 13],
         slots: 2,
+        image_size: None,
         tracks: vec![
             track(
                 0,

@@ -107,6 +107,7 @@ mod tests {
         let tracks = Tracks {
             frames: (0..5).collect(),
             slots: world.len(),
+            image_size: None,
             tracks: world
                 .iter()
                 .enumerate()

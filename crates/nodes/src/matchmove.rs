@@ -59,7 +59,7 @@ fn run_matchmove(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     };
     let tracks = &ctx.input::<TracksArt>("tracks")?.0;
     let k = ctx.input_opt::<IntrinsicsArt>("intrinsics")?.map(|k| &k.0);
-    let k = o.lens.initial_intrinsics(k)?;
+    let k = o.lens.initial_intrinsics(k, tracks.image_size)?;
     let solve = matchmove_with_lens(tracks, &k, &o.lens, &o, &|stage, done, total| {
         ctx.progress(solve_progress(stage, done, total))
     })?;

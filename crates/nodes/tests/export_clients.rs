@@ -163,6 +163,7 @@ fn shot_zooming(k: Intrinsics, zoom: Option<&dyn Fn(usize) -> f64>) -> Shot {
     s.tracks = Some(Tracks {
         frames: s.path.frames.iter().map(|f| f.frame as i64).collect(),
         slots: n,
+        image_size: None,
         tracks,
     });
     s.cloud = Some(PointCloud {

@@ -253,6 +253,7 @@ mod tests {
         let tracks = Tracks {
             frames: (0..n_frames as i64).collect(),
             slots: world.len(),
+            image_size: None,
             tracks: world
                 .iter()
                 .enumerate()

@@ -735,6 +735,7 @@ mod tests {
         s.tracks = Some(Tracks {
             frames: s.path.frames.iter().map(|f| f.frame as i64).collect(),
             slots: tracks.len(),
+            image_size: None,
             tracks: tracks
                 .iter()
                 .enumerate()

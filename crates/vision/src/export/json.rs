@@ -147,6 +147,7 @@ mod tests {
         let mut t = Tracks {
             frames,
             slots: tracks.len(),
+            image_size: None,
             tracks,
         };
         t.tracks[7].points[2][0] += 3.0;

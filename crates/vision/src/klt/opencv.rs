@@ -85,6 +85,7 @@ impl CvTracker {
             tracks: Tracks {
                 frames: Vec::new(),
                 slots,
+                image_size: None,
                 tracks: Vec::new(),
             },
             live: vec![None; slots],
@@ -269,6 +270,10 @@ impl CvTracker {
                 return Err("bad image: empty frame".into());
             }
             self.size = size;
+            self.tracks.image_size = u32::try_from(size.0)
+                .ok()
+                .zip(u32::try_from(size.1).ok())
+                .map(|(w, h)| [w, h]);
             self.tracks.frames.push(frame);
             self.refill(&img, fi)?;
         }

@@ -315,6 +315,9 @@ fn features_leaving_the_frame_or_occluded_are_lost_not_dragged() {
     let seq = numbered(&frames);
     let tracks = track_sequence(&seq, &params, |_| {}).unwrap();
     tracks.validate().unwrap();
+    // The tracks carry the size of the frames they were measured on.
+    let f0 = &frames[0];
+    assert_eq!(tracks.image_size, Some([f0.width as u32, f0.height as u32]));
     let (mut left, mut occluded, mut dragged) = (0, 0, 0);
     for t in &tracks.tracks {
         // Every tracked observation must be where the content really is (x − 6 per frame),

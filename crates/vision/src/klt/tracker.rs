@@ -187,6 +187,7 @@ impl Tracker {
             tracks: Tracks {
                 frames: Vec::new(),
                 slots,
+                image_size: None,
                 tracks: Vec::new(),
             },
             live: vec![None; slots],
@@ -277,6 +278,10 @@ impl Tracker {
             let slots = self.params.feature_slots(img.width, img.height);
             self.params.corners.max_corners = slots;
             self.tracks.slots = slots;
+            self.tracks.image_size = u32::try_from(img.width)
+                .ok()
+                .zip(u32::try_from(img.height).ok())
+                .map(|(w, h)| [w, h]);
             self.live = vec![None; slots];
         }
         // Drift correction aligns windows of the frame smoothed by a σ = 1 px binomial filter

@@ -119,6 +119,11 @@ pub struct Tracks {
     pub slots: usize,
     /// The tracks, by increasing id.
     pub tracks: Vec<Track>,
+    /// Width and height of the frames the tracks were measured on, pixels, when known (the
+    /// tracker records them; the book's text format has none). A solve with the focal length
+    /// unknown takes its image size from here.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub image_size: Option<[u32; 2]>,
 }
 
 #[derive(Serialize, Deserialize)]
@@ -368,6 +373,7 @@ impl Tracks {
         Ok(Tracks {
             frames,
             slots,
+            image_size: None,
             tracks,
         })
     }
@@ -418,6 +424,7 @@ mod tests {
         Tracks {
             frames: vec![10, 11, 12, 13],
             slots: 2,
+            image_size: None,
             tracks: vec![
                 Track {
                     id: 0,

@@ -96,10 +96,10 @@ pub struct LensOptions {
     /// one observation 1 px off does; a steady zoom (a linear ramp) costs nothing.
     #[param(range = 1e-3..=1e4)]
     pub zoom_smoothness: f64,
-    /// image width, px (0: the intrinsics'); needed for an unknown focal length without K
+    /// image width, px (0: the intrinsics', else the frames the tracks were measured on)
     #[param(range = 0..=100_000)]
     pub width: usize,
-    /// image height, px (0: the intrinsics')
+    /// image height, px (0: the intrinsics', else the tracked frames')
     #[param(range = 0..=100_000)]
     pub height: usize,
 }
@@ -121,10 +121,18 @@ impl Default for LensOptions {
 
 impl LensOptions {
     /// The intrinsics the solve starts from: `k` (when given) with the image size of the
-    /// options where set; without `k`, a camera of the options' image size with its principal
-    /// point at the centre, which only `focal: unknown` can solve.
-    pub fn initial_intrinsics(&self, k: Option<&Intrinsics>) -> Result<Intrinsics> {
-        let size = (self.width > 0 && self.height > 0).then_some((self.width, self.height));
+    /// options where set; without `k`, a camera of that size with its principal point at the
+    /// centre, which only `focal: unknown` can solve. The size is the options', else `k`'s,
+    /// else `tracked` (the frames the tracks were measured on, [`Tracks::image_size`]).
+    pub fn initial_intrinsics(
+        &self,
+        k: Option<&Intrinsics>,
+        tracked: Option<[u32; 2]>,
+    ) -> Result<Intrinsics> {
+        let size = (self.width > 0 && self.height > 0)
+            .then_some((self.width, self.height))
+            .or_else(|| k.and_then(|k| Some((k.width? as usize, k.height? as usize))))
+            .or_else(|| tracked.map(|[w, h]| (w as usize, h as usize)));
         let mut k = match (k, size) {
             (Some(k), _) => k.clone(),
             (None, Some((w, h))) => {
@@ -138,7 +146,8 @@ impl LensOptions {
             }
             (None, None) => {
                 return Err(VisionError::InvalidInput(
-                    "no intrinsics: connect them, or set focal: unknown with width and height"
+                    "no intrinsics and no image size (the tracks do not record one): connect the \
+                     intrinsics, or set focal: unknown with width and height"
                         .into(),
                 ))
             }

@@ -250,6 +250,7 @@ pub fn simulate_tracks(
         Tracks {
             frames: (0..sim.frames as i64).collect(),
             slots: sim.slots,
+            image_size: Some([sim.size.0 as u32, sim.size.1 as u32]),
             tracks,
         },
         outliers,

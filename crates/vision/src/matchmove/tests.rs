@@ -597,6 +597,27 @@ fn the_least_parallax_over_focal_lengths_rules_out_only_the_moving_camera() {
 /// A pan with the focal length unknown (only the image size given): the focal length from the
 /// rotations, refined with them. Measured: 1099.7 px for 1100 (−0.03 %; 1113 px from the
 /// search); rotation max 0.018°.
+/// `focal: unknown` needs no size typed in: the frames the tracks were measured on give it.
+#[test]
+fn an_unknown_focal_takes_the_image_size_from_the_tracks() {
+    let lens = LensOptions {
+        focal: FocalMode::Unknown,
+        ..LensOptions::default()
+    };
+    let k = lens.initial_intrinsics(None, Some([960, 540])).unwrap();
+    assert_eq!((k.width, k.height), (Some(960), Some(540)));
+    assert_eq!((k.u0, k.v0, k.f1), (479.5, 269.5, 960.0));
+    let typed = LensOptions {
+        width: 1280,
+        height: 720,
+        ..lens.clone()
+    };
+    let k = typed.initial_intrinsics(None, Some([960, 540])).unwrap();
+    assert_eq!((k.width, k.height), (Some(1280), Some(720)));
+    let err = lens.initial_intrinsics(None, None).unwrap_err().to_string();
+    assert!(err.contains("image size"), "{err}");
+}
+
 #[test]
 fn a_pan_solves_its_unknown_focal_length() {
     let shot = pan_shot(0.6);
@@ -606,7 +627,7 @@ fn a_pan_solves_its_unknown_focal_length() {
         height: 720,
         ..LensOptions::default()
     };
-    let k0 = lens.initial_intrinsics(None).unwrap();
+    let k0 = lens.initial_intrinsics(None, None).unwrap();
     let solve = matchmove_with_lens(
         &shot.tracks,
         &k0,
@@ -648,7 +669,7 @@ fn a_static_camera_is_a_pan_without_a_measurable_focal_length() {
         height: 720,
         ..LensOptions::default()
     };
-    let k0 = lens.initial_intrinsics(None).unwrap();
+    let k0 = lens.initial_intrinsics(None, None).unwrap();
     let err = matchmove_with_lens(
         &shot.tracks,
         &k0,

@@ -386,6 +386,7 @@ mod tests {
         let tracks = Tracks {
             frames: (0..n as i64).collect(),
             slots: 40,
+            image_size: None,
             tracks,
         };
         let r = zoom_ratios(&tracks, &k);
