@@ -63,6 +63,11 @@ fn run_matchmove(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let solve = matchmove_with_lens(tracks, &k, &o.lens, &o, &|stage, done, total| {
         ctx.progress(solve_progress(stage, done, total))
     })?;
+    // What a person must check before trusting the cameras is said when the solve runs, as
+    // well as kept in the report.
+    for w in &solve.report.warnings {
+        eprintln!("warning: node '{}': {w}", ctx.node_id());
+    }
     set_solve(ctx, solve)
 }
 

@@ -31,6 +31,10 @@ struct Outcome {
     rotation_only: bool,
     notes: Vec<String>,
     warnings: Vec<String>,
+    /// Solved focal length over the true one, less 1.
+    focal_error: f64,
+    /// The solve's standard deviation of the focal length, relative.
+    focal_sd: f64,
 }
 
 fn quantile(v: &[f64], q: f64) -> f64 {
@@ -80,13 +84,18 @@ fn solve(spec: &PlateSpec, options: &MatchmoveOptions) -> Outcome {
         export(&dir, &plate);
     }
     let t0 = Instant::now();
-    let r = matchmove_with_lens(
-        &plate.tracks,
-        &plate.k,
-        &options.lens,
-        options,
-        &|_, _, _| {},
-    );
+    // VFXGRAPH_FOCAL=unknown: the focal length solved too, from the tracks' image size alone.
+    let mut options = options.clone();
+    let mut k = plate.k.clone();
+    if std::env::var("VFXGRAPH_FOCAL").as_deref() == Ok("unknown") {
+        options.lens.focal = vfxgraph_vision::matchmove::FocalMode::Unknown;
+        k = options
+            .lens
+            .initial_intrinsics(None, plate.tracks.image_size)
+            .expect("the corpus's tracks carry their image size");
+    }
+    let options = &options;
+    let r = matchmove_with_lens(&plate.tracks, &k, &options.lens, options, &|_, _, _| {});
     let seconds = t0.elapsed().as_secs_f64();
     let mut out = Outcome {
         spec: spec.clone(),
@@ -100,6 +109,8 @@ fn solve(spec: &PlateSpec, options: &MatchmoveOptions) -> Outcome {
         rotation_only: false,
         notes: Vec::new(),
         warnings: Vec::new(),
+        focal_error: f64::NAN,
+        focal_sd: f64::NAN,
     };
     let solve = match r {
         Ok(s) => s,
@@ -109,6 +120,16 @@ fn solve(spec: &PlateSpec, options: &MatchmoveOptions) -> Outcome {
         }
     };
     out.notes = solve.report.notes.clone();
+    if let Some(f) = solve.path.intrinsics.as_ref().map(|k| k.f1) {
+        out.focal_error = f / plate.k.f1 - 1.0;
+    }
+    out.focal_sd = solve
+        .report
+        .intrinsics
+        .iter()
+        .find(|i| i.name == "focal_px")
+        .and_then(|i| i.sd.map(|sd| sd / i.value))
+        .unwrap_or(f64::NAN);
     out.warnings = solve.report.warnings.clone();
     if std::env::var("VFXGRAPH_PLATE").is_ok() {
         for f in &solve.report.fragments {

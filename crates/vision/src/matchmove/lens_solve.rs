@@ -425,7 +425,36 @@ pub fn matchmove_with_lens(
         solve.report.stages.insert(0, motion);
         solve.report.notes.push(note);
     }
+    warn_undetermined_focal(&mut solve.report);
     Ok(solve)
+}
+
+/// A solved focal length whose standard deviation exceeds this fraction of it is not
+/// determined by the shot (a warning).
+pub const FOCAL_SD_WARNING: f64 = 0.05;
+
+/// Warns when the solve's focal length is poorly determined: a camera that travels without
+/// turning (a dolly, a truck, a push) is a critical motion for self-calibration (Sturm 1997;
+/// Kahl, Triggs & Åström 2000) — the tracks fit a wide range of focal lengths, and the cameras
+/// of a wrong one are wrong too.
+fn warn_undetermined_focal(report: &mut super::SolveReport) {
+    let Some(f) = report
+        .intrinsics
+        .iter()
+        .find(|i| i.name == "focal_px" && !i.held)
+    else {
+        return;
+    };
+    if let Some(sd) = f.sd.filter(|sd| !(*sd <= FOCAL_SD_WARNING * f.value)) {
+        report.warnings.push(format!(
+            "the focal length is poorly determined: {:.0} ± {:.0} px ({:.0} %); this camera \
+             motion (travel without turning) does not fix it, and the cameras of a wrong focal \
+             length are wrong too: give the focal length (focal: known or refine)",
+            f.value,
+            sd,
+            100.0 * sd / f.value
+        ));
+    }
 }
 
 /// [`matchmove_with_lens`] of a zooming lens ([`super::zoom`]), on the tracks undistorted by
