@@ -45,23 +45,9 @@ except ImportError:
     sys.exit("pycolmap is needed: pip install pycolmap==4.2.1")
 
 REPO = Path(__file__).resolve().parents[2]
-
-
-def nearest_rotation(m):
-    u, _, vt = np.linalg.svd(m)
-    d = np.eye(3)
-    if np.linalg.det(u @ vt) < 0:
-        d[2, 2] = -1
-    return u @ d @ vt
-
-
-def angle_deg(a, b):
-    c = (np.trace(a @ b.T) - 1) / 2
-    return float(np.degrees(np.arccos(np.clip(c, -1, 1))))
-
-
-def centre(r, t):
-    return -r.T @ t
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+# The project's metric, shared with the plate benchmark.
+from matchmove_vs_colmap import centre, nearest_rotation, rotation_angle_deg  # noqa: E402
 
 
 def rotation_errors(est, truth):
@@ -71,9 +57,9 @@ def rotation_errors(est, truth):
     if extent > 1e-9 and len(est) >= 3:
         m = sum(rg.T @ re_ for (re_, _), (rg, _) in zip(est, truth))
         ra = nearest_rotation(m)
-        return [angle_deg(re_ @ ra.T, rg) for (re_, _), (rg, _) in zip(est, truth)]
+        return [rotation_angle_deg(re_ @ ra.T, rg) for (re_, _), (rg, _) in zip(est, truth)]
     r0e, r0t = est[0][0], truth[0][0]
-    return [angle_deg(re_ @ r0e.T, rg @ r0t.T) for (re_, _), (rg, _) in zip(est, truth)]
+    return [rotation_angle_deg(re_ @ r0e.T, rg @ r0t.T) for (re_, _), (rg, _) in zip(est, truth)]
 
 
 def colmap_solve(plate, work, overlap, threads, init_tri_angle=None):

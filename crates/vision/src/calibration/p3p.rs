@@ -16,7 +16,7 @@
 use nalgebra::{Matrix3, Point2, Point3, SymmetricEigen, Vector3};
 use rand::Rng;
 
-use super::resection::PoseEstimate;
+use super::resection::{refine_and_remark, PoseEstimate};
 use super::restricted::{refine_camera, IntrinsicsModel};
 use crate::camera::{Camera, Intrinsics, Pose};
 use crate::error::{check_pairs, Result};
@@ -356,42 +356,13 @@ pub fn resect_p3p<R: Rng + ?Sized>(
         .collect();
     let est = P3pEstimator::new(k);
     let res = ransac(&est, &data, params, rng)?;
-    let mut pose = res.model;
-    let mut inliers = res.inliers;
-    for _ in 0..2 {
-        let idx: Vec<usize> = (0..data.len()).filter(|&i| inliers[i]).collect();
-        let lm = LmOptions {
-            max_iterations: 50,
-            ..LmOptions::default()
-        };
-        let p3: Vec<_> = idx.iter().map(|&i| data[i].0).collect();
-        let p2: Vec<_> = idx.iter().map(|&i| data[i].1).collect();
-        let cam = Camera {
-            intrinsics: k.clone(),
-            pose: pose.clone(),
-        };
-        if let Ok((c, _)) = refine_camera(&p3, &p2, &cam, IntrinsicsModel::Fixed(k.clone()), &lm) {
-            pose = c.pose;
-        }
-        let flags: Vec<bool> = data
-            .iter()
-            .map(|d| est.residual(&pose, d) <= params.threshold)
-            .collect();
-        if flags == inliers || flags.iter().filter(|&&f| f).count() < 4 {
-            break;
-        }
-        inliers = flags;
-    }
-    let num_inliers = inliers.iter().filter(|&&f| f).count();
-    Ok(PoseEstimate {
-        camera: Camera {
-            intrinsics: k.clone(),
-            pose,
-        },
-        inliers,
-        num_inliers,
-        iterations: res.iterations,
-    })
+    let camera = Camera {
+        intrinsics: k.clone(),
+        pose: res.model,
+    };
+    let mut est = refine_and_remark(points3d, points2d, camera, res.inliers, params.threshold, 4)?;
+    est.iterations = res.iterations;
+    Ok(est)
 }
 
 #[cfg(test)]

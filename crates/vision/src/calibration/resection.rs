@@ -119,15 +119,36 @@ pub fn refine_known_k(
     threshold: f64,
 ) -> Result<PoseEstimate> {
     let factored = factor_camera(&consensus.p)?;
-    let mut camera = Camera {
+    let camera = Camera {
         intrinsics: k.clone(),
         pose: factored.pose,
     };
-    let mut inliers = consensus.inliers.clone();
+    refine_and_remark(
+        points3d,
+        points2d,
+        camera,
+        consensus.inliers.clone(),
+        threshold,
+        DLT_MIN_POINTS,
+    )
+}
+
+/// Levenberg–Marquardt on the pose of `camera` (its K fixed) over the `inliers`, which are
+/// re-marked at `threshold` pixels with the refined camera (twice at most; a re-marking that
+/// would leave fewer than `min_inliers` is not taken).
+pub(crate) fn refine_and_remark(
+    points3d: &[Point3<f64>],
+    points2d: &[Point2<f64>],
+    mut camera: Camera,
+    mut inliers: Vec<bool>,
+    threshold: f64,
+    min_inliers: usize,
+) -> Result<PoseEstimate> {
     let lm = LmOptions {
         max_iterations: 50,
         ..LmOptions::default()
     };
+    let k = camera.intrinsics.clone();
     for _ in 0..2 {
         let p3: Vec<_> = points3d
             .iter()
@@ -147,7 +168,7 @@ pub fn refine_known_k(
             .zip(points2d)
             .map(|(p, x)| camera.reprojection_error(p, x) <= threshold)
             .collect();
-        if flags == inliers || flags.iter().filter(|&&f| f).count() < DLT_MIN_POINTS {
+        if flags == inliers || flags.iter().filter(|&&f| f).count() < min_inliers {
             break;
         }
         inliers = flags;
