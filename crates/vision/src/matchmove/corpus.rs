@@ -541,7 +541,9 @@ mod tests {
             })
             .collect();
         let options = MatchmoveOptions::default();
-        let results: Vec<(PlateSpec, Option<(PlateScore, bool, bool)>, String)> = specs
+        // (spec, (score, warned, rotation-only) or the error)
+        type Outcome = (PlateSpec, Option<(PlateScore, bool, bool)>, String);
+        let results: Vec<Outcome> = specs
             .par_iter()
             .map(|spec| {
                 let plate = generate(spec);

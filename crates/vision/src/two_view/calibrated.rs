@@ -254,7 +254,7 @@ pub fn relative_pose_calibrated<R: Rng + ?Sized>(
         }
         candidates.push(cand);
     }
-    candidates.sort_by(|x, y| y.inliers.len().cmp(&x.inliers.len()));
+    candidates.sort_by_key(|c| std::cmp::Reverse(c.inliers.len()));
     let Some(best) = candidates.first() else {
         return Err(VisionError::NoConsensus {
             best: essential_inliers.max(homography_inliers),

@@ -68,10 +68,10 @@ pub fn essential_five_point(a: &[Vector3<f64>; 5], b: &[Vector3<f64>; 5]) -> Vec
         std::array::from_fn(|j| (0..3).fold(Poly::zero(), |s, k| s.add(&e[i][k].mul(&e[j][k]))))
     });
     let trace = eet[0][0].add(&eet[1][1]).add(&eet[2][2]);
-    for i in 0..3 {
-        for j in 0..3 {
-            let eete = (0..3).fold(Poly::zero(), |s, k| s.add(&eet[i][k].mul(&e[k][j])));
-            rows.push(eete.scale(2.0).sub(&trace.mul(&e[i][j])));
+    for (eet_i, e_i) in eet.iter().zip(&e) {
+        for (j, e_ij) in e_i.iter().enumerate() {
+            let eete = (0..3).fold(Poly::zero(), |s, k| s.add(&eet_i[k].mul(&e[k][j])));
+            rows.push(eete.scale(2.0).sub(&trace.mul(e_ij)));
         }
     }
     // Columns 0..10: the cubic monomials; 10..20: the basis of the quotient ring.
