@@ -35,6 +35,8 @@ struct Outcome {
     focal_error: f64,
     /// The solve's standard deviation of the focal length, relative.
     focal_sd: f64,
+    /// The largest per-frame rotation standard deviation of the report, degrees.
+    rotation_sd_max_deg: f64,
 }
 
 fn quantile(v: &[f64], q: f64) -> f64 {
@@ -111,6 +113,7 @@ fn solve(spec: &PlateSpec, options: &MatchmoveOptions) -> Outcome {
         warnings: Vec::new(),
         focal_error: f64::NAN,
         focal_sd: f64::NAN,
+        rotation_sd_max_deg: f64::NAN,
     };
     let solve = match r {
         Ok(s) => s,
@@ -120,6 +123,12 @@ fn solve(spec: &PlateSpec, options: &MatchmoveOptions) -> Outcome {
         }
     };
     out.notes = solve.report.notes.clone();
+    out.rotation_sd_max_deg = solve
+        .report
+        .frames
+        .iter()
+        .filter_map(|f| f.rotation_sd_deg)
+        .fold(0.0, f64::max);
     if let Some(f) = solve.path.intrinsics.as_ref().map(|k| k.f1) {
         out.focal_error = f / plate.k.f1 - 1.0;
     }

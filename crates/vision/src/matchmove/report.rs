@@ -3,7 +3,7 @@
 
 use std::time::Instant;
 
-use nalgebra::Vector3;
+use nalgebra::{Matrix6, SMatrix, Vector3};
 use serde::{Deserialize, Serialize};
 
 use super::fragment::FragmentReport;
@@ -45,6 +45,13 @@ pub struct FrameReport {
     /// The frame's solved focal length, px, when the lens zooms.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub focal_px: Option<f64>,
+    /// How well the frame's inliers determine its camera's rotation: the standard deviation,
+    /// degrees, of its least-determined axis, with the points held at their solved positions
+    /// ([`pose_sd`]; a lower bound — a frame that sees few points, or points bunched in one
+    /// part of the image, has a large one). `None` without a camera or with fewer than 4
+    /// inliers.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rotation_sd_deg: Option<f64>,
 }
 
 /// One track's figures.
@@ -107,6 +114,44 @@ pub struct SolvedIntrinsic {
     pub sd: Option<f64>,
 }
 
+/// The Jacobian of X's projection with respect to the pose, as a left rotation increment ω
+/// (R ← exp([ω]ₓ)R) and a translation increment: ∂(u, v)/∂c · [−[RX]ₓ | I] with c = RX + t.
+/// `None` behind the camera.
+fn pose_jacobian(k: &Intrinsics, pose: &Pose, x: &Vector3<f64>) -> Option<SMatrix<f64, 2, 6>> {
+    let rx = pose.r * x;
+    let c = rx + pose.t;
+    if !(c.z > 1e-12) {
+        return None;
+    }
+    let (iz, u, v) = (1.0 / c.z, c.x / c.z, c.y / c.z);
+    // ∂(u, v)/∂c for the pinhole with skew.
+    let dn = SMatrix::<f64, 2, 3>::new(iz, 0.0, -u * iz, 0.0, iz, -v * iz);
+    let kk = nalgebra::Matrix2::new(k.f1, k.s, 0.0, k.f2);
+    let dc = kk * dn;
+    let mut j = SMatrix::<f64, 2, 6>::zeros();
+    j.fixed_view_mut::<2, 3>(0, 0)
+        .copy_from(&(dc * -crate::rotation::skew(&rx)));
+    j.fixed_view_mut::<2, 3>(0, 3).copy_from(&dc);
+    Some(j)
+}
+
+/// The standard deviation (degrees) of the least-determined rotation axis of a camera whose
+/// observations have the normal matrix `a` (JᵀJ in the pose, [`pose_jacobian`]) and pixel noise
+/// `sigma` per coordinate: √λmax of the rotation block of σ²(JᵀJ)⁻¹ (Hartley & Zisserman,
+/// §5.2.5). `None` when the pose is not determined (a singular normal matrix).
+pub fn pose_sd(a: &Matrix6<f64>, sigma: f64) -> Option<f64> {
+    let cov = a.try_inverse()? * (sigma * sigma);
+    rotation_sd(&cov)
+}
+
+/// √λmax of the rotation block of a pose covariance, degrees.
+fn rotation_sd(cov: &Matrix6<f64>) -> Option<f64> {
+    let rot = cov.fixed_view::<3, 3>(0, 0).into_owned();
+    let rot = (rot + rot.transpose()) * 0.5;
+    let lmax = rot.symmetric_eigenvalues().max();
+    (lmax.is_finite() && lmax >= 0.0).then(|| lmax.sqrt().to_degrees())
+}
+
 /// Builds the per-frame and per-track figures of a solve; `marks` (by track index and
 /// observation) are the solve's inliers at `inlier_tolerance` (`super::inlier_marks`).
 pub fn solve_report(
@@ -127,8 +172,11 @@ pub fn solve_report(
             inliers: 0,
             rms: 0.0,
             focal_px: None,
+            rotation_sd_deg: None,
         })
         .collect();
+    // Per frame, the normal matrix JᵀJ of its inlier observations in its pose.
+    let mut normal = vec![Matrix6::<f64>::zeros(); n];
     let mut sq = vec![0.0; n];
     let mut track_reports = Vec::new();
     let (mut total_sq, mut total_n) = (0.0, 0usize);
@@ -143,6 +191,9 @@ pub fn solve_report(
             let e = reprojection_error(k, p, x, o);
             frames[f].observations += 1;
             if m[j] {
+                if let Some(j) = pose_jacobian(k, p, x) {
+                    normal[f] += j.transpose() * j;
+                }
                 frames[f].inliers += 1;
                 sq[f] += e * e;
                 total_sq += e * e;
@@ -170,13 +221,21 @@ pub fn solve_report(
             f64::NAN
         };
     }
+    let overall_rms = if total_n > 0 {
+        (total_sq / total_n as f64).sqrt()
+    } else {
+        f64::NAN
+    };
+    // σ per image coordinate: the overall RMS (a 2-D error) over √2.
+    let sigma = overall_rms / std::f64::consts::SQRT_2;
+    for (fr, a) in frames.iter_mut().zip(&normal) {
+        if fr.inliers >= 4 && sigma.is_finite() {
+            fr.rotation_sd_deg = pose_sd(a, sigma);
+        }
+    }
     SolveReport {
         inlier_tolerance,
-        overall_rms: if total_n > 0 {
-            (total_sq / total_n as f64).sqrt()
-        } else {
-            f64::NAN
-        },
+        overall_rms,
         points: track_reports.len(),
         frames,
         tracks: track_reports,
@@ -187,5 +246,90 @@ pub fn solve_report(
         warnings: Vec::new(),
         rotation_only: false,
         intrinsics: Vec::new(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::calibration::{refine_camera, IntrinsicsModel};
+    use crate::camera::Camera;
+    use crate::optimize::LmOptions;
+    use crate::rotation::{axis_angle_to_r, r_to_axis_angle};
+    use crate::synthetic::gaussian;
+    use nalgebra::{Point2, Point3};
+    use rand::{Rng, SeedableRng};
+    use rand_pcg::Pcg64;
+
+    /// The predicted rotation covariance matches the scatter of poses refined from noisy
+    /// observations of fixed points (Monte Carlo), for points spread over the image and for
+    /// points bunched in one corner (a much larger σ).
+    #[test]
+    fn the_rotation_sd_matches_the_scatter_of_refined_poses() {
+        let k = Intrinsics::new(800.0, 800.0, 479.5, 269.5);
+        let pose = Pose::new(
+            axis_angle_to_r(&Vector3::new(0.1, -0.2, 0.05)),
+            Vector3::new(0.3, -0.1, 5.0),
+        );
+        let sigma = 0.5;
+        let mut sds = Vec::new();
+        for (spread, seed) in [(1.0, 1u64), (0.12, 2)] {
+            let mut rng = Pcg64::seed_from_u64(seed);
+            let inv = pose.inverse();
+            let xs: Vec<Vector3<f64>> = (0..40)
+                .map(|_| {
+                    let c = Vector3::new(
+                        spread * rng.random_range(-2.0..2.0) + (1.0 - spread) * 1.5,
+                        spread * rng.random_range(-1.2..1.2) + (1.0 - spread) * 0.9,
+                        rng.random_range(4.0..7.0),
+                    );
+                    inv.r * c + inv.t
+                })
+                .collect();
+            let mut a = Matrix6::zeros();
+            for x in &xs {
+                let j = pose_jacobian(&k, &pose, x).unwrap();
+                a += j.transpose() * j;
+            }
+            let cov = a.try_inverse().unwrap() * (sigma * sigma);
+            let predicted = cov.fixed_view::<3, 3>(0, 0).trace();
+            let cam = Camera {
+                intrinsics: k.clone(),
+                pose: pose.clone(),
+            };
+            let p3: Vec<Point3<f64>> = xs.iter().map(|x| Point3::from(*x)).collect();
+            let (mut sum, trials) = (0.0, 300);
+            for _ in 0..trials {
+                let p2: Vec<Point2<f64>> = p3
+                    .iter()
+                    .map(|x| {
+                        let q = cam.project(x).unwrap();
+                        Point2::new(
+                            q.x + sigma * gaussian(&mut rng),
+                            q.y + sigma * gaussian(&mut rng),
+                        )
+                    })
+                    .collect();
+                let (est, _) = refine_camera(
+                    &p3,
+                    &p2,
+                    &cam,
+                    IntrinsicsModel::Fixed(k.clone()),
+                    &LmOptions::default(),
+                )
+                .unwrap();
+                let w = r_to_axis_angle(&(est.pose.r * pose.r.transpose()));
+                sum += w.norm_squared();
+            }
+            let measured = sum / trials as f64;
+            let ratio = (measured / predicted).sqrt();
+            assert!(
+                (ratio - 1.0).abs() < 0.1,
+                "spread {spread}: measured/predicted {ratio}"
+            );
+            sds.push(pose_sd(&a, sigma).unwrap());
+        }
+        // Bunched points determine the rotation far worse.
+        assert!(sds[1] > 3.0 * sds[0], "{sds:?}");
     }
 }
