@@ -6,7 +6,9 @@
 //! (defaults: 126 plates, seed 1, the default start; `init` is `calibrated` or `book`; `json`
 //! writes every plate's result to that file). With `VFXGRAPH_CORPUS_EXPORT=DIR` every plate's
 //! tracks, K and true cameras are written to `DIR/<name>.json` as well, for
-//! `scripts/bench/corpus_vs_colmap.py`.
+//! `scripts/bench/corpus_vs_colmap.py`. `VFXGRAPH_FOCAL=unknown` solves the focal length too
+//! (from the tracks' image size), `VFXGRAPH_TRACK_WEIGHTING=off` turns the global adjustment's
+//! track weights off, and `VFXGRAPH_PLATE=part` keeps the plates whose name holds `part`.
 
 use std::collections::BTreeMap;
 use std::time::Instant;
@@ -95,6 +97,12 @@ fn solve(spec: &PlateSpec, options: &MatchmoveOptions) -> Outcome {
             .lens
             .initial_intrinsics(None, plate.tracks.image_size)
             .expect("the corpus's tracks carry their image size");
+    }
+    // VFXGRAPH_TRACK_WEIGHTING=off: the global adjustment without its per-track weights.
+    if std::env::var("VFXGRAPH_TRACK_WEIGHTING").as_deref() == Ok("off") {
+        if let Some(g) = options.global.as_mut() {
+            g.track_weighting = false;
+        }
     }
     let options = &options;
     let r = matchmove_with_lens(&plate.tracks, &k, &options.lens, options, &|_, _, _| {});
