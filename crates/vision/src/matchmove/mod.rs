@@ -4,17 +4,21 @@
 //! The stages, each its own module, named as the book's chapter 7 names them:
 //!
 //! 1. [`fragments`] (§7.11) cuts the sequence into overlapping fragments;
-//! 2. [`pair`] (§7.2–7.6) finds each fragment's best frame pair (RANSAC on F, E, cheirality,
-//!    triangulation, resection of every frame, the intrinsics-consistency test);
+//! 2. [`pair`] (§7.2–7.6) finds each fragment's best frame pair: by default from the calibrated
+//!    minimal solvers (five-point E or the homography's motions, P3P for every frame), with
+//!    `init: book` the book's RANSAC on F, E, cheirality, triangulation, DLT resection of every
+//!    frame and the intrinsics-consistency test;
 //! 3. [`fragment`] (§7.9) resects every frame of a fragment and runs the refinement cycles
-//!    (bundle adjustment, re-triangulation at 10, 5, 3 px);
+//!    (bundle adjustment, re-triangulation at 10, 5, 3 px); [`recovery`] retries a fragment
+//!    that cannot start and keeps the longest run of solved pieces;
 //! 4. [`junction`] (§7.12) finds the scale between neighbouring fragments and chains them into
 //!    the first fragment's frame and scale;
 //! 5. [`extend`] gives a camera to frames no fragment covers (resection from the joined cloud);
 //! 6. [`global`] bundle-adjusts the whole sequence with a robust loss, and [`relax`] (§7.14) is
 //!    the book's alternating relaxation;
-//! 7. [`score`] measures a solve the way the issue scores the book's own cameras, and
-//!    [`report`] gathers per-frame and per-track figures.
+//! 7. [`score`] measures a solve the way the book's own cameras were scored, and [`report`]
+//!    gathers per-frame and per-track figures and the warnings; [`corpus`] generates the
+//!    robustness corpus the solve is measured on.
 //!
 //! [`matchmove`] runs stages 1–6 (fragments in parallel); every constant is in
 //! [`MatchmoveOptions`] with the book's value as default.
@@ -28,6 +32,7 @@ pub mod global;
 pub mod junction;
 pub mod lens_solve;
 pub mod pair;
+pub mod recovery;
 pub mod relax;
 pub mod report;
 pub mod score;
@@ -241,11 +246,11 @@ pub fn matchmove(
     let t0 = Instant::now();
     let done = std::sync::atomic::AtomicUsize::new(0);
     progress("fragments", 0, fragments.len());
-    let attempts: Vec<Attempt> = fragments
+    let attempts: Vec<recovery::Attempt> = fragments
         .par_iter()
         .enumerate()
         .map(|(i, frag)| {
-            let r = solve_with_retries(
+            let r = recovery::solve_with_retries(
                 tracks,
                 k,
                 frag,
@@ -260,17 +265,16 @@ pub fn matchmove(
         .collect();
     let mut notes = Vec::new();
     let mut warnings = Vec::new();
-    let mut pieces: Vec<std::result::Result<FragmentSolution, (Fragment, VisionError)>> =
-        Vec::new();
+    let mut pieces: Vec<recovery::Piece> = Vec::new();
     for a in attempts {
         notes.extend(a.notes);
         pieces.extend(a.pieces);
     }
     // The longest run of consecutive solved pieces is joined; the frames of pieces that could
     // not be started are registered to its structure by the extension stage.
-    let run = longest_run(&pieces);
+    let run = recovery::longest_run(&pieces);
     if run.is_empty() {
-        return Err(no_start_error(tracks, &pieces));
+        return Err(recovery::no_start_error(tracks, &pieces));
     }
     for (i, p) in pieces.iter().enumerate() {
         let frag = match p {
@@ -351,155 +355,6 @@ pub fn matchmove(
         })
         .collect();
     Ok(solve)
-}
-
-/// What became of one fragment: its pieces in order (itself, or the halves it was split into),
-/// each solved or with the error that stopped it, and the retries taken.
-struct Attempt {
-    pieces: Vec<std::result::Result<FragmentSolution, (Fragment, VisionError)>>,
-    notes: Vec<String>,
-}
-
-/// Shortest piece a failing fragment is split into, frames.
-const MIN_PIECE_FRAMES: usize = 6;
-
-/// Solves a fragment; a fragment whose start fails is retried with every frame pair (when the
-/// options search a stride), then split in two halves that share their middle frame (each
-/// solved the same way, down to [`MIN_PIECE_FRAMES`]).
-fn solve_with_retries(
-    tracks: &Tracks,
-    k: &Intrinsics,
-    frag: &Fragment,
-    options: &MatchmoveOptions,
-    seed: u64,
-    depth: u64,
-) -> Attempt {
-    let describe = |f: &Fragment| format!("{}..{}", tracks.frames[f.first], tracks.frames[f.last]);
-    let mut notes = Vec::new();
-    let first = solve_fragment(tracks, k, frag, &options.pair, &options.refine, seed);
-    let err = match first {
-        Ok(s) => {
-            return Attempt {
-                pieces: vec![Ok(s)],
-                notes,
-            }
-        }
-        Err(e) => e,
-    };
-    if matches!(err, VisionError::NoParallax(_)) {
-        return Attempt {
-            pieces: vec![Err((frag.clone(), err))],
-            notes,
-        };
-    }
-    if options.pair.stride > 1 {
-        let all = PairOptions {
-            stride: 1,
-            ..options.pair.clone()
-        };
-        if let Ok(s) = solve_fragment(tracks, k, frag, &all, &options.refine, seed) {
-            notes.push(format!(
-                "frames {}: started from every frame pair (the stride of {} found none: {err})",
-                describe(frag),
-                options.pair.stride
-            ));
-            return Attempt {
-                pieces: vec![Ok(s)],
-                notes,
-            };
-        }
-    }
-    if frag.len() >= 2 * MIN_PIECE_FRAMES - 1 && depth < 3 {
-        let mid = (frag.first + frag.last) / 2;
-        let halves = [
-            fragments::fragment_of(tracks, frag.first, mid, false),
-            fragments::fragment_of(tracks, mid, frag.last, frag.is_last),
-        ];
-        notes.push(format!(
-            "frames {} split at {} ({err})",
-            describe(frag),
-            tracks.frames[mid]
-        ));
-        let mut pieces = Vec::new();
-        for (h, half) in halves.iter().enumerate() {
-            let a = solve_with_retries(
-                tracks,
-                k,
-                half,
-                options,
-                derive_seed(seed, 20 + h as u64, depth),
-                depth + 1,
-            );
-            pieces.extend(a.pieces);
-            notes.extend(a.notes);
-        }
-        return Attempt { pieces, notes };
-    }
-    Attempt {
-        pieces: vec![Err((frag.clone(), err))],
-        notes,
-    }
-}
-
-/// The longest run (in frames) of consecutive solved pieces, the earliest on ties, as a range
-/// of piece indices (empty when no piece was solved).
-fn longest_run(
-    pieces: &[std::result::Result<FragmentSolution, (Fragment, VisionError)>],
-) -> std::ops::Range<usize> {
-    let mut best: Option<(usize, usize, usize)> = None; // (frames, start, end)
-    let mut i = 0;
-    while i < pieces.len() {
-        if pieces[i].is_err() {
-            i += 1;
-            continue;
-        }
-        let start = i;
-        let mut frames = 1;
-        while let Some(Ok(s)) = pieces.get(i) {
-            frames += s.fragment.len() - 1;
-            i += 1;
-        }
-        if best.is_none_or(|b| frames > b.0) {
-            best = Some((frames, start, i));
-        }
-    }
-    best.map_or(0..0, |(_, start, end)| start..end)
-}
-
-/// The error of a shot no part of which could be started: which frames, why, what to try.
-fn no_start_error(
-    tracks: &Tracks,
-    pieces: &[std::result::Result<FragmentSolution, (Fragment, VisionError)>],
-) -> VisionError {
-    let reasons: Vec<String> = pieces
-        .iter()
-        .filter_map(|p| p.as_ref().err())
-        .map(|(f, e)| {
-            format!(
-                "frames {}..{}: {e}",
-                tracks.frames[f.first], tracks.frames[f.last]
-            )
-        })
-        .collect();
-    let all_flat = pieces
-        .iter()
-        .all(|p| matches!(p, Err((_, VisionError::NoParallax(_)))));
-    let advice = if all_flat {
-        "the camera shows no parallax anywhere: solve it as a nodal pan (motion solve: tripod), \
-         or give a shot whose camera moves"
-    } else {
-        "track more features (or a longer shot), check that K (or the lens) is right, or lower \
-         min_frames so that fragments are shorter"
-    };
-    let text = format!(
-        "no part of the shot could be started — {}; {advice}",
-        reasons.join("; ")
-    );
-    if all_flat {
-        VisionError::NoParallax(text)
-    } else {
-        VisionError::Degenerate(text)
-    }
 }
 
 /// Builds the [`Solve`] of poses and points: the path (with K), the cloud, and the report with
