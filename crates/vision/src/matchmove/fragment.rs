@@ -330,9 +330,11 @@ pub fn solve_fragment(
         }
     }
     let Refined {
-        poses, points, rms, ..
+        poses,
+        points,
+        rms,
+        inliers,
     } = main;
-    let inliers = points.iter().filter(|p| p.is_some()).count();
     Ok(FragmentSolution {
         fragment: frag.clone(),
         poses,

@@ -221,10 +221,7 @@ fn two_view_stage(
     };
     if options.init == InitMethod::Calibrated {
         let calibrated = CalibratedOptions {
-            ransac: RansacParams {
-                local_optimization: true,
-                ..ransac
-            },
+            ransac,
             min_inliers: options.min_inliers.max(6),
             ..CalibratedOptions::default()
         };
@@ -311,31 +308,21 @@ fn resection_stage(
             .iter()
             .map(|&q| Point2::new(obs[q][lf][0], obs[q][lf][1]))
             .collect();
-        if options.init == InitMethod::Calibrated {
+        let frame_inliers = if options.init == InitMethod::Calibrated {
             let data: Vec<_> = p3.iter().copied().zip(p2.iter().copied()).collect();
-            let res =
-                ransac(&pnp, &data, &pnp_params, &mut rng).map_err(|_| PairFailure::TooFew)?;
-            for (flag, r) in inlier.iter_mut().zip(&res.inliers) {
-                *flag &= *r;
-            }
-            let count = inlier.iter().filter(|&&x| x).count();
-            if count < options.min_inliers {
-                return Err(PairFailure::TooFew);
-            }
-            if beaten(count, n, bound) {
-                return Err(PairFailure::Beaten);
-            }
-            continue;
-        }
-        let res =
-            resect_ransac(&p3, &p2, &res_params, &mut rng).map_err(|_| PairFailure::TooFew)?;
-        let cam = factor_camera(&res.p).map_err(|_| PairFailure::IntrinsicsTest)?;
-        let kf = cam.intrinsics.k();
-        let diff = (kf - kk).abs().max();
-        let frame_inliers = if diff <= options.max_k_difference {
-            res.inliers
+            ransac(&pnp, &data, &pnp_params, &mut rng)
+                .map_err(|_| PairFailure::TooFew)?
+                .inliers
         } else {
-            known_k_inliers(&p3, &p2, k, &res, options)?
+            let res =
+                resect_ransac(&p3, &p2, &res_params, &mut rng).map_err(|_| PairFailure::TooFew)?;
+            let cam = factor_camera(&res.p).map_err(|_| PairFailure::IntrinsicsTest)?;
+            let diff = (cam.intrinsics.k() - kk).abs().max();
+            if diff <= options.max_k_difference {
+                res.inliers
+            } else {
+                known_k_inliers(&p3, &p2, k, &res, options)?
+            }
         };
         for (flag, r) in inlier.iter_mut().zip(&frame_inliers) {
             *flag &= *r;
@@ -441,8 +428,20 @@ pub fn best_pair(
         })
         .collect();
     let mut staged: Vec<(usize, TwoViewSeed)> = Vec::new();
+    // Kept to test the winner against its pair's other motions: the seeds of the pairs that
+    // gave more than one.
+    let mut siblings: Vec<(usize, TwoViewSeed)> = Vec::new();
     for (n, r) in stage_one {
         match r {
+            Ok(seeds) if seeds.len() > 1 => {
+                let numbered = seeds
+                    .into_iter()
+                    .take(MAX_CANDIDATES)
+                    .enumerate()
+                    .map(|(c, s)| (n * MAX_CANDIDATES + c, s));
+                siblings.extend(numbered.clone());
+                staged.extend(numbered);
+            }
             Ok(seeds) => staged.extend(
                 seeds
                     .into_iter()
@@ -464,8 +463,7 @@ pub fn best_pair(
     // machine.
     const BATCH: usize = 4;
     staged.sort_by_key(|(n, s)| (std::cmp::Reverse(s.feats.len()), *n));
-    // Kept to test the winner against its pair's other motions.
-    let siblings: Vec<(usize, TwoViewSeed)> = staged.clone();
+    siblings.sort_by_key(|(n, s)| (std::cmp::Reverse(s.feats.len()), *n));
     type Seed = Vec<(usize, Vector3<f64>)>;
     let mut best: Option<(usize, Seed, StartModel)> = None;
     let mut rest = staged.into_iter().peekable();
