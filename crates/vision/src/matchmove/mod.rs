@@ -154,6 +154,39 @@ pub(crate) fn project(k: &Intrinsics, pose: &Pose, x: &Vector3<f64>) -> Option<[
     Some([k.f1 * u + k.s * v + k.u0, k.f2 * v + k.v0])
 }
 
+/// X's pixel under K and pose, and the Jacobian of that pixel with respect to the pose as a
+/// left rotation increment δω (R ← exp([δω]ₓ)R) and a translation increment δt:
+/// ∂pixel/∂c · [−[RX]ₓ | I] with c = RX + t. `None` behind the camera.
+#[inline]
+pub(crate) fn pose_jacobian(
+    k: &Intrinsics,
+    pose: &Pose,
+    x: &Vector3<f64>,
+) -> Option<([f64; 2], nalgebra::Matrix2x6<f64>)> {
+    let rx = pose.r * x;
+    let c = rx + pose.t;
+    if c.z <= 1e-12 {
+        return None;
+    }
+    let iz = 1.0 / c.z;
+    let (u, v) = (c.x * iz, c.y * iz);
+    let pixel = [k.f1 * u + k.s * v + k.u0, k.f2 * v + k.v0];
+    // d(pixel)/d(c).
+    let jc = nalgebra::Matrix2x3::new(
+        k.f1 * iz,
+        k.s * iz,
+        -(k.f1 * u + k.s * v) * iz,
+        0.0,
+        k.f2 * iz,
+        -k.f2 * v * iz,
+    );
+    let jw = jc * (-crate::rotation::skew(&rx));
+    let mut j = nalgebra::Matrix2x6::zeros();
+    j.fixed_view_mut::<2, 3>(0, 0).copy_from(&jw);
+    j.fixed_view_mut::<2, 3>(0, 3).copy_from(&jc);
+    Some((pixel, j))
+}
+
 /// Reprojection error of X seen at `obs`, infinity behind the camera.
 #[inline]
 pub(crate) fn reprojection_error(

@@ -13,7 +13,7 @@
 //! does not depend on the thread count. The book tries every frame pair per point; we try every
 //! `pair_stride`-th frame.
 
-use nalgebra::{Matrix2x3, Matrix3, Matrix6, Vector3, Vector6};
+use nalgebra::{Matrix3, Matrix6, Vector3, Vector6};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -155,29 +155,11 @@ fn camera_normal_equations(
 ) -> (f64, Matrix6<f64>, Vector6<f64>) {
     let (mut cost, mut h, mut g) = (0.0, Matrix6::zeros(), Vector6::zeros());
     for (x, o) in obs {
-        let rx = pose.r * x;
-        let c = rx + pose.t;
-        if c.z <= 1e-12 {
+        let Some((p, j)) = super::pose_jacobian(k, pose, x) else {
             continue;
-        }
-        let iz = 1.0 / c.z;
-        let (u, v) = (c.x * iz, c.y * iz);
-        let r = [k.f1 * u + k.s * v + k.u0 - o[0], k.f2 * v + k.v0 - o[1]];
+        };
+        let r = [p[0] - o[0], p[1] - o[1]];
         cost += r[0] * r[0] + r[1] * r[1];
-        // d(pixel)/d(c).
-        let jc = Matrix2x3::new(
-            k.f1 * iz,
-            k.s * iz,
-            -(k.f1 * u + k.s * v) * iz,
-            0.0,
-            k.f2 * iz,
-            -k.f2 * v * iz,
-        );
-        // c = exp(δω)·R·X + t + δt: dc/dδω = −[RX]×, dc/dδt = I.
-        let jw = jc * (-crate::rotation::skew(&rx));
-        let mut j = nalgebra::Matrix2x6::zeros();
-        j.fixed_view_mut::<2, 3>(0, 0).copy_from(&jw);
-        j.fixed_view_mut::<2, 3>(0, 3).copy_from(&jc);
         let rv = nalgebra::Vector2::new(r[0], r[1]);
         h += j.transpose() * j;
         g += j.transpose() * rv;

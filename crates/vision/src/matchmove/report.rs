@@ -3,7 +3,7 @@
 
 use std::time::Instant;
 
-use nalgebra::{Matrix6, SMatrix, Vector3};
+use nalgebra::{Matrix6, Vector3};
 use serde::{Deserialize, Serialize};
 
 use super::fragment::FragmentReport;
@@ -114,29 +114,8 @@ pub struct SolvedIntrinsic {
     pub sd: Option<f64>,
 }
 
-/// The Jacobian of X's projection with respect to the pose, as a left rotation increment ω
-/// (R ← exp([ω]ₓ)R) and a translation increment: ∂(u, v)/∂c · [−[RX]ₓ | I] with c = RX + t.
-/// `None` behind the camera.
-fn pose_jacobian(k: &Intrinsics, pose: &Pose, x: &Vector3<f64>) -> Option<SMatrix<f64, 2, 6>> {
-    let rx = pose.r * x;
-    let c = rx + pose.t;
-    if !(c.z > 1e-12) {
-        return None;
-    }
-    let (iz, u, v) = (1.0 / c.z, c.x / c.z, c.y / c.z);
-    // ∂(u, v)/∂c for the pinhole with skew.
-    let dn = SMatrix::<f64, 2, 3>::new(iz, 0.0, -u * iz, 0.0, iz, -v * iz);
-    let kk = nalgebra::Matrix2::new(k.f1, k.s, 0.0, k.f2);
-    let dc = kk * dn;
-    let mut j = SMatrix::<f64, 2, 6>::zeros();
-    j.fixed_view_mut::<2, 3>(0, 0)
-        .copy_from(&(dc * -crate::rotation::skew(&rx)));
-    j.fixed_view_mut::<2, 3>(0, 3).copy_from(&dc);
-    Some(j)
-}
-
 /// The standard deviation (degrees) of the least-determined rotation axis of a camera whose
-/// observations have the normal matrix `a` (JᵀJ in the pose, [`pose_jacobian`]) and pixel noise
+/// observations have the normal matrix `a` (JᵀJ in the pose, `super::pose_jacobian`) and pixel noise
 /// `sigma` per coordinate: √λmax of the rotation block of σ²(JᵀJ)⁻¹ (Hartley & Zisserman,
 /// §5.2.5). `None` when the pose is not determined (a singular normal matrix).
 pub fn pose_sd(a: &Matrix6<f64>, sigma: f64) -> Option<f64> {
@@ -191,7 +170,7 @@ pub fn solve_report(
             let e = reprojection_error(k, p, x, o);
             frames[f].observations += 1;
             if m[j] {
-                if let Some(j) = pose_jacobian(k, p, x) {
+                if let Some((_, j)) = super::pose_jacobian(k, p, x) {
                     normal[f] += j.transpose() * j;
                 }
                 frames[f].inliers += 1;
@@ -288,7 +267,7 @@ mod tests {
                 .collect();
             let mut a = Matrix6::zeros();
             for x in &xs {
-                let j = pose_jacobian(&k, &pose, x).unwrap();
+                let (_, j) = crate::matchmove::pose_jacobian(&k, &pose, x).unwrap();
                 a += j.transpose() * j;
             }
             let cov = a.try_inverse().unwrap() * (sigma * sigma);
