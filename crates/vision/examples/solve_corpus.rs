@@ -39,6 +39,8 @@ struct Outcome {
     focal_sd: f64,
     /// The largest per-frame rotation standard deviation of the report, degrees.
     rotation_sd_max_deg: f64,
+    /// The solve's RMS reprojection error over its inliers, px.
+    rms_px: f64,
 }
 
 fn quantile(v: &[f64], q: f64) -> f64 {
@@ -122,6 +124,7 @@ fn solve(spec: &PlateSpec, options: &MatchmoveOptions) -> Outcome {
         focal_error: f64::NAN,
         focal_sd: f64::NAN,
         rotation_sd_max_deg: f64::NAN,
+        rms_px: f64::NAN,
     };
     let solve = match r {
         Ok(s) => s,
@@ -131,6 +134,7 @@ fn solve(spec: &PlateSpec, options: &MatchmoveOptions) -> Outcome {
         }
     };
     out.notes = solve.report.notes.clone();
+    out.rms_px = solve.report.overall_rms;
     out.rotation_sd_max_deg = solve
         .report
         .frames

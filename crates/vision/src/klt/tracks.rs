@@ -175,6 +175,39 @@ impl Tracks {
         v.into_iter().map(|(_, id, p)| (id, p)).collect()
     }
 
+    /// Every `stride`-th frame of the sequence (indices 0, stride, 2·stride, …) with the
+    /// tracks' observations in them: a keyframe subsequence, for searches that need the
+    /// whole shot's span but not every frame. Tracks seen in none of them are dropped; ids and
+    /// slots are kept. `stride` 0 is taken as 1.
+    pub fn every(&self, stride: usize) -> Tracks {
+        let s = stride.max(1);
+        let frames: Vec<i64> = self.frames.iter().copied().step_by(s).collect();
+        let tracks = self
+            .tracks
+            .iter()
+            .filter_map(|t| {
+                let first = t.first.div_ceil(s);
+                let points: Vec<[f64; 2]> = (first * s..t.end())
+                    .step_by(s)
+                    .filter_map(|f| t.at(f))
+                    .collect();
+                (!points.is_empty()).then_some(Track {
+                    id: t.id,
+                    slot: t.slot,
+                    first,
+                    points,
+                    lost: None,
+                })
+            })
+            .collect();
+        Tracks {
+            frames,
+            slots: self.slots,
+            tracks,
+            image_size: self.image_size,
+        }
+    }
+
     /// The track with this id.
     pub fn get(&self, id: u64) -> Option<&Track> {
         self.tracks
@@ -474,6 +507,36 @@ mod tests {
         assert_eq!(back.tracks[2].first, 3);
         assert_eq!(back.to_book(), text);
         assert_eq!(t.observations(3), vec![(2, [7.0, 8.0]), (1, [5.0, 6.0])]);
+    }
+
+    #[test]
+    fn every_keeps_the_observations_of_the_kept_frames() {
+        let t = sample();
+        let e = t.every(2);
+        e.validate().unwrap();
+        assert_eq!(e.frames, vec![10, 12]);
+        // Track 0 (frames 0, 1) keeps frame 0; track 1 frames 0 and 2; track 2 (frame 3) none.
+        assert_eq!(e.tracks.len(), 2);
+        assert_eq!((e.tracks[0].id, e.tracks[0].first), (0, 0));
+        assert_eq!(e.tracks[0].points, vec![[1.5, 2.0]]);
+        assert_eq!(e.tracks[1].points, vec![[5.0, 6.0]; 2]);
+        assert_eq!(
+            t.every(1),
+            Tracks {
+                tracks: t
+                    .tracks
+                    .iter()
+                    .map(|tr| Track {
+                        lost: None,
+                        ..tr.clone()
+                    })
+                    .collect(),
+                ..t.clone()
+            }
+        );
+        let late = t.every(3);
+        assert_eq!(late.frames, vec![10, 13]);
+        assert_eq!(late.observations(1), vec![(2, [7.0, 8.0]), (1, [5.0, 6.0])]);
     }
 
     #[test]

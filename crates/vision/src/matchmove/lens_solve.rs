@@ -6,16 +6,20 @@
 //! the one Blender's and libmv's camera solvers use — the lens refined by the bundle
 //! adjustment together with the cameras — organised around the book's pinhole pipeline:
 //!
-//! 1. **Initial focal length** ([`estimate_focal`], when `focal: unknown`): a one-dimensional
-//!    search, as the issue of real cameras suggests and the book's own intrinsics test
-//!    (§7.6) does with K: the focal length whose first-fragment solve has the smallest
-//!    reprojection error, with the principal point at the frame's centre and square pixels.
+//! 1. **Initial focal length** ([`focal_search`], when `focal: unknown`): a one-dimensional
+//!    search, as the book's own intrinsics test (§7.6) does with K: the focal length whose
+//!    solve of the whole shot (every few frames) fits every observation best, with the
+//!    principal point at the frame's centre and square pixels. The search's profile also says
+//!    whether the shot determines the focal length at all (flat, two minima, a best at the end
+//!    of the range): the report warns when not.
 //! 2. **Rounds** of: undistort the tracks with the current lens ([`undistort_tracks`]), solve
 //!    them with the book's pinhole matchmove, then a global bundle adjustment of the *original*
 //!    (distorted) observations in which the shared block `[f, k1, k2]`
 //!    ([`crate::bundle::CameraModel::Radial`]) is free with every camera and point
 //!    ([`crate::matchmove::global`] with a free lens). The second round starts from a
 //!    lens close to the truth, so its fragments are solved as well as a known-K shot's.
+//!    When the search found a second minimum nearly as good, the rounds run from it too and
+//!    the better fit of the whole shot is kept (a warning when they fit alike).
 //!
 //! Figures of the returned [`Solve`] (reprojection errors, inliers, the book-style score) are
 //! measured on the undistorted tracks with the solved K: pixels of the ideal pinhole the lens
@@ -241,61 +245,162 @@ pub fn undistort_tracks(tracks: &Tracks, k: &Intrinsics) -> Result<Tracks> {
     Ok(out)
 }
 
-/// The focal length (px) whose solve of the first frames fits the tracks best (module docs,
-/// step 1): the book's fragment calibration (§7.2–7.9: best pair, resection, refinement
-/// cycles) of the first [`SEARCH_FRAMES`] frames with K(f) — the principal point and square
-/// pixels of `k`, its focal length ignored — scored by the final RMS reprojection error, on a
-/// logarithmic grid of [`GRID`] focal lengths from 0.3 to 3 image diagonals (solved in
-/// parallel), then the parabola through the best one and its neighbours. The rounds refine it. A K that is wrong bends the reconstruction, and the refinement cycles cannot
-/// fit it: the RMS is smallest near the true focal length.
+/// What the focal-length search found ([`focal_search`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct FocalSearch {
+    /// The focal length (px) whose solve fits the tracks best.
+    pub focal: f64,
+    /// Other focal lengths (px) whose solves fit nearly as well (within
+    /// [`SEARCH_OTHER_RATIO`] of the best cost) at a separate minimum of the profile: a
+    /// planar set's twofold ambiguity, or a motion that does not fix the focal length. The
+    /// rounds are run from each to see which fits the whole shot better.
+    pub others: Vec<f64>,
+    /// How much worse the search's cost is at half and at double the focal length (the
+    /// smaller ratio of the two, interpolated on the grid; infinite where both lie outside it
+    /// or fail to solve): near 1 when the shot does not fix the focal length.
+    pub determinacy: f64,
+    /// Whether the best of the search's grid is its first or last point: the focal length
+    /// may lie outside the range searched, or the profile falls all the way to one end.
+    pub at_edge: bool,
+    /// The focal lengths searched, px: the first and last of the grid.
+    pub range: [f64; 2],
+}
+
+/// The cost of a [`log_grid`] at `x` = ln f, interpolated linearly in ln f; `None` outside the
+/// grid or next to a point that did not solve.
+fn grid_cost_at(grid: &[(f64, f64)], x: f64) -> Option<f64> {
+    let w = grid.windows(2).find(|w| w[0].0 <= x && x <= w[1].0)?;
+    let t = (x - w[0].0) / (w[1].0 - w[0].0);
+    let c = w[0].1 + t * (w[1].1 - w[0].1);
+    c.is_finite().then_some(c)
+}
+
+/// The focal length (px) whose solve fits the tracks best ([`focal_search`]'s best).
+pub fn estimate_focal(tracks: &Tracks, k: &Intrinsics, options: &MatchmoveOptions) -> Result<f64> {
+    focal_search(tracks, k, options).map(|s| s.focal)
+}
+
+/// The profile of the fit over the focal length (module docs, step 1): the whole shot, every
+/// `s`-th frame so that at most [`SEARCH_FRAMES`] are solved (`s` ≤ [`SEARCH_MAX_STRIDE`], so
+/// tracks still span three of them), solved by the pinhole matchmove with K(f) — the
+/// principal point and square pixels of `k`, its focal length ignored — and scored by the
+/// truncated reprojection cost of *every* observation ([`truncated_cost`]: an observation the
+/// solve could not fit counts the inlier tolerance, so a focal length cannot win by fitting
+/// fewer points); on a logarithmic grid of [`GRID`] focal lengths from 0.3 to 3 image
+/// diagonals (solved in parallel), then the parabola through the best one and its neighbours.
+///
+/// The whole shot, not its first frames: a shot's opening second often has no parallax (a
+/// slow start, a hold), and a wrong K bends a reconstruction only where there is parallax to
+/// bend. The calibrated start at each focal length handles planar sets, whose pairs the book's
+/// 8-point start cannot begin at any focal length.
 ///
 /// Why not from the fundamental matrix (the focal length that makes KᵀFK essential, Bougnoux
 /// 1998; Mendonça & Cipolla 1999)? A hand-held orbit around the subject, the commonest
 /// matchmove, is the critical motion of two-view self-calibration (optical axes meeting, Sturm
-/// 2001): measured on the Blender dev plate it gives 490 px for a 920 px lens.
-pub fn estimate_focal(tracks: &Tracks, k: &Intrinsics, options: &MatchmoveOptions) -> Result<f64> {
+/// 2001): measured on the Blender dev plate it gives 490 px for a 920 px lens; and a plane
+/// gives no fundamental matrix at all.
+///
+/// Errors: [`VisionError::NoParallax`] when no focal length solves because no part of the shot
+/// has parallax (the caller falls back to a rotation-only solve), else
+/// [`VisionError::Degenerate`] naming the range tried.
+pub fn focal_search(
+    tracks: &Tracks,
+    k: &Intrinsics,
+    options: &MatchmoveOptions,
+) -> Result<FocalSearch> {
     let diag = image_diagonal(k)?;
-    let fragments = super::split_fragments(tracks, &options.fragments)?;
-    let first = fragments.first().ok_or_else(|| {
-        VisionError::Degenerate("no fragment to estimate the focal length".into())
-    })?;
-    // Its first SEARCH_FRAMES frames (and the tracks through them) are enough to tell a lens
-    // from another, and fast to solve at many focal lengths.
-    let last = first.last.min(first.first + SEARCH_FRAMES - 1);
-    let frag = &super::Fragment {
-        first: first.first,
-        last,
-        features: (0..tracks.tracks.len())
-            .filter(|&i| super::through(&tracks.tracks[i], first.first, last).is_some())
-            .collect(),
-        is_last: false,
-    };
+    let n = tracks.frames.len();
+    let stride = n.div_ceil(SEARCH_FRAMES).clamp(1, SEARCH_MAX_STRIDE);
+    let sub = tracks.every(stride);
     // A focal length far from the lens's keeps its adjustments from converging; stopping them
     // at SEARCH_BA_ITERATIONS scores it as bad as it is, for half the work.
-    let refine = super::RefineOptions {
-        ba_iterations: options.refine.ba_iterations.min(SEARCH_BA_ITERATIONS),
-        ..options.refine.clone()
+    let search = MatchmoveOptions {
+        refine: super::RefineOptions {
+            ba_iterations: options.refine.ba_iterations.min(SEARCH_BA_ITERATIONS),
+            ..options.refine.clone()
+        },
+        score: false,
+        ..options.clone()
     };
+    let no_parallax = std::sync::atomic::AtomicUsize::new(0);
     let cost = |f: f64| -> f64 {
         let kf = Intrinsics {
             f1: f,
             f2: f * k.f2 / k.f1,
             ..k.pinhole()
         };
-        let seed = super::derive_seed(options.seed, 1, 0);
-        match super::solve_fragment(tracks, &kf, frag, &options.pair, &refine, seed) {
-            Ok(s) if s.report.rms.is_finite() && s.report.inliers >= 8 => s.report.rms,
-            _ => f64::INFINITY,
+        match matchmove(&sub, &kf, &search, &|_, _, _| {}) {
+            Ok(s) => truncated_cost(&sub, &s.report),
+            Err(e) => {
+                if matches!(e, VisionError::NoParallax(_)) {
+                    no_parallax.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                }
+                f64::INFINITY
+            }
         }
     };
     let (lo, hi) = (0.3 * diag, 3.0 * diag);
-    log_grid_minimum(lo, hi, GRID, &cost).ok_or_else(|| {
-        VisionError::Degenerate(format!(
-            "the first frames ({}..{}) solve with no focal length from {lo:.0} to {hi:.0} px: \
-             give the intrinsics with focal: refine",
-            tracks.frames[frag.first], tracks.frames[frag.last],
-        ))
+    let grid = log_grid(lo, hi, GRID, &cost);
+    let Some(focal) = grid_minimum(&grid) else {
+        let what = format!(
+            "frames {}..{} (every {stride}) solve with no focal length from {lo:.0} to {hi:.0} px",
+            tracks.frames[0],
+            tracks.frames[n - 1]
+        );
+        return Err(
+            if no_parallax.load(std::sync::atomic::Ordering::Relaxed) == GRID {
+                VisionError::NoParallax(what)
+            } else {
+                VisionError::Degenerate(format!("{what}: give the intrinsics with focal: refine"))
+            },
+        );
+    };
+    let best = grid.iter().map(|g| g.1).fold(f64::INFINITY, f64::min);
+    let jbest = grid.iter().position(|g| g.1 == best).unwrap_or(0);
+    let others = (0..grid.len())
+        .filter(|&j| j.abs_diff(jbest) >= 2 && grid[j].1 <= SEARCH_OTHER_RATIO * best)
+        .filter(|&j| {
+            (j == 0 || grid[j].1 <= grid[j - 1].1)
+                && (j + 1 == grid.len() || grid[j].1 <= grid[j + 1].1)
+        })
+        .filter_map(|j| refine_at(&grid, j))
+        .collect();
+    let determinacy = [0.5f64, 2.0]
+        .iter()
+        .filter_map(|m| grid_cost_at(&grid, (focal * m).ln()))
+        .map(|c| c / best)
+        .fold(f64::INFINITY, f64::min);
+    Ok(FocalSearch {
+        focal,
+        others,
+        determinacy,
+        at_edge: jbest == 0 || jbest + 1 == grid.len(),
+        range: [lo, hi],
     })
+}
+
+/// The truncated reprojection cost of a solve over every observation of `tracks`, px: the
+/// root mean of the squared error of the inliers and of the inlier tolerance for every other
+/// observation (outliers, points not reconstructed, frames not solved) — MSAC's cost (Torr &
+/// Zisserman 2000), so a solve cannot score better by fitting fewer observations.
+pub(crate) fn truncated_cost(tracks: &Tracks, report: &super::SolveReport) -> f64 {
+    let tau2 = report.inlier_tolerance.powi(2);
+    let total: usize = tracks.tracks.iter().map(|t| t.points.len()).sum();
+    if total == 0 || !tau2.is_finite() {
+        return f64::INFINITY;
+    }
+    let (mut sum, mut counted) = (0.0, 0usize);
+    for f in &report.frames {
+        sum += f.inliers as f64 * f.rms.powi(2) + (f.observations - f.inliers) as f64 * tau2;
+        counted += f.observations;
+    }
+    sum += total.saturating_sub(counted) as f64 * tau2;
+    let c = (sum / total as f64).sqrt();
+    if c.is_finite() {
+        c
+    } else {
+        f64::INFINITY
+    }
 }
 
 /// The image diagonal of `k`, px; an error naming what is missing without an image size.
@@ -309,6 +414,55 @@ pub(crate) fn image_diagonal(k: &Intrinsics) -> Result<f64> {
     Ok(((w as f64).powi(2) + (h as f64).powi(2)).sqrt())
 }
 
+/// `cost` at `n` focal lengths log-spaced from `lo` to `hi` (evaluated in parallel): pairs
+/// of ln f and the cost.
+pub(crate) fn log_grid(
+    lo: f64,
+    hi: f64,
+    n: usize,
+    cost: &(dyn Fn(f64) -> f64 + Sync),
+) -> Vec<(f64, f64)> {
+    use rayon::prelude::*;
+    let (lo, hi) = (lo.ln(), hi.ln());
+    let step = (hi - lo) / (n.max(2) - 1) as f64;
+    (0..n)
+        .into_par_iter()
+        .map(|j| {
+            let x = lo + step * j as f64;
+            (x, cost(x.exp()))
+        })
+        .collect()
+}
+
+/// The focal length at the best point of a [`log_grid`], refined by the parabola through it
+/// and its neighbours ([`refine_at`]); `None` when no cost is finite.
+pub(crate) fn grid_minimum(grid: &[(f64, f64)]) -> Option<f64> {
+    let (j, _) = grid
+        .iter()
+        .enumerate()
+        .min_by(|a, b| a.1 .1.total_cmp(&b.1 .1))?;
+    refine_at(grid, j)
+}
+
+/// The focal length at grid point `j` of a [`log_grid`], refined by the parabola through it
+/// and its neighbours (in ln f, by at most a grid step); `None` when its cost is not finite.
+pub(crate) fn refine_at(grid: &[(f64, f64)], j: usize) -> Option<f64> {
+    let &(x0, best) = grid.get(j)?;
+    if !best.is_finite() {
+        return None;
+    }
+    let mut x = x0;
+    if j > 0 && j + 1 < grid.len() {
+        let step = grid[j + 1].0 - x0;
+        let (a, b, c) = (grid[j - 1].1, best, grid[j + 1].1);
+        let den = a - 2.0 * b + c;
+        if a.is_finite() && c.is_finite() && den > 0.0 {
+            x += (0.5 * step * (a - c) / den).clamp(-step, step);
+        }
+    }
+    Some(x.exp())
+}
+
 /// The minimum of `cost` over `n` focal lengths log-spaced from `lo` to `hi` (evaluated in
 /// parallel), refined by the parabola through the best one and its neighbours (in log f);
 /// `None` when no cost is finite.
@@ -318,43 +472,38 @@ pub(crate) fn log_grid_minimum(
     n: usize,
     cost: &(dyn Fn(f64) -> f64 + Sync),
 ) -> Option<f64> {
-    use rayon::prelude::*;
-    let (lo, hi) = (lo.ln(), hi.ln());
-    let step = (hi - lo) / (n - 1) as f64;
-    let grid: Vec<f64> = (0..n)
-        .into_par_iter()
-        .map(|j| cost((lo + step * j as f64).exp()))
-        .collect();
-    let (jbest, &best) = grid.iter().enumerate().min_by(|a, b| a.1.total_cmp(b.1))?;
-    if !best.is_finite() {
-        return None;
-    }
-    let mut x = lo + step * jbest as f64;
-    if jbest > 0 && jbest + 1 < n {
-        let (a, b, c) = (grid[jbest - 1], best, grid[jbest + 1]);
-        let den = a - 2.0 * b + c;
-        if a.is_finite() && c.is_finite() && den > 0.0 {
-            x += (0.5 * step * (a - c) / den).clamp(-step, step);
-        }
-    }
-    Some(x.exp())
+    grid_minimum(&log_grid(lo, hi, n, cost))
 }
 
 /// Fewest tracks (seen in 3 frames or more) a distortion solve accepts: the lens's radial
 /// curve needs points spread over the frame, and fewer make k1, k2 noise.
 pub const MIN_LENS_TRACKS: usize = 30;
 
-/// Frames of the focal-length search ([`estimate_focal`]). Measured on the distorted dev plate
-/// (400 features), with [`SEARCH_BA_ITERATIONS`]: 12 frames and 8 iterations estimate 934.5 px
-/// in 0.07 s, 16 and 15 928.7 px in 0.15 s, and the solved lens is the same to 7 digits
-/// (921.51 px): the rounds refine any start within a grid step.
-const SEARCH_FRAMES: usize = 12;
-/// Most Levenberg–Marquardt iterations of an adjustment in the search ([`estimate_focal`]; the
+/// Most frames the focal-length search ([`focal_search`]) solves at each focal length: the
+/// shot is subsampled to them.
+const SEARCH_FRAMES: usize = 40;
+/// Largest frame stride of the focal-length search: a track must live 2·stride frames to be
+/// seen in three of the solved frames.
+const SEARCH_MAX_STRIDE: usize = 5;
+/// Most Levenberg–Marquardt iterations of an adjustment in the search ([`focal_search`]; the
 /// solve's own default is 30): a focal length far from the lens's never converges, and stopping
 /// early scores it as bad as it is.
 const SEARCH_BA_ITERATIONS: usize = 8;
-/// Focal lengths tried by the search, log-spaced over 0.3–3 image diagonals (×1.58 apart).
-const GRID: usize = 6;
+/// Focal lengths tried by the search, log-spaced over 0.3–3 image diagonals (×1.33 apart).
+const GRID: usize = 9;
+/// Most starts of the lens rounds: the search's best focal length and its other minima.
+const MAX_FOCAL_STARTS: usize = 2;
+/// Two solves from distinct focal lengths whose costs are within this ratio fit the tracks
+/// about equally (a warning).
+pub const FOCAL_AMBIGUITY_RATIO: f64 = 1.02;
+/// Focal lengths further apart than this fraction are distinct.
+pub const FOCAL_DISTINCT: f64 = 0.1;
+/// A search whose cost at half or double its focal length is within this ratio of its best
+/// has not determined the focal length (a warning).
+pub const FOCAL_FLAT_RATIO: f64 = 1.02;
+/// A separate minimum of the search's profile within this ratio of the best cost is followed
+/// too ([`FocalSearch::others`]).
+pub const SEARCH_OTHER_RATIO: f64 = 1.25;
 
 /// The matchmove of real cameras (module docs): the book's matchmove when nothing of the lens
 /// is solved (on the tracks undistorted by the intrinsics' own lens), else the rounds of
@@ -385,7 +534,13 @@ pub fn matchmove_with_lens(
         return solve_zoom_with_lens(tracks, &k, lens, held, options, progress);
     }
     let t0 = std::time::Instant::now();
-    let (tripod, focal, note) = super::tripod::decide(tracks, &k, unknown, options)?;
+    let decided = super::tripod::decide(tracks, &k, unknown, options);
+    let (tripod, focal, note) = match decided {
+        Err(VisionError::NoParallax(why)) => {
+            return static_fallback(tracks, &k, held, unknown, options, progress, &why)
+        }
+        r => r?,
+    };
     if let Some(parallax) = tripod {
         if let Some(f) = focal {
             k.f1 = f;
@@ -411,13 +566,7 @@ pub fn matchmove_with_lens(
         // No fragment had parallax although the motion test saw some: the camera barely
         // moved (a slow push, a hand-held hold), which a rotation-only solve models best.
         Err(VisionError::NoParallax(why)) if options.motion.solve == super::SolveMode::Auto => {
-            let mut solve =
-                super::tripod::solve_rotations(tracks, &k, held, options, None, progress)?;
-            solve.report.warnings.push(format!(
-                "no part of the shot has parallax enough to reconstruct in 3D ({why}); solved \
-                 as a nodal pan: the rotations hold, the camera's small travel is not recovered"
-            ));
-            solve
+            static_fallback(tracks, &k, held, unknown, options, progress, &why)?
         }
         Err(e) => return Err(e),
     };
@@ -425,7 +574,35 @@ pub fn matchmove_with_lens(
         solve.report.stages.insert(0, motion);
         solve.report.notes.push(note);
     }
-    warn_undetermined_focal(&mut solve.report);
+    Ok(solve)
+}
+
+/// The rotation-only solve of a shot in which nothing has parallax (`why`): the camera
+/// barely moved (a slow push, a hand-held hold, a locked-off camera), which a rotation-only
+/// solve models best. Without parallax nor turn, nothing measures an unknown focal length: it
+/// is held at its starting value, and the report says so.
+fn static_fallback(
+    tracks: &Tracks,
+    k: &Intrinsics,
+    mut held: super::Held,
+    unknown: bool,
+    options: &MatchmoveOptions,
+    progress: &(dyn Fn(&str, usize, usize) + Sync),
+    why: &str,
+) -> Result<Solve> {
+    held[0] |= unknown;
+    let mut solve = super::tripod::solve_rotations(tracks, k, held, options, None, progress)?;
+    solve.report.warnings.push(format!(
+        "no part of the shot has parallax enough to reconstruct in 3D ({why}); solved as a \
+         nodal pan: the rotations hold, the camera's small travel is not recovered"
+    ));
+    if unknown {
+        solve.report.warnings.push(format!(
+            "the focal length is not measured (the camera neither turns nor travels enough): \
+             {:.0} px is a guess; give the focal length (focal: known)",
+            k.f1
+        ));
+    }
     Ok(solve)
 }
 
@@ -433,11 +610,14 @@ pub fn matchmove_with_lens(
 /// determined by the shot (a warning).
 pub const FOCAL_SD_WARNING: f64 = 0.05;
 
-/// Warns when the solve's focal length is poorly determined: a camera that travels without
-/// turning (a dolly, a truck, a push) is a critical motion for self-calibration (Sturm 1997;
-/// Kahl, Triggs & Åström 2000) — the tracks fit a wide range of focal lengths, and the cameras
-/// of a wrong one are wrong too.
-fn warn_undetermined_focal(report: &mut super::SolveReport) {
+/// The reasons the solve's focal length is not determined by the shot, as one warning (none
+/// when there is none): its standard deviation over [`FOCAL_SD_WARNING`], and `more` (the
+/// search's flat profile, a second focal length that fits as well, a best at the edge of the
+/// search). A camera that travels without turning (a dolly, a truck, a push) is a critical
+/// motion for self-calibration (Sturm 1997; Kahl, Triggs & Åström 2000), and a plane seen from
+/// two mirror-image viewpoints fits two focal lengths: the tracks fit a wide range of focal
+/// lengths, and the cameras of a wrong one are wrong too.
+fn warn_undetermined_focal(report: &mut super::SolveReport, mut more: Vec<String>) {
     let Some(f) = report
         .intrinsics
         .iter()
@@ -446,15 +626,25 @@ fn warn_undetermined_focal(report: &mut super::SolveReport) {
         return;
     };
     if let Some(sd) = f.sd.filter(|sd| !(*sd <= FOCAL_SD_WARNING * f.value)) {
-        report.warnings.push(format!(
-            "the focal length is poorly determined: {:.0} ± {:.0} px ({:.0} %); this camera \
-             motion (travel without turning) does not fix it, and the cameras of a wrong focal \
-             length are wrong too: give the focal length (focal: known or refine)",
-            f.value,
-            sd,
-            100.0 * sd / f.value
-        ));
+        more.insert(
+            0,
+            format!(
+                "its standard deviation is {sd:.0} px ({:.0} %)",
+                100.0 * sd / f.value
+            ),
+        );
     }
+    if more.is_empty() {
+        return;
+    }
+    report.warnings.push(format!(
+        "the focal length ({:.0} px) is not determined by the shot: {}; a camera that travels \
+         without turning, or a plane seen from a symmetric viewpoint, fits many focal lengths, \
+         and the cameras of a wrong one are wrong too: give the focal length (focal: known or \
+         refine)",
+        f.value,
+        more.join("; ")
+    ));
 }
 
 /// [`matchmove_with_lens`] of a zooming lens ([`super::zoom`]), on the tracks undistorted by
@@ -509,7 +699,7 @@ fn solve_zoom_with_lens(
 /// [`matchmove_with_lens`] of a moving camera.
 fn general_with_lens(
     tracks: &Tracks,
-    mut k: Intrinsics,
+    k: Intrinsics,
     held: super::Held,
     lens: &LensOptions,
     options: &MatchmoveOptions,
@@ -532,14 +722,110 @@ fn general_with_lens(
     };
     let mut notes = Vec::new();
     let mut stages = Vec::new();
+    let mut starts = vec![k.clone()];
+    let mut search = None;
     if lens.focal == FocalMode::Unknown {
         let t0 = std::time::Instant::now();
-        let f = estimate_focal(tracks, &k, options)?;
+        let found = focal_search(tracks, &k, options)?;
         stages.push(super::StageTime::new("focal estimate", t0));
-        notes.push(format!("initial focal length {f:.1} px from the tracks"));
-        k.f1 = f;
-        k.f2 = f;
+        notes.push(format!(
+            "initial focal length {:.1} px from the tracks (the search's cost ×{:.3} at half \
+             and double it)",
+            found.focal, found.determinacy
+        ));
+        starts = std::iter::once(found.focal)
+            .chain(found.others.iter().copied().take(MAX_FOCAL_STARTS - 1))
+            .map(|f| Intrinsics {
+                f1: f,
+                f2: f * k.f2 / k.f1,
+                ..k.clone()
+            })
+            .collect();
+        search = Some(found);
     }
+    // The rounds from every start; the one that fits the whole shot best is kept.
+    let mut finished: Vec<(Solve, f64)> = Vec::new();
+    for (i, k0) in starts.iter().enumerate() {
+        let mut st = Vec::new();
+        let mut nt = Vec::new();
+        let r = lens_rounds(
+            tracks,
+            k0.clone(),
+            held,
+            lens,
+            global,
+            options,
+            progress,
+            &mut st,
+            &mut nt,
+        );
+        match r {
+            Ok(mut out) => {
+                out.report.stages = stages.iter().cloned().chain(st).collect();
+                out.report.notes.extend(notes.iter().cloned());
+                out.report.notes.extend(nt);
+                let und = undistort_tracks(tracks, out.path.intrinsics.as_ref().unwrap_or(k0))?;
+                let c = truncated_cost(&und, &out.report);
+                finished.push((out, c));
+            }
+            Err(e) if i == 0 && starts.len() == 1 => return Err(e),
+            Err(_) => {}
+        }
+    }
+    finished.sort_by(|a, b| a.1.total_cmp(&b.1));
+    let mut it = finished.into_iter();
+    let Some((mut out, cost)) = it.next() else {
+        return Err(VisionError::Degenerate(
+            "the lens rounds failed from every focal length the search found".into(),
+        ));
+    };
+    let f = out.path.intrinsics.as_ref().map_or(k.f1, |k| k.f1);
+    let mut reasons = Vec::new();
+    for (other, c) in it {
+        let f2 = other.path.intrinsics.as_ref().map_or(k.f1, |k| k.f1);
+        out.report.notes.push(format!(
+            "from the search's other minimum: focal {f2:.1} px, cost {c:.4} px (kept: {f:.1} \
+             px, {cost:.4} px)"
+        ));
+        if c <= cost * FOCAL_AMBIGUITY_RATIO && (f2 / f).ln().abs() > FOCAL_DISTINCT.ln_1p() {
+            reasons.push(format!(
+                "{f2:.0} px fits the tracks as well ({c:.3} px against {cost:.3} px)"
+            ));
+        }
+    }
+    if let Some(search) = &search {
+        if search.determinacy < FOCAL_FLAT_RATIO {
+            reasons.push(format!(
+                "its search fits half and double it within {:.1} %",
+                100.0 * (search.determinacy - 1.0)
+            ));
+        }
+        if search.at_edge {
+            reasons.push(format!(
+                "its search's best lies at the end of its range ({:.0} to {:.0} px)",
+                search.range[0], search.range[1]
+            ));
+        }
+    }
+    warn_undetermined_focal(&mut out.report, reasons);
+    Ok(out)
+}
+
+/// The rounds of the lens solve (module docs, step 2) from the intrinsics `k`: the pinhole
+/// matchmove of the tracks undistorted by the current lens, then the global adjustment with
+/// the lens free; the solve of the last round with the solved intrinsics.
+#[allow(clippy::too_many_arguments)]
+fn lens_rounds(
+    tracks: &Tracks,
+    mut k: Intrinsics,
+    held: super::Held,
+    lens: &LensOptions,
+    global: &super::GlobalOptions,
+    options: &MatchmoveOptions,
+    progress: &(dyn Fn(&str, usize, usize) + Sync),
+    stages: &mut Vec<super::StageTime>,
+    notes: &mut Vec<String>,
+) -> Result<Solve> {
     // The rounds' lens adjustment replaces the pinhole matchmove's own global adjustment.
     let inner = MatchmoveOptions {
         global: None,
@@ -585,11 +871,10 @@ fn general_with_lens(
         &poses,
         &points,
         global.final_threshold(),
-        stages,
+        Vec::new(),
         options.score,
     )?;
     out.report.notes = s.report.notes;
-    out.report.notes.extend(notes);
     out.report.fragments = s.report.fragments;
     out.report.intrinsics = super::solved_intrinsics(&k, held, cov.as_ref());
     if let Some(Err(why)) = &cov {

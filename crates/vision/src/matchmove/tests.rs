@@ -647,8 +647,10 @@ fn a_pan_solves_its_unknown_focal_length() {
     assert!(max_rot < 0.05, "rotation error {max_rot}°");
 }
 
-/// A camera that does not move at all is a (degenerate) pan: its rotations are the identity;
-/// its focal length cannot be measured, which is a clear error.
+/// A camera that does not travel and barely turns (1.4°) is a (degenerate) pan: with K its
+/// rotations are solved; its focal length cannot be measured, and without K the tracks fit a
+/// plane's travel as well as a pan (both are homographies at the noise): whichever the solve
+/// returns, the report must say the focal length is not determined — never a quiet camera.
 #[test]
 fn a_static_camera_is_a_pan_without_a_measurable_focal_length() {
     let shot = pan_shot(0.0);
@@ -670,16 +672,25 @@ fn a_static_camera_is_a_pan_without_a_measurable_focal_length() {
         ..LensOptions::default()
     };
     let k0 = lens.initial_intrinsics(None, None).unwrap();
-    let err = matchmove_with_lens(
+    let solve = matchmove_with_lens(
         &shot.tracks,
         &k0,
         &lens,
         &MatchmoveOptions::default(),
         &|_, _, _| {},
     )
-    .unwrap_err()
-    .to_string();
-    assert!(err.contains("hardly turns"), "{err}");
+    .unwrap();
+    eprintln!("{:?}", solve.report.warnings);
+    assert!(
+        solve
+            .report
+            .warnings
+            .iter()
+            .any(|w| w.contains("focal length")
+                && (w.contains("not determined") || w.contains("not measured"))),
+        "{:?}",
+        solve.report.warnings
+    );
 }
 
 /// `global_bundle_adjust` and the relaxation of a path solved through a lens: the tracks are

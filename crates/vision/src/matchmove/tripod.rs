@@ -250,6 +250,25 @@ fn decision(pairs: Vec<PairParallax>, parallax: &[f64], options: &MotionOptions)
     }
 }
 
+/// The largest, over the frame pairs of [`fit_pairs`], of the median image motion of the
+/// tracks seen in both frames, px: at the noise for a camera that does not move.
+fn image_motion_px(tracks: &Tracks) -> f64 {
+    frame_pairs(tracks)
+        .into_iter()
+        .map(|(a, b)| {
+            let d: Vec<f64> = pair_observations(tracks, a, b)
+                .iter()
+                .map(|(p, q)| (p[0] - q[0]).hypot(p[1] - q[1]))
+                .collect();
+            if d.is_empty() {
+                0.0
+            } else {
+                median(d)
+            }
+        })
+        .fold(0.0, f64::max)
+}
+
 /// The tracks seen in both frames `a` and `b`: their positions in each.
 fn pair_observations(tracks: &Tracks, a: usize, b: usize) -> Vec<([f64; 2], [f64; 2])> {
     tracks
@@ -740,6 +759,7 @@ pub fn decide(
         }
         SolveMode::Auto => {
             let und = undistort_tracks(tracks, k)?;
+            let mut pan_threshold = None;
             if focal_unknown {
                 let pairs = match fit_pairs(&und, None, seed) {
                     Ok(p) => p,
@@ -749,13 +769,31 @@ pub fn decide(
                 if !h.rotation_only {
                     return Ok((None, None, Some(h.describe())));
                 }
+                pan_threshold = Some((h.threshold_px, h.noise_px));
                 if let Some(p) = rule_out_pan_at_any_focal(&und, k, &pairs, &options.motion, seed)?
                 {
                     return Ok((None, None, Some(p.describe())));
                 }
             }
             let (kp, f) = if focal_unknown {
-                let f = estimate_rotation_focal(&und, k, seed)?;
+                // A camera that hardly turns gives a pan no focal length: the general solve's
+                // own search measures it where the shot has parallax (a plane's homographies
+                // look like a pan's), and falls back to a rotation-only solve where not.
+                let f = match estimate_rotation_focal(&und, k, seed) {
+                    Ok(f) => f,
+                    Err(e) => {
+                        let moved = image_motion_px(&und);
+                        if let Some((threshold, noise)) = pan_threshold {
+                            if moved <= threshold {
+                                return Err(VisionError::NoParallax(format!(
+                                    "the camera neither turns nor travels: its tracks move \
+                                     {moved:.2} px at most (noise {noise:.2} px)"
+                                )));
+                            }
+                        }
+                        return Ok((None, None, Some(format!("not a pan: {e}"))));
+                    }
+                };
                 let kp = Intrinsics {
                     f1: f,
                     f2: f * k.f2 / k.f1,
