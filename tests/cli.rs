@@ -619,3 +619,65 @@ fn book_matchmove_graph_runs_and_reruns_only_the_relaxation() {
         "only the relaxation and its readers rerun"
     );
 }
+
+/// Threads independent of the graph's size: a chain of 3,000 nodes runs with at most
+/// cores + 8 threads (sampled from `/proc` while it runs, with and without `-q`); a progress
+/// bar per node once started a redraw thread each.
+#[test]
+#[cfg(target_os = "linux")]
+fn a_long_chain_runs_on_a_bounded_number_of_threads() {
+    use std::fmt::Write as _;
+    let n = 3000;
+    let mut g =
+        String::from("version: 1\nnodes:\n  n0: {type: constant, params: {width: 2, height: 2}}\n");
+    for i in 1..n {
+        writeln!(
+            g,
+            "  n{i}: {{type: exposure, inputs: {{image: n{}.image}}, params: {{stops: 0.001}}}}",
+            i - 1
+        )
+        .unwrap();
+    }
+    let cores = std::thread::available_parallelism().map_or(1, |c| c.get());
+    for quiet in [true, false] {
+        let tmp = tempfile::tempdir().unwrap();
+        fs::write(tmp.path().join("g.yaml"), &g).unwrap();
+        let mut args = vec!["run", "g.yaml"];
+        if quiet {
+            args.push("-q");
+        }
+        let mut child = bin()
+            .current_dir(tmp.path())
+            .args(&args)
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        let status = format!("/proc/{}/status", child.id());
+        let mut most = 0usize;
+        let t0 = Instant::now();
+        while child.try_wait().unwrap().is_none() {
+            if let Ok(s) = fs::read_to_string(&status) {
+                if let Some(t) = s
+                    .lines()
+                    .find_map(|l| l.strip_prefix("Threads:"))
+                    .and_then(|t| t.trim().parse::<usize>().ok())
+                {
+                    most = most.max(t);
+                }
+            }
+            assert!(
+                t0.elapsed() < Duration::from_secs(300),
+                "the chain did not finish"
+            );
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        assert!(child.wait().unwrap().success());
+        eprintln!("{n}-node chain (quiet {quiet}): at most {most} threads on {cores} cores");
+        assert!(most >= 1, "threads were sampled");
+        assert!(
+            most <= cores + 8,
+            "{most} threads for {n} nodes on {cores} cores"
+        );
+    }
+}
