@@ -6,10 +6,9 @@
 //! are reduced to 8 bits by the `image` crate's rounding, `v16 · 255 / 65535`; alpha is dropped,
 //! gray stays one channel).
 
-use std::io::Cursor;
 use std::path::{Path, PathBuf};
 
-use image::{DynamicImage, ImageReader};
+use image::DynamicImage;
 use rayon::prelude::*;
 
 use super::HdrError;
@@ -259,8 +258,7 @@ pub struct CodeImage {
 /// (alpha dropped); 16-bit samples are rounded to 8 bits.
 pub fn decode_codes(bytes: &[u8]) -> Result<CodeImage, HdrError> {
     let format = match Format::sniff(bytes) {
-        Some(Format::Png) => image::ImageFormat::Png,
-        Some(Format::Jpeg) => image::ImageFormat::Jpeg,
+        Some(f @ (Format::Png | Format::Jpeg)) => f,
         other => {
             return Err(ImageError::UnsupportedFormat(format!(
                 "exposure stacks need 8-bit PNG or JPEG photographs, found {}",
@@ -269,7 +267,7 @@ pub fn decode_codes(bytes: &[u8]) -> Result<CodeImage, HdrError> {
             .into())
         }
     };
-    let dynamic = ImageReader::with_format(Cursor::new(bytes), format)
+    let dynamic = crate::io::png_jpeg::checked_reader(bytes, format)?
         .decode()
         .map_err(|e| ImageError::UnsupportedFormat(format!("cannot decode: {e}")))?;
     let (width, height) = (dynamic.width() as usize, dynamic.height() as usize);

@@ -25,21 +25,13 @@ pub const DEFAULT_JPEG_QUALITY: u8 = 95;
 
 /// Decode PNG or JPEG bytes (`format` must be [`Format::Png`] or [`Format::Jpeg`]).
 pub fn decode(bytes: &[u8], format: Format) -> Result<Image, ImageError> {
-    let image_format = match format {
-        Format::Png => ImageFormat::Png,
-        Format::Jpeg => ImageFormat::Jpeg,
-        other => {
-            return Err(ImageError::UnsupportedFormat(format!(
-                "{other} is not decoded by the PNG/JPEG codec"
-            )))
-        }
-    };
+    if !matches!(format, Format::Png | Format::Jpeg) {
+        return Err(ImageError::UnsupportedFormat(format!(
+            "{format} is not decoded by the PNG/JPEG codec"
+        )));
+    }
     let dynamic = guard(format, || {
-        let mut reader = ImageReader::with_format(Cursor::new(bytes), image_format);
-        let mut limits = Limits::default();
-        // 16-bit RGBA: 8 bytes a pixel in the decoder's buffer, 16 in ours.
-        limits.max_alloc = Some((MAX_SAMPLES as u64) * 2);
-        reader.limits(limits);
+        let reader = checked_reader(bytes, format)?;
         reader
             .decode()
             .map_err(|e| ImageError::decode(format, e.to_string()))
@@ -70,6 +62,64 @@ pub fn decode(bytes: &[u8], format: Format) -> Result<Image, ImageError> {
         }
     };
     Ok(img)
+}
+
+/// A reader of PNG or JPEG `bytes` (`format`) whose declared size has been checked
+/// ([`check_declared`], from the header alone, before anything is allocated) and whose decoder
+/// allocates at most what the image limits allow.
+pub(crate) fn checked_reader(
+    bytes: &[u8],
+    format: Format,
+) -> Result<ImageReader<Cursor<&[u8]>>, ImageError> {
+    let image_format = match format {
+        Format::Png => ImageFormat::Png,
+        _ => ImageFormat::Jpeg,
+    };
+    let (w, h) = ImageReader::with_format(Cursor::new(bytes), image_format)
+        .into_dimensions()
+        .map_err(|e| ImageError::decode(format, e.to_string()))?;
+    check_declared(format, w, h, bytes.len())?;
+    let mut reader = ImageReader::with_format(Cursor::new(bytes), image_format);
+    let mut limits = Limits::default();
+    // 16-bit RGBA: 8 bytes a pixel in the decoder's buffer, 16 in ours.
+    limits.max_alloc = Some((MAX_SAMPLES as u64) * 2);
+    reader.limits(limits);
+    Ok(reader)
+}
+
+/// Refuses a declared `width` × `height` that is over the image limits ([`MAX_SAMPLES`]), or
+/// that a file of `len` bytes cannot code: a JPEG spends at least one bit on every 8 × 8 block
+/// of every component (the Huffman code of its DC difference, ITU-T T.81 F.1.2.1 — also in a
+/// progressive file's first scan), and even a component subsampled by the largest factor (4)
+/// has ⌈w/32⌉·⌈h/32⌉ blocks; a PNG's image data is deflated, which shrinks at most
+/// 1032 : 1 (RFC 1951's longest match, 258 bytes, in a 2-bit code at best, per byte of a row of
+/// 1-bit pixels and its filter byte). A few hundred bytes declaring a giant image — a truncated
+/// or hostile file — would otherwise be decoded in full, gigabytes of filler.
+fn check_declared(format: Format, width: u32, height: u32, len: usize) -> Result<(), ImageError> {
+    let (w, h) = (width as u64, height as u64);
+    sample_count(width as usize, height as usize, 1).map_err(|_| {
+        ImageError::decode(
+            format,
+            format!(
+                "the file declares {width}×{height} pixels, over the limit of {MAX_SAMPLES} \
+                 samples"
+            ),
+        )
+    })?;
+    let needed = match format {
+        Format::Jpeg => (w.div_ceil(32) * h.div_ceil(32)).div_ceil(8),
+        _ => (h * (1 + w.div_ceil(8))).div_ceil(1032),
+    };
+    if (len as u64) < needed {
+        return Err(ImageError::decode(
+            format,
+            format!(
+                "the file declares {width}×{height} pixels but holds {len} bytes, and coding \
+                 that many pixels takes at least {needed}: it is truncated or corrupt"
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// Convert interleaved codes with `channels` channels: the last channel of a 4-channel layout
@@ -393,5 +443,67 @@ mod tests {
             }
         }
         !crc
+    }
+
+    /// `bytes` with the frame size of its JPEG SOF segment (or PNG IHDR chunk) replaced.
+    fn declare(mut bytes: Vec<u8>, format: Format, w: u32, h: u32) -> Vec<u8> {
+        match format {
+            Format::Jpeg => {
+                let sof = bytes
+                    .windows(2)
+                    .position(|m| m[0] == 0xFF && (0xC0..=0xC2).contains(&m[1]))
+                    .expect("a SOF marker");
+                // FFCx, length (2), precision (1), height (2), width (2).
+                bytes[sof + 5..sof + 7].copy_from_slice(&(h as u16).to_be_bytes());
+                bytes[sof + 7..sof + 9].copy_from_slice(&(w as u16).to_be_bytes());
+            }
+            _ => {
+                // Signature (8), IHDR length (4), "IHDR" (4), width (4), height (4), …, CRC.
+                bytes[16..20].copy_from_slice(&w.to_be_bytes());
+                bytes[20..24].copy_from_slice(&h.to_be_bytes());
+                let crc = crc32(&bytes[12..29]);
+                bytes[29..33].copy_from_slice(&crc.to_be_bytes());
+            }
+        }
+        bytes
+    }
+
+    /// A few hundred bytes declaring a giant image are refused from the header, before the
+    /// decoder allocates (the sizes of two fuzzer finds: 36205×7005 used to decode for 16 s
+    /// into 8.7 GB, 65535×32767 for 9 s and 2 GB before the size check); the same file with
+    /// its true size still reads.
+    #[test]
+    fn a_short_file_declaring_a_giant_image_is_refused_before_decoding() {
+        for format in [Format::Jpeg, Format::Png] {
+            let small = encode_any(&gradient(16, 16, 3), format).unwrap();
+            assert!(small.len() < 2000, "{format}: {} bytes", small.len());
+            assert!(decode_any(&declare(small.clone(), format, 16, 16), format).is_ok());
+            for (w, h) in [(36205, 7005), (65535, 32767), (20000, 20000)] {
+                let t0 = std::time::Instant::now();
+                let err = decode_any(&declare(small.clone(), format, w, h), format)
+                    .unwrap_err()
+                    .to_string();
+                eprintln!("{format} {w}×{h}: {err} ({:?})", t0.elapsed());
+                assert!(err.contains(&format!("{w}×{h}")), "{err}");
+                assert!(
+                    err.contains("truncated or corrupt") || err.contains("over the limit"),
+                    "{err}"
+                );
+            }
+        }
+    }
+
+    /// The bounds are conservative: real files of a few pixels to a few thousand, flat (the
+    /// most compressible), are never refused by them.
+    #[test]
+    fn the_declared_size_check_accepts_real_flat_files() {
+        for format in [Format::Jpeg, Format::Png] {
+            for (w, h) in [(1, 1), (7, 3), (640, 1), (1, 480), (2048, 1536)] {
+                let flat = Image::from_fn(w, h, 3, |_, _, _| 0.5);
+                let bytes = encode_any(&flat, format).unwrap();
+                let back = decode_any(&bytes, format).unwrap();
+                assert_eq!((back.width, back.height), (w, h), "{format}");
+            }
+        }
     }
 }
