@@ -21,6 +21,9 @@ window.studio = studio;
 
 async function api(method, url, body) {
   const opt = { method, headers: {} };
+  // Every change carries a JSON body: the server refuses any other (a cross-site page cannot
+  // send one without a preflight).
+  if (body === undefined && method !== 'GET') body = {};
   if (body !== undefined) {
     opt.headers['Content-Type'] = 'application/json';
     opt.body = JSON.stringify(body);

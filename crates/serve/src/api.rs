@@ -41,8 +41,8 @@ use crate::studio::Studio;
 type S = State<Arc<Studio>>;
 type ApiResult = Result<Response, ApiError>;
 
-/// The router of a studio.
-pub fn router(studio: Arc<Studio>) -> Router {
+/// The router of a studio; every request passes [`crate::access`]'s checks first.
+pub fn router(studio: Arc<Studio>, access: crate::access::Access) -> Router {
     Router::new()
         .route("/", get(index))
         .route("/assets/{file}", get(asset))
@@ -62,6 +62,10 @@ pub fn router(studio: Arc<Studio>) -> Router {
         .route("/api/triangulate", post(triangulate))
         .fallback(|| async { ApiError::not_found("no such route") })
         .layer(DefaultBodyLimit::max(MAX_BODY))
+        .layer(axum::middleware::from_fn_with_state(
+            Arc::new(access),
+            crate::access::check,
+        ))
         .with_state(studio)
 }
 

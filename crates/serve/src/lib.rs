@@ -9,6 +9,7 @@
 //!
 //! - [`studio`]: the served state (graph, overrides, plan, live run state) and the run thread.
 //! - [`events`]: the engine [`Observer`](vfxgraph_engine::Observer) that publishes events.
+//! - [`access`]: who may drive it (Host, origin and JSON checks; a token off loopback).
 //! - [`api`]: the HTTP routes.
 //! - [`safety`]: which files may be served, request errors as 4xx.
 //! - [`preview`]: artifact decoding for the viewers (images, layers, JSON artifacts); the
@@ -17,6 +18,7 @@
 //! - [`refine`]: sub-pixel corner refinement of a definer click.
 //! - [`assets`]: the embedded front end.
 
+pub mod access;
 pub mod api;
 pub mod assets;
 pub mod definer;
@@ -30,6 +32,7 @@ use std::net::{IpAddr, SocketAddr};
 use std::path::PathBuf;
 use std::sync::Arc;
 
+pub use access::Access;
 pub use api::router;
 pub use studio::Studio;
 
@@ -49,7 +52,8 @@ pub struct ServeOptions {
 }
 
 /// Serves the studio until the process ends. Prints `vfxgraph studio: http://ADDR/` on stdout
-/// once listening (the port is the real one when 0 was asked).
+/// once listening (the port is the real one when 0 was asked; off loopback the URL carries the
+/// token every request must show, [`access`]).
 pub fn serve(opts: ServeOptions, registry: vfxgraph_engine::Registry) -> Result<(), String> {
     let rt = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
@@ -74,10 +78,21 @@ pub fn serve(opts: ServeOptions, registry: vfxgraph_engine::Registry) -> Result<
                 .await
                 .map_err(|e| e.to_string())?;
         }
-        println!("vfxgraph studio: http://{local}/");
+        let access = Access::for_address(local, None);
+        match access.token() {
+            None => println!("vfxgraph studio: http://{local}/"),
+            Some(token) => {
+                println!("vfxgraph studio: http://{local}/?token={token}");
+                eprintln!(
+                    "vfxgraph studio: listening off loopback ({local}): anyone on the network \
+                     who has the URL above (its token) can read the graph's folder and run \
+                     the graph; keep it private"
+                );
+            }
+        }
         use std::io::Write;
         let _ = std::io::stdout().flush();
-        axum::serve(listener, router(studio))
+        axum::serve(listener, router(studio, access))
             .await
             .map_err(|e| format!("server stopped: {e}"))
     })

@@ -12,7 +12,7 @@ use axum::http::{Request, StatusCode};
 use http_body_util::BodyExt;
 use serde_json::{json, Value};
 use tower::ServiceExt;
-use vfxgraph_serve::{router, Studio};
+use vfxgraph_serve::{router, Access, Studio};
 
 const GRAPH: &str = "version: 1
 frames: 1,2
@@ -57,10 +57,17 @@ async fn call(
     let req = Request::builder()
         .method(method)
         .uri(uri)
+        .header("host", "127.0.0.1:8080")
         .header("content-type", "application/json")
         .body(body.map_or_else(Body::empty, Body::from))
         .unwrap();
-    let resp = router(s.clone()).oneshot(req).await.unwrap();
+    send(s, req).await
+}
+
+/// The studio's answer to `req`, served at 127.0.0.1:8080.
+async fn send(s: &Arc<Studio>, req: Request<Body>) -> (StatusCode, Vec<u8>) {
+    let access = Access::for_address("127.0.0.1:8080".parse().unwrap(), None);
+    let resp = router(s.clone(), access).oneshot(req).await.unwrap();
     let status = resp.status();
     let bytes = resp
         .into_body()
@@ -417,4 +424,116 @@ async fn the_books_marks_are_written_as_the_books_file() {
         .find(|p| p["id"] == "marks")
         .unwrap();
     assert_eq!(m["status"], "run", "{m}");
+}
+
+/// The probes of an attacker's page (a cross-site form or `fetch`, a DNS-rebound name): every
+/// change they attempt is refused with a 4xx, and nothing runs; the studio's own requests pass.
+#[tokio::test]
+async fn requests_from_another_site_or_host_are_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let s = studio(tmp.path(), GRAPH);
+    let probe = |method: &str, uri: &str, headers: &[(&str, &str)], body: &str| {
+        let mut b = Request::builder().method(method).uri(uri);
+        for (k, v) in headers {
+            b = b.header(*k, *v);
+        }
+        b.body(Body::from(body.to_string())).unwrap()
+    };
+    let host = ("host", "127.0.0.1:8080");
+    let evil = ("origin", "http://evil.example");
+    let plain = ("content-type", "text/plain");
+    let json = ("content-type", "application/json");
+    for uri in ["/api/run", "/api/cancel", "/api/reload"] {
+        // A cross-site form or no-cors fetch: text/plain from another origin.
+        let (st, body) = send(&s, probe("POST", uri, &[host, evil, plain], "{}")).await;
+        assert_eq!(
+            st,
+            StatusCode::FORBIDDEN,
+            "{uri}: {}",
+            String::from_utf8_lossy(&body)
+        );
+        // Its own origin but not JSON (what a form could send).
+        let (st, _) = send(&s, probe("POST", uri, &[host, plain], "{}")).await;
+        assert_eq!(st, StatusCode::UNSUPPORTED_MEDIA_TYPE, "{uri}");
+        // The browser's fetch metadata says cross-site.
+        let cross = ("sec-fetch-site", "cross-site");
+        let (st, _) = send(&s, probe("POST", uri, &[host, json, cross], "{}")).await;
+        assert_eq!(st, StatusCode::FORBIDDEN, "{uri}");
+    }
+    assert!(!s.is_running(), "no probe started a run");
+    // DNS rebinding: the page's own origin under the attacker's name.
+    let rebound = ("host", "evil.example:8080");
+    let (st, _) = send(&s, probe("GET", "/api/state", &[rebound], "")).await;
+    assert_eq!(st, StatusCode::FORBIDDEN);
+    let origin = ("origin", "http://evil.example:8080");
+    let (st, _) = send(
+        &s,
+        probe("POST", "/api/run", &[rebound, origin, json], "{}"),
+    )
+    .await;
+    assert_eq!(st, StatusCode::FORBIDDEN);
+    let (st, _) = send(
+        &s,
+        probe(
+            "POST",
+            "/api/params",
+            &[rebound, json],
+            r#"{"node":"grade","param":"stops","value":"3"}"#,
+        ),
+    )
+    .await;
+    assert_eq!(st, StatusCode::FORBIDDEN);
+    assert!(!s.is_running());
+    // The studio's own page: same origin, JSON.
+    let own = ("origin", "http://127.0.0.1:8080");
+    let (st, body) = send(&s, probe("POST", "/api/cancel", &[host, own, json], "{}")).await;
+    assert_eq!(st, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
+    let (st, _) = send(
+        &s,
+        probe("GET", "/api/state", &[("host", "localhost:8080")], ""),
+    )
+    .await;
+    assert_eq!(st, StatusCode::OK);
+}
+
+/// Off loopback a token is required (printed once in the URL): without it every route answers
+/// 401; opened with `?token=`, the page gets it as a cookie for its later requests.
+#[tokio::test]
+async fn off_loopback_the_token_is_required() {
+    let tmp = tempfile::tempdir().unwrap();
+    let s = studio(tmp.path(), GRAPH);
+    let access = Access::for_address("0.0.0.0:8080".parse().unwrap(), None);
+    let token = access.token().unwrap().to_string();
+    let get = |uri: &str, cookie: Option<&str>| {
+        let mut b = Request::builder()
+            .uri(uri)
+            .header("host", "studio.lan:8080");
+        if let Some(c) = cookie {
+            b = b.header("cookie", c);
+        }
+        b.body(Body::empty()).unwrap()
+    };
+    let r = router(s.clone(), access.clone());
+    let resp = r.clone().oneshot(get("/api/state", None)).await.unwrap();
+    assert_eq!(resp.status(), StatusCode::UNAUTHORIZED);
+    let resp = r.clone().oneshot(get("/", None)).await.unwrap();
+    assert_eq!(resp.status(), StatusCode::UNAUTHORIZED);
+    let resp = r
+        .clone()
+        .oneshot(get(&format!("/?token={token}"), None))
+        .await
+        .unwrap();
+    assert_eq!(resp.status(), StatusCode::OK);
+    let cookie = resp.headers()["set-cookie"].to_str().unwrap().to_string();
+    assert!(
+        cookie.contains("HttpOnly") && cookie.contains("SameSite=Strict"),
+        "{cookie}"
+    );
+    let pair = cookie.split(';').next().unwrap();
+    let resp = r
+        .clone()
+        .oneshot(get("/api/state", Some(pair)))
+        .await
+        .unwrap();
+    assert_eq!(resp.status(), StatusCode::OK);
 }
