@@ -25,7 +25,8 @@ pub const MAX_POINTS: usize = 1000;
 /// See [`MAX_POINTS`].
 pub const MAX_FRAMES: usize = 10_000;
 
-/// The `read_marks` node `id` of `graph` and its marks file.
+/// The `read_marks` node `id` of `graph` and its marks file, which must lie in the graph's
+/// folder ([`crate::safety::confine`]: the studio writes nowhere else).
 pub fn marks_file(graph: &Graph, id: &str) -> Result<PathBuf, ApiError> {
     let i = graph
         .index_of(id)
@@ -38,7 +39,11 @@ pub fn marks_file(graph: &Graph, id: &str) -> Result<PathBuf, ApiError> {
         )));
     }
     let text = n.params.str("path");
-    Ok(resolve_path(&graph.dir, text, None))
+    crate::safety::confine(
+        &resolve_path(&graph.dir, text, None),
+        std::slice::from_ref(&graph.dir),
+        text,
+    )
 }
 
 /// The marks in the file (none when the file does not exist yet).

@@ -130,6 +130,47 @@ pub fn resolve_served(base: &Path, roots: &[PathBuf], text: &str) -> Result<Path
     Ok(canonical)
 }
 
+/// `path` (absolute) if it lies under one of `roots` — judged on its canonical form, symlinks
+/// followed, so a link out of the folder does not lead out of it; a file that does not exist
+/// yet (an output) is judged by its nearest existing folder, and the rest of it may hold no
+/// `..`. A 403 naming `shown` (how the client wrote it) otherwise.
+pub fn confine(path: &Path, roots: &[PathBuf], shown: &str) -> Result<PathBuf, ApiError> {
+    let outside = || {
+        ApiError::forbidden(format!(
+            "`{shown}` is outside the graph's folder and the cache: the studio reads and writes \
+             only there"
+        ))
+    };
+    let mut existing = path;
+    let mut rest = Vec::new();
+    let canonical = loop {
+        match existing.canonicalize() {
+            Ok(c) => break c,
+            Err(_) => {
+                let (Some(parent), Some(name)) = (existing.parent(), existing.file_name()) else {
+                    return Err(outside());
+                };
+                rest.push(name.to_owned());
+                existing = parent;
+            }
+        }
+    };
+    if rest
+        .iter()
+        .any(|c| Path::new(c).components().any(|k| k == Component::ParentDir))
+    {
+        return Err(outside());
+    }
+    let allowed = roots
+        .iter()
+        .filter_map(|r| r.canonicalize().ok())
+        .any(|r| canonical.starts_with(&r));
+    if !allowed {
+        return Err(outside());
+    }
+    Ok(rest.iter().rev().fold(canonical, |p, c| p.join(c)))
+}
+
 /// The content type of a served file, by extension.
 pub fn content_type(path: &Path) -> &'static str {
     match path

@@ -240,6 +240,46 @@ impl Studio {
     /// Sets `node.param` to `value` (YAML text, as `--set`), or removes the override when
     /// `value` is `None`. The graph is reloaded with the new overrides; if it does not
     /// validate, nothing changes and the diagnostics are returned.
+    /// A path parameter set from the page must name files in the graph's folder or the cache
+    /// ([`crate::safety::confine`]): a page cannot make a run read or write elsewhere.
+    fn confine_path_param(
+        &self,
+        g: &Graph,
+        node: &str,
+        param: &str,
+    ) -> Result<(), Vec<DiagnosticLine>> {
+        use vfxgraph_engine::ParamType;
+        let Some(i) = g.index_of(node) else {
+            return Ok(());
+        };
+        let n = &g.nodes[i];
+        let texts = match n.spec().param_spec(param).map(|p| &p.ty) {
+            Some(ParamType::Path(_)) => vec![n.params.str(param)],
+            Some(ParamType::PathList(_)) => n.params.strs(param),
+            _ => return Ok(()),
+        };
+        let roots = [g.dir.clone(), self.cache_dir.clone()];
+        for text in texts {
+            let path = vfxgraph_engine::node::resolve_path(&g.dir, text, None);
+            if let Err(e) = crate::safety::confine(&path, &roots, text) {
+                return Err(vec![DiagnosticLine {
+                    code: "path-outside".into(),
+                    text: format!("{node}.{param}: {}", e.message),
+                    file: self.graph_file.display().to_string(),
+                    line: None,
+                    col: None,
+                    message: e.message,
+                    help: Some(
+                        "give a path relative to the graph's folder, inside it (or edit the \
+                         graph file itself)"
+                            .into(),
+                    ),
+                }]);
+            }
+        }
+        Ok(())
+    }
+
     pub fn set_param(
         &self,
         node: &str,
@@ -259,6 +299,9 @@ impl Studio {
         }
         match load(&self.graph_file, &self.registry, &sets) {
             Loaded::Ok(g) => {
+                if value.is_some() {
+                    self.confine_path_param(&g, node, param)?;
+                }
                 {
                     let mut i = self.inner();
                     i.sets = sets;

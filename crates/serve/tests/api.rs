@@ -537,3 +537,70 @@ async fn off_loopback_the_token_is_required() {
         .unwrap();
     assert_eq!(resp.status(), StatusCode::OK);
 }
+
+/// A path parameter set from the page names files in the graph's folder (or the cache) only —
+/// absolute paths, `..` and symlinks out are refused, and nothing changes — and the marks file
+/// is read and written only there, even when the graph file itself points elsewhere (the error
+/// does not quote the other file).
+#[tokio::test]
+async fn paths_set_from_the_page_stay_in_the_graph_folder() {
+    let root = tempfile::tempdir().unwrap();
+    let dir = root.path().join("shot");
+    let outside = root.path().join("outside");
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::create_dir_all(&outside).unwrap();
+    std::fs::write(outside.join("secret.txt"), "Frame 1\nNpoints 1\n7 7\n\n").unwrap();
+    #[cfg(unix)]
+    std::os::unix::fs::symlink(&outside, dir.join("link")).unwrap();
+    let s = studio(&dir, GRAPH);
+    let set = |node: &str, param: &str, value: &str| json!({"node": node, "param": param, "value": value});
+    let abs = outside.join("pwned.txt").display().to_string();
+    let mut refused = vec![
+        ("marks", abs.clone()),
+        ("marks", "../outside/x.txt".to_string()),
+        ("marks", "new/../../outside/x.txt".to_string()),
+        ("plate", "/etc/passwd".to_string()),
+    ];
+    if cfg!(unix) {
+        refused.push(("marks", "link/secret.txt".to_string()));
+        refused.push(("marks", "link/new.txt".to_string()));
+    }
+    for (node, value) in &refused {
+        let (st, body) = post_json(&s, "/api/params", set(node, "path", value)).await;
+        assert_eq!(st, StatusCode::BAD_REQUEST, "{node}.path={value}: {body}");
+        assert!(
+            body["error"]
+                .as_str()
+                .unwrap()
+                .contains("outside the graph's folder"),
+            "{body}"
+        );
+        let (_, m) = get_json(&s, "/api/marks?node=marks").await;
+        assert_eq!(
+            m["marks"]["frames"][0]["points"][0][0], 1.0,
+            "the override was not kept: {m}"
+        );
+    }
+    // Inside the folder, even in a folder not made yet, is fine.
+    let (st, body) = post_json(&s, "/api/params", set("marks", "path", "sub/new.txt")).await;
+    assert_eq!(st, StatusCode::OK, "{body}");
+    assert!(!outside.join("pwned.txt").exists());
+    // A graph file whose marks path points out of its folder: the definer refuses it, and the
+    // error does not quote the file.
+    let g2 = GRAPH.replace(
+        "marks.txt",
+        &outside.join("secret.txt").display().to_string(),
+    );
+    let s2 = studio(&dir, &g2);
+    let (st, body) = get_json(&s2, "/api/marks?node=marks").await;
+    assert_eq!(st, StatusCode::FORBIDDEN, "{body}");
+    assert!(!body.to_string().contains("7 7"), "{body}");
+    let marks =
+        json!({"node": "marks", "marks": {"frames": [{"frame": 1, "points": [[1.0, 2.0]]}]}});
+    let (st, _) = post_json(&s2, "/api/marks", marks).await;
+    assert_eq!(st, StatusCode::FORBIDDEN);
+    assert_eq!(
+        std::fs::read_to_string(outside.join("secret.txt")).unwrap(),
+        "Frame 1\nNpoints 1\n7 7\n\n"
+    );
+}
