@@ -14,6 +14,10 @@
 //!   book's marks clicked and saved byte for byte, and their calibration equal to the book
 //!   file's.
 //!
+//! - `another_site_cannot_drive_the_studio`: a page on another origin (another port) tries
+//!   what a hostile site would — a `no-cors` text/plain `fetch`, a JSON `fetch`, a form post —
+//!   and no run starts; the studio's own page still runs.
+//!
 //! Prints page-load time, event → DOM latency, scrub fps, snap and reprojection errors
 //! (figures; the one timed bound is a sanity floor at half the claimed fps). Screenshots go to
 //! `target/serve-shots/`.
@@ -1189,5 +1193,84 @@ nodes:
     );
     assert_eq!(s.js("return solve.info.highlighted;", json!([])), json!(96));
     std::fs::write(shots.join("solve-path.png"), s.screenshot()).unwrap();
+    s.quit();
+}
+
+/// A hostile page, served on its own port: any web site the user visits could be it.
+fn serve_attacker_page() -> u16 {
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let port = listener.local_addr().unwrap().port();
+    std::thread::spawn(move || {
+        use std::io::{Read, Write};
+        for stream in listener.incoming() {
+            let Ok(mut stream) = stream else { continue };
+            let mut buf = [0u8; 4096];
+            let _ = stream.read(&mut buf);
+            let page = "<!doctype html><html><body><iframe name=sink></iframe></body></html>";
+            let _ = write!(
+                stream,
+                "HTTP/1.1 200 OK\r\nContent-Type: text/html\r\nContent-Length: {}\r\n\
+                 Connection: close\r\n\r\n{page}",
+                page.len()
+            );
+        }
+    });
+    port
+}
+
+#[test]
+fn another_site_cannot_drive_the_studio() {
+    if !browser_available() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("g.yaml"),
+        "version: 1\nnodes:\n  c: {type: constant, params: {width: 8, height: 8}}\n  \
+         e: {type: exposure, inputs: {image: c.image}, params: {stops: 1}}\n",
+    )
+    .unwrap();
+    let port = serve(dir.path(), "g.yaml");
+    let evil = serve_attacker_page();
+    let (_driver, dport) = chromedriver();
+    let profile = tempfile::tempdir().unwrap();
+    let s = Session::start(dport, CHROMIUM, profile.path());
+    s.goto(&format!("http://127.0.0.1:{evil}/"));
+    let studio = format!("http://127.0.0.1:{port}");
+    let outcome = s.js_async(
+        "const [base, done] = [arguments[0], arguments[arguments.length - 1]];
+         const form = document.createElement('form');
+         form.method = 'POST'; form.action = base + '/api/run'; form.target = 'sink';
+         form.enctype = 'text/plain';
+         const field = document.createElement('input');
+         field.name = '{\"a\":1}'; form.appendChild(field);
+         document.body.appendChild(form); form.submit();
+         Promise.all([
+           fetch(base + '/api/run', {method: 'POST', mode: 'no-cors',
+             headers: {'Content-Type': 'text/plain'}, body: '{}'}).then(() => 'sent', (e) => 'failed: ' + e),
+           fetch(base + '/api/reload', {method: 'POST', mode: 'no-cors', body: '{}'}).then(() => 'sent', (e) => 'failed: ' + e),
+           fetch(base + '/api/run', {method: 'POST',
+             headers: {'Content-Type': 'application/json'}, body: '{}'}).then((r) => 'status ' + r.status, (e) => 'blocked: ' + e),
+         ]).then((r) => setTimeout(() => done(r), 1500));",
+        json!([studio]),
+    );
+    eprintln!("the hostile page's requests: {outcome}");
+    let state = api_state(port);
+    assert_eq!(
+        state["runs"].as_u64(),
+        Some(0),
+        "a run was started from another site"
+    );
+    assert_eq!(state["running"].as_bool(), Some(false));
+    // The studio's own page still drives it.
+    s.goto(&format!("{studio}/"));
+    wait_for("the first state", || {
+        s.js("return studio.readyAt !== null;", json!([]))
+            .as_bool()
+            .unwrap_or(false)
+            .then_some(())
+    });
+    run_from_page(&s, port);
+    assert_eq!(api_state(port)["runs"].as_u64(), Some(1));
     s.quit();
 }
