@@ -103,7 +103,7 @@ enum Command {
         /// Port (0: any free port; the URL is printed).
         #[arg(long, default_value_t = 8080)]
         port: u16,
-        /// Address to listen on (another than 127.0.0.1 exposes the graph's folder).
+        /// Address to listen on (off loopback, every request needs the token the URL carries).
         #[arg(long, default_value = "127.0.0.1")]
         bind: std::net::IpAddr,
         /// Cache folder (default: .vfxgraph/ beside the graph file).
