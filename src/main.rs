@@ -222,6 +222,9 @@ const EXIT_INTERRUPTED: u8 = 130;
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    if prints_listings(&cli.command) {
+        default_sigpipe();
+    }
     init_logging(cli.verbose, cli.quiet);
     let registry = vfxgraph_nodes::registry();
     match dispatch(cli, &registry) {
@@ -230,6 +233,33 @@ fn main() -> ExitCode {
             eprintln!("error: {msg}");
             ExitCode::from(EXIT_INVALID)
         }
+    }
+}
+
+/// The commands whose output is a listing a user pipes into `head`, `less` or `grep`.
+fn prints_listings(c: &Command) -> bool {
+    matches!(
+        c,
+        Command::Plan { .. }
+            | Command::Nodes
+            | Command::Describe { .. }
+            | Command::Dot { .. }
+            | Command::Cache { .. }
+            | Command::Check { .. }
+            | Command::Status(_)
+    )
+}
+
+/// A listing piped into `head` ends quietly when the reader closes the pipe, as `ls | head`
+/// does: the default action of SIGPIPE (Rust ignores it, so `println!` would panic on the
+/// closed pipe). Not for the commands that write to sockets or to children's pipes, whose
+/// errors are handled where they occur.
+fn default_sigpipe() {
+    #[cfg(unix)]
+    // SAFETY: called at the start of main, before any other thread exists; SIG_DFL is a valid
+    // disposition for SIGPIPE.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
 }
 

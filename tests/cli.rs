@@ -681,3 +681,42 @@ fn a_long_chain_runs_on_a_bounded_number_of_threads() {
         );
     }
 }
+
+/// A listing piped into a reader that stops early (`vfxgraph cache ls | head`) ends quietly,
+/// as `ls | head` does: no panic, no exit 101 (it used to panic on the closed pipe).
+#[test]
+#[cfg(unix)]
+fn a_listing_into_a_closed_pipe_ends_quietly() {
+    use std::os::unix::process::ExitStatusExt;
+    let tmp = tempfile::tempdir().unwrap();
+    fs::write(tmp.path().join("g.yaml"), long_graph(30)).unwrap();
+    let out = bin()
+        .current_dir(tmp.path())
+        .args(["run", "-q", "g.yaml"])
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    for args in [
+        &["cache", "ls"][..],
+        &["nodes"][..],
+        &["plan", "g.yaml"][..],
+    ] {
+        let mut child = bin()
+            .current_dir(tmp.path())
+            .args(args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        // The reader goes away before the listing is written.
+        drop(child.stdout.take());
+        let out = child.wait_with_output().unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+        assert!(
+            out.status.success() || out.status.signal() == Some(libc::SIGPIPE),
+            "{args:?}: {:?} {stderr}",
+            out.status
+        );
+    }
+}
