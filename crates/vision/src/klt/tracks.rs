@@ -136,6 +136,10 @@ struct NativeFile {
 
 const NATIVE_FORMAT: &str = "vfxgraph-tracks";
 
+/// The largest frame number (in magnitude) a tracks file may hold: a billion frames, 16 months
+/// at 24 fps; beyond, a number from a file is an error, not a shot.
+pub const MAX_FRAME_NUMBER: u64 = 1_000_000_000;
+
 /// The most feature slots a tracks file may declare (either format).
 pub const MAX_SLOTS: usize = 10_000_000;
 
@@ -216,13 +220,29 @@ impl Tracks {
             .map(|i| &self.tracks[i])
     }
 
-    /// Checks the invariants: at most [`MAX_SLOTS`] slots, ids increase, observations and
+    /// Checks the invariants: frame numbers increase and lie within ±[`MAX_FRAME_NUMBER`], at
+    /// most [`MAX_SLOTS`] slots, ids increase, observations and
     /// losses lie inside the frame range, slots are below `slots`, and a slot holds at most one
     /// track per frame. The work and memory grow with the tracks, not with `slots` × frames
     /// (both are numbers from a file).
     pub fn validate(&self) -> Result<(), KltError> {
         let bad = |m: String| Err(KltError::BadTracks(m));
         let n = self.frames.len();
+        if let Some(f) = self
+            .frames
+            .iter()
+            .find(|f| f.unsigned_abs() > MAX_FRAME_NUMBER)
+        {
+            return bad(format!(
+                "frame {f}: frame numbers lie within ±{MAX_FRAME_NUMBER}"
+            ));
+        }
+        if let Some(w) = self.frames.windows(2).find(|w| w[1] <= w[0]) {
+            return bad(format!(
+                "frame {} after frame {}: frames must increase",
+                w[1], w[0]
+            ));
+        }
         if self.slots > MAX_SLOTS {
             return bad(format!(
                 "{} feature slots (at most {MAX_SLOTS})",
@@ -304,7 +324,8 @@ impl Tracks {
 
     /// Reads the book's `f.txt` format. Each maximal run of status-0 lines of a slot becomes a
     /// track (ids in order of first frame, then slot); a −1 line right after a run records the
-    /// loss (reason [`LostReason::Unknown`]). Errors name the line.
+    /// loss (reason [`LostReason::Unknown`]). Errors name the line, or the invariant
+    /// ([`Tracks::validate`]) the file breaks.
     pub fn from_book(text: &str) -> Result<Tracks, KltError> {
         let perr = |line: usize, m: &str| KltError::Parse {
             line,
@@ -403,12 +424,14 @@ impl Tracks {
                 });
             }
         }
-        Ok(Tracks {
+        let out = Tracks {
             frames,
             slots,
             image_size: None,
             tracks,
-        })
+        };
+        out.validate()?;
+        Ok(out)
     }
 
     /// The native format: JSON `{"format": "vfxgraph-tracks", "version": 1, "frames": [...],
@@ -507,6 +530,23 @@ mod tests {
         assert_eq!(back.tracks[2].first, 3);
         assert_eq!(back.to_book(), text);
         assert_eq!(t.observations(3), vec![(2, [7.0, 8.0]), (1, [5.0, 6.0])]);
+    }
+
+    #[test]
+    fn frame_numbers_are_bounded_and_increase() {
+        let text = "Features per frame = 1\nFrame 9223372036854775807\n1 2 0\n";
+        let e = Tracks::parse(text).unwrap_err().to_string();
+        assert!(
+            e.contains("9223372036854775807") && e.contains("within"),
+            "{e}"
+        );
+        let text = "Features per frame = 1\nFrame 5\n1 2 0\nFrame 3\n1 2 0\n";
+        let e = Tracks::parse(text).unwrap_err().to_string();
+        assert!(e.contains("frame 3 after frame 5"), "{e}");
+        let mut t = sample();
+        t.frames[2] = -(MAX_FRAME_NUMBER as i64) - 1;
+        assert!(t.validate().is_err());
+        assert!(Tracks::parse("Features per frame = 1\nFrame -1000000000\n1 2 0\n").is_ok());
     }
 
     #[test]
