@@ -224,9 +224,11 @@ def lens_of_colmap_camera(cam):
     return lens
 
 
-def run_colmap(plate_dir, work, threads, log, lens="known", model="RADIAL"):
-    """lens "known": PINHOLE with the plate's K, fixed. lens "unknown": one shared camera of
-    `model` with COLMAP's no-EXIF default parameters; focal length and distortion refined."""
+def run_colmap(plate_dir, work, threads, log, lens="known", model="RADIAL", known_camera=None):
+    """lens "known": PINHOLE with the plate's K, fixed (or `known_camera`: a COLMAP model name
+    and its parameters, e.g. RADIAL f, cx, cy, k1, k2 for a known lens, fixed too). lens
+    "unknown": one shared camera of `model` with COLMAP's no-EXIF default parameters; focal
+    length and distortion refined."""
     import pycolmap
 
     work = Path(work) / "colmap"
@@ -238,7 +240,10 @@ def run_colmap(plate_dir, work, threads, log, lens="known", model="RADIAL"):
                    if p.suffix.lower() in (".jpg", ".jpeg", ".png"))
 
     reader = pycolmap.ImageReaderOptions()
-    if lens == "known":
+    if lens == "known" and known_camera:
+        reader.camera_model = known_camera[0]
+        reader.camera_params = ",".join(str(v) for v in known_camera[1])
+    elif lens == "known":
         reader.camera_model = "PINHOLE"
         reader.camera_params = ",".join(str(v) for v in (
             FX, FY, CX + COLMAP_PIXEL_SHIFT, CY + COLMAP_PIXEL_SHIFT))
