@@ -62,14 +62,15 @@ W, H = 480, 270
 
 
 def plate_specs(count, seed):
-    """Plate i: set i mod 6, motion (i + i // 6) mod 7, lens and length from its own seed."""
+    """Plate i: set i mod 6, motion (i mod 6 + i // 6) mod 7 (any 42 consecutive plates hold
+    every pairing), lens and length from its own seed."""
     out = []
     for i in range(count):
         rng = random.Random(seed * 100003 + i)
         out.append({
             "index": i,
             "set": SETS[i % len(SETS)],
-            "motion": MOTIONS[(i + i // len(SETS)) % len(MOTIONS)],
+            "motion": MOTIONS[(i % len(SETS) + i // len(SETS)) % len(MOTIONS)],
             "lens": rng.choice(LENSES),
             "frames": rng.choice(LENGTHS),
             "start": rng.uniform(-20.0, 20.0),
@@ -200,10 +201,15 @@ def write_plate(p, work, focal_mode):
                   "params": {"path": "true_cameras.json"}},
     }
     if distorted:
+        # The pinhole render covers the lens's whole footprint (K′ of `undistort`'s overscan),
+        # so the lens bends a full picture: no empty border for the tracker to follow.
         make["lens"] = {"type": "read_intrinsics", "params": {"path": "lens.json"}}
+        make["blank"] = {"type": "constant", "params": {"width": W, "height": H}}
+        make["footprint"] = {"type": "undistort",
+                             "inputs": {"image": "blank.image", "intrinsics": "lens.intrinsics"}}
+        make["plate"]["inputs"]["intrinsics"] = "footprint.intrinsics"
         make["bent"] = {"type": "redistort", "per_frame": True,
-                        "inputs": {"image": "plate.image", "intrinsics": "lens.intrinsics"},
-                        "params": {"overscan": False}}
+                        "inputs": {"image": "plate.image", "intrinsics": "lens.intrinsics"}}
     solve = {
         "read": {"type": "read_image_sequence", "params": {"path": "plate/frame.####.jpg"}},
         "track": {"type": "klt_track", "inputs": {"frames": "read.sequence"}},

@@ -1,8 +1,9 @@
 //! Relative pose with a known K, for any scene: the five-point essential matrix
 //! ([`essential_five_point`]) and the plane-induced homography ([`decompose_homography`]) are
-//! both fitted by RANSAC, and the homography's motions join the candidates when it explains
-//! nearly as many matches as E does (the inlier-ratio rule of COLMAP's two-view geometry and
-//! ORB-SLAM's initializer): a floor or a wall starts from H, a general scene from E.
+//! both fitted by RANSAC, and when the homography explains nearly as many matches as E does
+//! (the inlier-ratio rule of COLMAP's two-view geometry and ORB-SLAM's initializer) its motions
+//! replace E's, whose pose coplanar points do not determine: a floor or a wall starts from H, a
+//! general scene from E.
 //!
 //! Each candidate is refined on the Sampson distances of its matches and scored by the matches
 //! that triangulate in front of both cameras within the threshold. A planar scene leaves two
@@ -42,8 +43,8 @@ pub enum StartModel {
 pub struct CalibratedOptions {
     /// RANSAC: the threshold is a Sampson distance in pixels (a transfer error for H).
     pub ransac: RansacParams,
-    /// The homography's motions are candidates when H keeps at least this fraction of E's
-    /// inliers.
+    /// The homography's motions are the candidates (E's pose dropped) when H keeps at least
+    /// this fraction of E's inliers.
     pub homography_ratio: f64,
     /// A candidate with fewer triangulated inliers is dropped.
     pub min_inliers: usize,
@@ -208,7 +209,14 @@ pub fn relative_pose_calibrated<R: Rng + ?Sized>(
     // (pose, model, the matches it was fitted on)
     let mut seeds: Vec<(Pose, StartModel, Vec<bool>)> = Vec::new();
     let kk = k.k();
-    if let Some(r) = &e_fit {
+    // A pair the homography explains (nearly) as well is planar: its essential matrix is not
+    // determined by the matches (coplanar points fit a family of motions, and RANSAC returns
+    // one of them), so its pose is left out and the plane's motions stand alone (COLMAP's
+    // planar case; ORB-SLAM's initializer). Off-plane points, if any, still triangulate with
+    // the true motion, which is among the plane's two.
+    let planar = homography_inliers as f64 >= options.homography_ratio * essential_inliers as f64
+        && homography_inliers >= options.min_inliers;
+    if let Some(r) = e_fit.as_ref().filter(|_| !planar) {
         let e = kk.transpose() * r.model * kk;
         let (sa, sb) = select(&r.inliers, a, b);
         if let Some(p) = cheiral_pose(&e, k, &sa, &sb) {
