@@ -814,8 +814,54 @@ fn openjd_template_checks_and_runs_to_the_local_result() {
         steps,
         ["path", "plate_scene", "plate", "graded", "exr", "movie"]
     );
-    // The two sinks with their dependencies (the second finds its producers cached).
-    openjd_check_and_run(&openjd, &g, &v, &["movie", "exr"]);
+    // The job's sinks, as submit names them, each with its dependencies (the second finds
+    // its producers cached): the whole job.
+    let sinks: Vec<&str> = v["sinks"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s.as_str().unwrap())
+        .collect();
+    assert_eq!(sinks, ["exr", "movie"]);
+    // The command submit prints for a person, run as printed by a shell: the whole job.
+    let printed = vfx(
+        &g,
+        &[
+            "submit",
+            "farm_shot.yaml",
+            "--farm",
+            "openjd",
+            "--chunk",
+            "3",
+            "--cache",
+            "cache",
+        ],
+    );
+    let line = String::from_utf8_lossy(&printed.stdout)
+        .lines()
+        .find_map(|l| l.strip_prefix("run it here: ").map(str::to_string))
+        .expect("submit prints how to run the job");
+    assert!(line.contains("for step in exr movie"), "{line}");
+    openjd_check_and_run(&openjd, &g, &v, &[]);
+    let dir = openjd
+        .parent()
+        .map(|d| d.display().to_string())
+        .unwrap_or_default();
+    let o = Command::new("sh")
+        .args(["-c", &line])
+        .env(
+            "PATH",
+            format!("{dir}:{}", std::env::var("PATH").unwrap_or_default()),
+        )
+        .current_dir(g.parent().unwrap())
+        .output()
+        .unwrap();
+    assert!(
+        o.status.success(),
+        "{line}:\n{}\n{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
     assert_same_as(&g, &r);
     let again = ok_json(
         &g,

@@ -287,9 +287,20 @@ fn write_openjd(
     vfxgraph_engine::fsutil::atomic_write(&path, text.as_bytes())
         .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
     let steps: Vec<String> = farm.jobs.iter().map(super::openjd::step_name).collect();
+    // The steps no other step depends on: running each with its dependencies runs the whole
+    // job (a step shared by two finds its work cached the second time).
+    let sinks: Vec<String> = (0..farm.jobs.len())
+        .filter(|&i| {
+            !farm
+                .jobs
+                .iter()
+                .any(|j| j.deps.iter().any(|(p, _)| *p == i))
+        })
+        .map(|i| steps[i].clone())
+        .collect();
     if json {
         let v = serde_json::json!({
-            "farm": "openjd", "template": path, "steps": steps,
+            "farm": "openjd", "template": path, "steps": steps, "sinks": sinks,
             "parameters": super::openjd::parameters(ctx),
         });
         println!(
@@ -309,12 +320,23 @@ fn write_openjd(
                 )
             })
             .collect();
-        println!(
-            "run it here: openjd run {} --step {} --run-dependencies {}",
-            path.display(),
-            steps.last().map(String::as_str).unwrap_or_default(),
-            params.join(" ")
-        );
+        let template = super::sh_quote(&path.display().to_string());
+        match sinks.as_slice() {
+            [one] => println!(
+                "run it here: openjd run {template} --step {} --run-dependencies {}",
+                super::sh_quote(one),
+                params.join(" ")
+            ),
+            many => println!(
+                "run it here: for step in {}; do openjd run {template} --step \"$step\" \
+                 --run-dependencies {} || break; done",
+                many.iter()
+                    .map(|s| super::sh_quote(s))
+                    .collect::<Vec<_>>()
+                    .join(" "),
+                params.join(" ")
+            ),
+        }
     }
     Ok(0)
 }
