@@ -694,6 +694,15 @@ fn bad_input_is_a_clear_error_and_submits_nothing() {
         ),
         "{e}"
     );
+    // A failed task (exit 1, as the README says), not a usage error (2).
+    let code = Command::new(env!("CARGO_BIN_EXE_vfxgraph"))
+        .current_dir(g.parent().unwrap())
+        .args(["exec", "farm_shot.yaml", "--node", "path", "--cache", "c"])
+        .args(["--token", "subhost-12-0-1700000000"])
+        .status()
+        .unwrap()
+        .code();
+    assert_eq!(code, Some(1));
     assert!(Store::open(&g.parent().unwrap().join("c"))
         .unwrap()
         .list()

@@ -104,7 +104,12 @@ fn cache_or_default(cache: &Option<PathBuf>, graph: &Path) -> PathBuf {
 pub fn exec_command(a: ExecArgs, registry: &Registry, quiet: bool) -> Result<u8, String> {
     let cache = cache_or_default(&a.cache, &a.graph);
     if let Some(t) = &a.token {
-        super::check_token(&cache, t)?;
+        // Not a usage error: the task ran where its cache is not the submission's (exit 1,
+        // as a failed task; the farm's scheduler cancels the rest).
+        if let Err(e) = super::check_token(&cache, t) {
+            eprintln!("error: {e}");
+            return Ok(1);
+        }
     }
     let ga = GraphArgs {
         graph: a.graph.clone(),
