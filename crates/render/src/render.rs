@@ -218,8 +218,19 @@ pub fn render(
             "spp and tile must be positive".into(),
         ));
     }
-    let start = Instant::now();
     let (w, h) = (camera.width, camera.height);
+    // The image's size is checked before a tile is traced (not once every tile is buffered).
+    let limit = vfxgraph_imaging::image::MAX_SAMPLES;
+    if !w
+        .checked_mul(h)
+        .and_then(|n| n.checked_mul(3))
+        .is_some_and(|n| n <= limit)
+    {
+        return Err(RenderError::BadSettings(format!(
+            "a {w}×{h} image is over the image limit ({limit} samples)"
+        )));
+    }
+    let start = Instant::now();
     let gen = camera.rays();
     let tracer = PathTracer {
         world,

@@ -225,3 +225,38 @@ fn a_folding_lens_is_a_camera_error() {
     let e = pinhole().with_distortion(fold).unwrap_err().to_string();
     assert!(e.contains("lens"), "{e}");
 }
+
+/// A render whose image would be over the image limit is refused before a tile is traced
+/// (a 65536 × 65536 render used to buffer every tile first); the error names the size.
+#[test]
+fn a_giant_render_is_refused_before_tracing() {
+    let camera = Camera::look_at(
+        Vec3::new(0.4, -2.2, 1.6),
+        Vec3::new(0.0, 0.3, 0.0),
+        Vec3::new(0.0, 0.0, 1.0),
+        60.0,
+        65536,
+        65536,
+    )
+    .unwrap();
+    let world = World::new(&scene());
+    let env = ConstantEnvironment {
+        radiance: Rgb::splat(1.0),
+    };
+    let traced = std::sync::atomic::AtomicBool::new(false);
+    let e = render(
+        &world,
+        &env,
+        &camera,
+        &RenderSettings::default(),
+        &|_| traced.store(true, std::sync::atomic::Ordering::Relaxed),
+        None,
+    )
+    .err()
+    .expect("refused");
+    assert!(e.to_string().contains("65536×65536"), "{e}");
+    assert!(
+        !traced.load(std::sync::atomic::Ordering::Relaxed),
+        "no tile was traced"
+    );
+}
