@@ -221,10 +221,9 @@ pub fn render(
     let (w, h) = (camera.width, camera.height);
     // The image's size is checked before a tile is traced (not once every tile is buffered).
     let limit = vfxgraph_imaging::image::MAX_SAMPLES;
-    if !w
-        .checked_mul(h)
+    if w.checked_mul(h)
         .and_then(|n| n.checked_mul(3))
-        .is_some_and(|n| n <= limit)
+        .is_none_or(|n| n > limit)
     {
         return Err(RenderError::BadSettings(format!(
             "a {w}×{h} image is over the image limit ({limit} samples)"
