@@ -720,3 +720,45 @@ fn a_listing_into_a_closed_pipe_ends_quietly() {
         );
     }
 }
+
+/// The same graph in two folders sharing one cache: each writes its own files. The second
+/// run's write action has the same key as the first's (same node, params and input), but its
+/// file is elsewhere, so it is not a cache hit (it used to be: the second folder got no file).
+#[test]
+fn twin_graphs_sharing_a_cache_each_write_their_files() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cache = tmp.path().join("cache");
+    let graph = "version: 1\nframes: 0..3\nnodes:\n  c: {type: constant, per_frame: true, \
+                 params: {width: 4, height: 2}}\n  w: {type: write_image_sequence, inputs: \
+                 {sequence: c.image}, params: {path: out/f.####.png}}\n";
+    for name in ["a", "b"] {
+        let d = tmp.path().join(name);
+        fs::create_dir_all(&d).unwrap();
+        fs::write(d.join("g.yaml"), graph).unwrap();
+        let out = bin()
+            .current_dir(&d)
+            .args(["run", "-q", "--cache", cache.to_str().unwrap(), "g.yaml"])
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        for f in 0..3 {
+            assert!(
+                d.join(format!("out/f.{f:04}.png")).is_file(),
+                "{name}: frame {f}"
+            );
+        }
+    }
+    // The entry now records the second folder's files: the first reruns its writes (the
+    // price of sharing the key) and its files stay right.
+    let out = bin()
+        .current_dir(tmp.path().join("a"))
+        .args(["run", "-q", "--cache", cache.to_str().unwrap(), "g.yaml"])
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    assert!(tmp.path().join("a/out/f.0000.png").is_file());
+}

@@ -113,12 +113,23 @@ impl Common<'_> {
         if self.graph.nodes[self.insts[i].node].spec().cache_outputs {
             check_objects(store, &entry)?;
         }
+        // The files this instance writes, where this graph writes them: the same action in
+        // another folder (a graph copied beside its twin, sharing the cache) has its own files.
         let expected = self.output_files(i);
-        for f in &entry.files {
-            self.check_file(&f.path, &f.digest, "output file", "was modified")?;
-        }
         if expected.len() != entry.files.len() {
             return Err("output files differ from the cached entry".into());
+        }
+        if let Some(p) = expected
+            .iter()
+            .find(|p| !entry.files.iter().any(|f| f.path == **p))
+        {
+            return Err(format!(
+                "output file {} was not written by the cached entry",
+                p.display()
+            ));
+        }
+        for f in &entry.files {
+            self.check_file(&f.path, &f.digest, "output file", "was modified")?;
         }
         for f in &entry.node_files {
             self.check_file(&f.path, &f.digest, "output file", "was modified")?;
