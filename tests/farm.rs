@@ -234,9 +234,25 @@ fn slurm_submission_equals_a_local_run_and_resubmits_nothing() {
     assert!(dep("movie").starts_with("afterok:"), "{}", dep("movie"));
     wait_idle();
     assert_same_as(&g, &r);
+    let again = ok_json(
+        &g,
+        &[
+            "submit",
+            "farm_shot.yaml",
+            "--farm",
+            "slurm",
+            "--cache",
+            "cache",
+            "--json",
+        ],
+    );
     assert!(
-        submit(&g, &[]).is_empty(),
+        again["jobs"].as_array().unwrap().is_empty(),
         "a second submit submits nothing"
+    );
+    assert!(
+        again["dir"].is_null(),
+        "no folder named when none is made: {again}"
     );
     for n in status(&g, &[]) {
         assert_eq!(n["missing"], 0, "{n}");

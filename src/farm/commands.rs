@@ -240,6 +240,8 @@ fn submit_slurm(
         super::slurm::submit(ctx, farm, dir)?
     };
     if json {
+        // No folder is made when nothing is submitted: none is named.
+        let dir = (!done.is_empty()).then_some(dir);
         let v = serde_json::json!({"farm": "slurm", "dir": dir, "jobs": done});
         println!(
             "{}",
