@@ -144,8 +144,12 @@ def scene_and_view(kind, rng):
 def path_params(p, view):
     target, r, h = view
     m = p["motion"]
+    start = p["start"]
+    if p["set"] == "corner":
+        # Inside the room: from −20° the camera would start behind the wall at x = −3.
+        start = 5.0 + 0.75 * (start + 20.0)
     q = {"frames": p["frames"], "first_frame": 0, "target": target, "radius": r,
-         "radius_end": r, "height": h, "crane": 0.0, "start": p["start"], "sweep": 0.0,
+         "radius_end": r, "height": h, "crane": 0.0, "start": start, "sweep": 0.0,
          "width": W, "height_px": H}
     if m == "orbit":
         q["sweep"] = 35.0
