@@ -815,20 +815,17 @@ fn openjd_template_checks_and_runs_to_the_local_result() {
     let tmp = tempfile::tempdir().unwrap();
     let r = reference(&tmp.path().join("local"), &[]);
     let g = shot(&tmp.path().join("farm"));
-    let v = ok_json(
-        &g,
-        &[
-            "submit",
-            "farm_shot.yaml",
-            "--farm",
-            "openjd",
-            "--chunk",
-            "3",
-            "--cache",
-            "cache",
-            "--json",
-        ],
-    );
+    let submit = [
+        "submit",
+        "farm_shot.yaml",
+        "--farm",
+        "openjd",
+        "--chunk",
+        "3",
+        "--cache",
+        "cache",
+    ];
+    let v = ok_json(&g, &[&submit[..], &["--json"]].concat());
     let steps: Vec<String> = v["steps"]
         .as_array()
         .unwrap()
@@ -849,19 +846,7 @@ fn openjd_template_checks_and_runs_to_the_local_result() {
         .collect();
     assert_eq!(sinks, ["exr", "movie"]);
     // The command submit prints for a person, run as printed by a shell: the whole job.
-    let printed = vfx(
-        &g,
-        &[
-            "submit",
-            "farm_shot.yaml",
-            "--farm",
-            "openjd",
-            "--chunk",
-            "3",
-            "--cache",
-            "cache",
-        ],
-    );
+    let printed = vfx(&g, &submit);
     let line = String::from_utf8_lossy(&printed.stdout)
         .lines()
         .find_map(|l| l.strip_prefix("run it here: ").map(str::to_string))

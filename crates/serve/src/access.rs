@@ -188,7 +188,7 @@ pub async fn check(State(access): State<Arc<Access>>, req: Request, next: Next) 
     }
     let mut resp = next.run(req).await;
     if let Some(token) = access.token() {
-        if query.is_some_and(|q| q.split('&').any(|kv| kv == format!("token={token}"))) {
+        if shows_token(token, &HeaderMap::new(), query.as_deref()) {
             if let Ok(v) = HeaderValue::from_str(&format!(
                 "{TOKEN_COOKIE}={token}; Path=/; HttpOnly; SameSite=Strict"
             )) {

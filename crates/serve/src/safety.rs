@@ -110,20 +110,11 @@ pub fn check_relative(text: &str) -> Result<&Path, ApiError> {
 /// Resolves `text` (relative to `base`) to an existing file whose canonical path lies under
 /// one of `roots`: 400/403 for a refused path, 404 for a missing file.
 pub fn resolve_served(base: &Path, roots: &[PathBuf], text: &str) -> Result<PathBuf, ApiError> {
-    let rel = check_relative(text)?;
-    let joined = base.join(rel);
-    let canonical = joined
-        .canonicalize()
-        .map_err(|_| ApiError::not_found(format!("`{text}`: no such file")))?;
-    let allowed = roots
-        .iter()
-        .filter_map(|r| r.canonicalize().ok())
-        .any(|r| canonical.starts_with(&r));
-    if !allowed {
-        return Err(ApiError::forbidden(format!(
-            "`{text}` is outside the graph's folder and the cache"
-        )));
+    let joined = base.join(check_relative(text)?);
+    if !joined.exists() {
+        return Err(ApiError::not_found(format!("`{text}`: no such file")));
     }
+    let canonical = confine(&joined, roots, text)?;
     if !canonical.is_file() {
         return Err(ApiError::not_found(format!("`{text}` is not a file")));
     }

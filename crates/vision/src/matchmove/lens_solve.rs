@@ -764,8 +764,13 @@ fn general_with_lens(
                 out.report.stages = stages.iter().cloned().chain(st).collect();
                 out.report.notes.extend(notes.iter().cloned());
                 out.report.notes.extend(nt);
-                let und = undistort_tracks(tracks, out.path.intrinsics.as_ref().unwrap_or(k0))?;
-                let c = truncated_cost(&und, &out.report);
+                // The fit of the whole shot, to choose between starts (one start: no choice).
+                let c = if starts.len() > 1 {
+                    let lens = out.path.intrinsics.as_ref().unwrap_or(k0);
+                    truncated_cost(&undistort_tracks(tracks, lens)?, &out.report)
+                } else {
+                    0.0
+                };
                 finished.push((out, c));
             }
             Err(e) if i == 0 && starts.len() == 1 => return Err(e),
