@@ -224,11 +224,13 @@ def lens_of_colmap_camera(cam):
     return lens
 
 
-def run_colmap(plate_dir, work, threads, log, lens="known", model="RADIAL", known_camera=None):
+def run_colmap(plate_dir, work, threads, log, lens="known", model="RADIAL", known_camera=None,
+               zoom=False):
     """lens "known": PINHOLE with the plate's K, fixed (or `known_camera`: a COLMAP model name
     and its parameters, e.g. RADIAL f, cx, cy, k1, k2 for a known lens, fixed too). lens
     "unknown": one shared camera of `model` with COLMAP's no-EXIF default parameters; focal
-    length and distortion refined."""
+    length and distortion refined. `zoom`: a camera per image, each starting from the known
+    one, its focal length refined (the distortion held)."""
     import pycolmap
 
     work = Path(work) / "colmap"
@@ -259,7 +261,8 @@ def run_colmap(plate_dir, work, threads, log, lens="known", model="RADIAL", know
     times, cpu = {}, {}
     c0, t0 = time.process_time(), time.perf_counter()
     pycolmap.extract_features(db, plate_dir, image_names=names,
-                              camera_mode=pycolmap.CameraMode.SINGLE,
+                              camera_mode=(pycolmap.CameraMode.PER_IMAGE if zoom
+                                           else pycolmap.CameraMode.SINGLE),
                               reader_options=reader, extraction_options=extraction,
                               device=pycolmap.Device.cpu)
     times["features"] = time.perf_counter() - t0
@@ -291,12 +294,12 @@ def run_colmap(plate_dir, work, threads, log, lens="known", model="RADIAL", know
     refine = lens != "known"  # focal length and distortion; the principal point never
     opts = pycolmap.IncrementalPipelineOptions()
     opts.num_threads = threads
-    opts.ba_refine_focal_length = refine
+    opts.ba_refine_focal_length = refine or zoom
     opts.ba_refine_principal_point = False
     opts.ba_refine_extra_params = refine
     opts.random_seed = 1
     mapper = opts.mapper
-    set_if(mapper, "abs_pose_refine_focal_length", refine, log)
+    set_if(mapper, "abs_pose_refine_focal_length", refine or zoom, log)
     set_if(mapper, "abs_pose_refine_extra_params", refine, log)
     set_if(mapper, "num_threads", threads, log)
     set_if(mapper, "random_seed", 1, log)

@@ -7,22 +7,27 @@ For each plate of a seeded corpus (``--count``, ``--seed``) it writes a graph th
 solves the plate with vfxgraph's own nodes, and runs it (``vfxgraph run``):
 
 1. **Make**: ``synthetic_camera_path`` (the true cameras: an orbit, a dolly in or out, a crane,
-   an orbit with a crane, a slow push of 4 % of the distance, or a locked-off camera), a YAML
-   scene of one of six sets (one floor; one wall; a room corner; a floor with boxes; a far-field
-   ground 40 m below; a cluttered table top), ``cells``-textured and lit by an overcast sky,
-   path-traced by ``render`` at 480x270 (16 samples a pixel: the grain of a real plate),
-   seen through a lens (``redistort``: pinhole at 280, 450 or 900 px, or a barrel or pincushion
-   Brown-Conrady lens), written as JPEG frames (quality 90).
+   an orbit with a crane, a slow push of 4 % of the distance, a locked-off camera, or a slow
+   orbit while the lens zooms 1.5x), 8 to 120 frames, a YAML scene of one of six sets (one
+   floor; one wall; a room corner; a floor with boxes; a far-field ground 40 m below; a
+   cluttered table top), ``cells``-textured and lit by an overcast sky, path-traced by
+   ``render`` at 480x270 or (one plate in four) 960x540, seen through a lens (``redistort``:
+   pinhole at 280, 450 or 900 px for 480 wide, or a barrel or pincushion Brown-Conrady lens),
+   in one of three qualities (``grain``: 16 samples a pixel, the grain of a real plate;
+   ``noisy``: 4 samples; ``blur``: 16 samples, then ``blur``: a soft lens and a motion streak
+   of 2-6 px), written as JPEG frames (quality 90).
 2. **Solve**: ``read_image_sequence`` -> ``klt_track`` -> ``matchmove`` with the defaults, K
    given (the pinhole's, or the lens's with ``distortion`` held), or with ``--focal unknown``
-   nothing but the image size.
+   nothing but the image size; a zoom plate adds ``zoom: true`` (its K the first frame's,
+   held), as a user who knows the lens zoomed and where it started would.
 3. **Score** the solved cameras against the true ones with the project's metric (the
    similarity that best aligns them; relative to the first frame for a rotation-only solve).
 4. **COLMAP** (pycolmap, ``--colmap``): the same JPEG frames, SIFT, sequential matching
    (overlap 10), incremental mapping with the same K fixed (PINHOLE; RADIAL with the lens's k1,
-   k2 for the lens plates, held as well), scored the same way; its wall time beside ours.
+   k2 for the lens plates, held as well; a zoom plate a camera per image, its focal length
+   refined from the first frame's), scored the same way; its wall time beside ours.
 
-It prints per set, per motion and per lens: plates, solved on every frame, warned, grossly wrong
+It prints per set, motion, lens, quality and size: plates, solved on every frame, warned, grossly wrong
 (> 1 deg) without a warning, the rotation error's median, p95 and max over solved plates; the
 same for COLMAP; the time of each. ``--json`` writes every plate's figures.
 
@@ -55,15 +60,16 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import matchmove_vs_colmap as mvc  # noqa: E402  (the project's metric, the COLMAP runner)
 
 SETS = ["floor", "wall", "corner", "boxes", "far_ground", "table"]
-MOTIONS = ["orbit", "dolly_in", "dolly_out", "crane", "orbit_crane", "push", "locked"]
+MOTIONS = ["orbit", "dolly_in", "dolly_out", "crane", "orbit_crane", "push", "locked", "zoom"]
 LENSES = ["normal", "wide", "long", "barrel", "pincushion"]
-LENGTHS = [12, 24, 48, 72]
-W, H = 480, 270
+LENGTHS = [8, 12, 24, 48, 72, 120]
+QUALITIES = ["grain", "noisy", "blur"]
+SIZES = [480, 480, 480, 960]  # width; height 9/16 of it
 
 
 def plate_specs(count, seed):
-    """Plate i: set i mod 6, motion (i mod 6 + i // 6) mod 7 (any 42 consecutive plates hold
-    every pairing), lens and length from its own seed."""
+    """Plate i: set i mod 6, motion (i mod 6 + i // 6) mod 8 (any 48 consecutive plates hold
+    every pairing), lens, length, quality and size from its own seed."""
     out = []
     for i in range(count):
         rng = random.Random(seed * 100003 + i)
@@ -75,9 +81,16 @@ def plate_specs(count, seed):
             "frames": rng.choice(LENGTHS),
             "start": rng.uniform(-20.0, 20.0),
             "seed": rng.randrange(1 << 30),
+            "quality": rng.choice(QUALITIES),
+            "size": rng.choice(SIZES),
+            "streak": rng.uniform(2.0, 6.0),
+            "angle": rng.uniform(0.0, 180.0),
         })
     for p in out:
-        p["name"] = f"{p['index']:03d}-{p['set']}-{p['motion']}-{p['lens']}-{p['frames']}f"
+        if p["motion"] == "zoom" and p["lens"] in ("barrel", "pincushion"):
+            p["lens"] = "normal"  # a zoom's distortion changes with its focal length: not modelled
+        p["name"] = (f"{p['index']:03d}-{p['set']}-{p['motion']}-{p['lens']}-{p['frames']}f-"
+                     f"{p['quality']}-{p['size']}")
     return out
 
 
@@ -148,9 +161,10 @@ def path_params(p, view):
     if p["set"] == "corner":
         # Inside the room: from −20° the camera would start behind the wall at x = −3.
         start = 5.0 + 0.75 * (start + 20.0)
+    w, h_px = dims(p)
     q = {"frames": p["frames"], "first_frame": 0, "target": target, "radius": r,
          "radius_end": r, "height": h, "crane": 0.0, "start": start, "sweep": 0.0,
-         "width": W, "height_px": H}
+         "width": w, "height_px": h_px}
     if m == "orbit":
         q["sweep"] = 35.0
     elif m == "dolly_in":
@@ -163,16 +177,30 @@ def path_params(p, view):
         q["sweep"], q["crane"] = 25.0, 0.3 * r
     elif m == "push":
         q["radius_end"] = 0.96 * r
+    elif m == "zoom":
+        q["sweep"], q["crane"], q["zoom"] = 15.0, 0.15 * r, 1.5
     return q
 
 
-LENS = {  # focal (px), k1, k2
+def dims(p):
+    return p["size"], p["size"] * 9 // 16
+
+
+LENS = {  # focal (px at 480 wide), k1, k2
     "normal": (450.0, 0.0, 0.0), "wide": (280.0, 0.0, 0.0), "long": (900.0, 0.0, 0.0),
     "barrel": (420.0, -0.08, 0.01), "pincushion": (480.0, 0.06, 0.0),
 }
 
 
-def k_json(f, k1, k2):
+def lens_of(p):
+    """The plate's focal length (px, for its width) and k1, k2."""
+    f, k1, k2 = LENS[p["lens"]]
+    return f * p["size"] / 480, k1, k2
+
+
+def k_json(p):
+    f, k1, k2 = lens_of(p)
+    W, H = dims(p)
     k = {"K": [[f, 0.0, (W - 1) / 2], [0.0, f, (H - 1) / 2], [0.0, 0.0, 1.0]],
          "width": W, "height": H}
     if k1 or k2:
@@ -187,8 +215,9 @@ def write_plate(p, work, focal_mode):
     rng = random.Random(p["seed"])
     scene, view = scene_and_view(p["set"], rng)
     (d / "scene.yaml").write_text(json.dumps(scene, indent=1))
-    f, k1, k2 = LENS[p["lens"]]
-    (d / "lens.json").write_text(json.dumps(k_json(f, k1, k2), indent=1))
+    f, k1, k2 = lens_of(p)
+    W, H = dims(p)
+    (d / "lens.json").write_text(json.dumps(k_json(p), indent=1))
     q = path_params(p, view)
     q["focal"] = f
     distorted = bool(k1 or k2)
@@ -197,9 +226,10 @@ def write_plate(p, work, focal_mode):
         "scene": {"type": "read_scene", "params": {"path": "scene.yaml"}},
         "plate": {"type": "render", "per_frame": True,
                   "inputs": {"scene": "scene.scene", "cameras": "path.cameras"},
-                  "params": {"spp": 16, "max_depth": 2}},
+                  "params": {"spp": 4 if p["quality"] == "noisy" else 16, "max_depth": 2}},
         "frames": {"type": "write_image_sequence",
-                   "inputs": {"sequence": "bent.image" if distorted else "plate.image"},
+                   "inputs": {"sequence": "soft.image" if p["quality"] == "blur"
+                              else "bent.image" if distorted else "plate.image"},
                    "params": {"path": "plate/frame.####.jpg"}},
         "truth": {"type": "write_cameras", "inputs": {"cameras": "path.cameras"},
                   "params": {"path": "true_cameras.json"}},
@@ -214,6 +244,10 @@ def write_plate(p, work, focal_mode):
         make["plate"]["inputs"]["intrinsics"] = "footprint.intrinsics"
         make["bent"] = {"type": "redistort", "per_frame": True,
                         "inputs": {"image": "plate.image", "intrinsics": "lens.intrinsics"}}
+    if p["quality"] == "blur":
+        make["soft"] = {"type": "blur", "per_frame": True,
+                        "inputs": {"image": "bent.image" if distorted else "plate.image"},
+                        "params": {"sigma": 0.7, "streak": p["streak"], "angle": p["angle"]}}
     solve = {
         "read": {"type": "read_image_sequence", "params": {"path": "plate/frame.####.jpg"}},
         "track": {"type": "klt_track", "inputs": {"frames": "read.sequence"}},
@@ -223,11 +257,14 @@ def write_plate(p, work, focal_mode):
         "report": {"type": "write_report", "inputs": {"report": "solve.report"},
                    "params": {"path": f"report_{focal_mode}.json"}},
     }
+    zoom = p["motion"] == "zoom"
     if focal_mode == "known":
         solve["lens"] = {"type": "read_intrinsics", "params": {"path": "lens.json"}}
         solve["solve"]["inputs"]["intrinsics"] = "lens.intrinsics"
+        if zoom:
+            solve["solve"]["params"] = {"zoom": True}
     else:
-        solve["solve"]["params"] = {"focal": "unknown"}
+        solve["solve"]["params"] = {"focal": "unknown", **({"zoom": True} if zoom else {})}
     frames = f"0..{p['frames']}"
     seed = p["seed"] % 100000
     (d / "make.yaml").write_text(json.dumps(
@@ -271,7 +308,8 @@ def rotation_metrics(est, truth, frames, rotation_only):
 
 def run_colmap(p, work, threads):
     d = work / p["name"]
-    f, k1, k2 = LENS[p["lens"]]
+    f, k1, k2 = lens_of(p)
+    W, H = dims(p)
     mvc.FX = mvc.FY = f
     mvc.CX, mvc.CY = (W - 1) / 2, (H - 1) / 2
     log = []
@@ -280,7 +318,8 @@ def run_colmap(p, work, threads):
     known = ("RADIAL", [f, cx, cy, k1, k2]) if (k1 or k2) else ("PINHOLE", [f, f, cx, cy])
     t0 = time.perf_counter()
     try:
-        r = mvc.run_colmap(str(d / "plate"), d, threads, log, known_camera=known)
+        r = mvc.run_colmap(str(d / "plate"), d, threads, log, known_camera=known,
+                           zoom=p["motion"] == "zoom")
     except Exception as e:  # a COLMAP failure is a result, not a crash of the benchmark
         return {"status": "failed", "error": str(e)[:200], "seconds": time.perf_counter() - t0}
     seconds = time.perf_counter() - t0
@@ -319,7 +358,7 @@ def table(title, rows, key, who):
 def summarize(rows, focal, colmap):
     for who in ["ours"] + (["colmap"] if colmap else []):
         print(f"\n=== {who} (focal {focal if who == 'ours' else 'known'}), {len(rows)} plates")
-        for key in ["set", "motion", "lens", None]:
+        for key in ["set", "motion", "lens", "quality", "size", None]:
             table(key or "corpus", rows, key, who)
     if colmap:
         both = [r for r in rows if r["colmap"]["status"] == "solved"]

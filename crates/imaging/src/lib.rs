@@ -12,6 +12,7 @@
 //! - [`color`]: the IEC 61966-2-1 sRGB transfer functions and Rec. 709 luminance.
 //! - [`draw`]: plots and overlays drawn into images (the response curve figure; lines, crosses,
 //!   squares and colours by id for track overlays).
+//! - [`blur`]: a Gaussian and a motion streak, as a lens and a moving camera blur.
 //! - [`tonemap`]: photographic exposure and display tone mapping (clip, or Reinhard et al. 2002).
 //!
 //! No function of this crate panics on the content of a file: malformed, truncated or huge inputs
@@ -35,6 +36,7 @@
 
 #![warn(missing_docs)]
 
+pub mod blur;
 pub mod color;
 pub mod draw;
 mod error;
@@ -43,6 +45,7 @@ pub mod image;
 pub mod io;
 pub mod tonemap;
 
+pub use crate::blur::{blur, BlurOptions};
 pub use crate::error::ImageError;
 pub use crate::image::{constant, ConstantOptions, Image};
 pub use crate::io::{decode, encode, read_image, write_image, Format};

@@ -1,8 +1,9 @@
-//! Image operations: `exposure`, `tonemap`, and the `constant` image generator.
+//! Image operations: `exposure`, `tonemap`, `blur`, and the `constant` image generator.
 
 use vfxgraph_engine::{Context, NodeError, NodeSpec, Registry, Threads};
 use vfxgraph_imaging::{
-    constant, exposure, tonemap, ConstantOptions, ExposureOptions, TonemapOptions,
+    blur, constant, exposure, tonemap, BlurOptions, ConstantOptions, ExposureOptions,
+    TonemapOptions,
 };
 
 use crate::artifacts::ImageArt;
@@ -35,6 +36,17 @@ pub fn register(r: &mut Registry) {
     );
     r.register_fn(
         NodeSpec::new(
+            "blur",
+            "Blurs as a camera does: a Gaussian of `sigma` px (a soft or defocused lens), then \
+             a straight streak of `streak` px at `angle` degrees (motion blur); edges repeat.",
+        )
+        .options::<BlurOptions>()
+        .input_of::<ImageArt>("image", "linear image")
+        .output_of::<ImageArt>("image", "blurred image"),
+        run_blur,
+    );
+    r.register_fn(
+        NodeSpec::new(
             "constant",
             "An image of one colour (RGB), plus `ramp` × x/width on every channel: test \
              patterns, backgrounds, benchmarks.",
@@ -59,6 +71,13 @@ fn run_tonemap(ctx: &mut Context<'_>) -> Result<(), NodeError> {
         o.operator,
         o.exposure as f32,
     );
+    ctx.output("image", ImageArt(out));
+    Ok(())
+}
+
+fn run_blur(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+    let o: BlurOptions = ctx.options()?;
+    let out = blur(&ctx.input::<ImageArt>("image")?.0, &o)?;
     ctx.output("image", ImageArt(out));
     Ok(())
 }
@@ -152,5 +171,27 @@ mod tests {
         assert_eq!((out.width, out.height, out.channels), (4, 2, 3));
         assert!((out.get(0, 1, 0) - 0.18).abs() < 1e-6);
         assert!((out.get(2, 0, 2) - 0.68).abs() < 1e-6);
+    }
+
+    #[test]
+    fn blur_streaks_a_bright_column_along_its_angle() {
+        // A vertical line streaked sideways by 4 px: spread over x, each row alike.
+        let img = Image::from_fn(11, 5, 3, |x, _, _| if x == 5 { 1.0 } else { 0.0 });
+        let out = run_node(
+            "blur",
+            &[
+                ("sigma", ParamValue::Int(0)),
+                ("streak", ParamValue::Int(4)),
+            ],
+            Some(img),
+            run_blur,
+        );
+        let row: Vec<f32> = (0..11).map(|x| out.get(x, 2, 1)).collect();
+        assert!((row.iter().sum::<f32>() - 1.0).abs() < 1e-5);
+        assert_eq!((row[2], row[8]), (0.0, 0.0));
+        // A box 4 px wide (its flat top over x 4..6), its ends softened by the sampling.
+        assert!((row[4] - 0.25).abs() < 1e-6 && (row[5] - 0.25).abs() < 1e-6);
+        assert!((row[3] - 0.125).abs() < 1e-6 && (row[7] - 0.125).abs() < 1e-6);
+        assert!((0..5).all(|y| (out.get(4, y, 0) - row[4]).abs() < 1e-7));
     }
 }

@@ -24,7 +24,8 @@ pub fn register(r: &mut Registry) {
              out), its distance going linearly from `radius` to `radius_end` (a dolly) and its \
              height following `height` + `crane`·sin(πs), always looking at the target (image \
              y down). Frames `first_frame`… `first_frame + frames − 1`. Outputs the path (with \
-             K: focal `focal` px, principal point at the image centre) and K alone.",
+             K: focal `focal` px, principal point at the image centre; with `zoom` ≠ 1 each \
+             frame's own focal length, eased from `focal` to `zoom`·`focal`) and K alone.",
         )
         .threads(Threads::One)
         .mode(Mode::Once)

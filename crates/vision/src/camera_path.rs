@@ -129,6 +129,10 @@ pub struct SyntheticPathOptions {
     /// focal length, pixels (f1 = f2)
     #[param(range = 1e-3..=1e7)]
     pub focal: f64,
+    /// the focal length at the last frame over the first's (a zoom, eased as the motion is;
+    /// 1: a prime lens)
+    #[param(range = 0.01..=100.0)]
+    pub zoom: f64,
     /// image width, pixels
     #[param(range = 1..=65536)]
     pub width: u32,
@@ -150,6 +154,7 @@ impl Default for SyntheticPathOptions {
             start: 0.0,
             sweep: 30.0,
             focal: 400.0,
+            zoom: 1.0,
             width: 320,
             height_px: 240,
         }
@@ -157,7 +162,8 @@ impl Default for SyntheticPathOptions {
 }
 
 /// The cameras of `o`'s orbit and their intrinsics (focal `focal` px, principal point at the
-/// image centre).
+/// image centre; with `zoom` ≠ 1 each frame carries its own focal length, from `focal` to
+/// `zoom`·`focal` along the motion's ease).
 pub fn synthetic_path(o: &SyntheticPathOptions) -> Result<(CameraPath, Intrinsics)> {
     let (w, h, f) = (o.width, o.height_px, o.focal);
     let k = Intrinsics::new(f, f, (w as f64 - 1.0) / 2.0, (h as f64 - 1.0) / 2.0).with_size(w, h);
@@ -172,7 +178,16 @@ pub fn synthetic_path(o: &SyntheticPathOptions) -> Result<(CameraPath, Intrinsic
         frames: o.frames,
         first_frame: o.first_frame,
     };
-    Ok((orbit_path(&orbit, &k)?, k))
+    let mut path = orbit_path(&orbit, &k)?;
+    if o.zoom != 1.0 {
+        let n = path.frames.len();
+        for (i, frame) in path.frames.iter_mut().enumerate() {
+            let s = if n > 1 { i as f64 / (n - 1) as f64 } else { 0.0 };
+            let e = s * s * (3.0 - 2.0 * s);
+            frame.focal = Some(f * (1.0 + (o.zoom - 1.0) * e));
+        }
+    }
+    Ok((path, k))
 }
 
 /// The options of [`project_marks`] besides its points and frames.
@@ -386,6 +401,26 @@ mod tests {
         bad.frames = 0;
         assert!(orbit_path(&bad, &k()).is_err());
         assert!(look_at(&Vector3::new(0.0, 5.0, 0.0), &Vector3::zeros()).is_err());
+    }
+
+    #[test]
+    fn a_zoom_goes_from_focal_to_zoom_times_focal_smoothly() {
+        let o = SyntheticPathOptions {
+            frames: 21,
+            zoom: 1.5,
+            ..Default::default()
+        };
+        let (path, k) = synthetic_path(&o).unwrap();
+        assert_eq!(k.f1, 400.0);
+        let f: Vec<f64> = path.frames.iter().map(|p| p.focal.unwrap()).collect();
+        assert_eq!((f[0], f[20]), (400.0, 600.0));
+        // Eased: monotone, slow at both ends, the middle frame halfway.
+        assert!(f.windows(2).all(|w| w[1] > w[0]));
+        assert!((f[10] - 500.0).abs() < 1e-9);
+        assert!(f[1] - f[0] < (f[11] - f[10]) / 4.0);
+        // A prime lens carries no focal length per frame.
+        let (prime, _) = synthetic_path(&SyntheticPathOptions::default()).unwrap();
+        assert!(prime.frames.iter().all(|p| p.focal.is_none()));
     }
 
     #[test]

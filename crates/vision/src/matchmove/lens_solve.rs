@@ -91,8 +91,10 @@ pub struct LensOptions {
     pub lens_rounds: usize,
     /// a focal length per frame (a zooming lens), smoothed by `zoom_smoothness`
     ///
-    /// Needs `focal: refine` (the intrinsics' focal length is the first frame's) or
-    /// `unknown`, and `distortion: none` (the intrinsics' own lens is held).
+    /// The intrinsics' focal length is the first frame's: held with `focal: known` (what a
+    /// shot that orbits or dollies needs: there the absolute focal length of a zoom is not
+    /// determined), solved with `refine`; `unknown` estimates it. Needs `distortion: none`
+    /// (the intrinsics' own lens is held).
     pub zoom: bool,
     /// the zoom's smoothness: σ of the focal length's second difference, px per frame²
     ///
@@ -657,13 +659,6 @@ fn solve_zoom_with_lens(
     options: &MatchmoveOptions,
     progress: &(dyn Fn(&str, usize, usize) + Sync),
 ) -> Result<Solve> {
-    if lens.focal == FocalMode::Known {
-        return Err(VisionError::InvalidInput(
-            "zoom: true solves the focal length of every frame: set focal: refine (the \
-             intrinsics' focal length is the first frame's) or focal: unknown"
-                .into(),
-        ));
-    }
     if held[1..].iter().any(|h| !h) {
         return Err(VisionError::InvalidInput(format!(
             "zoom: true solves the focal length only: set distortion: none and principal_point: \
@@ -674,11 +669,10 @@ fn solve_zoom_with_lens(
         )));
     }
     let und = undistort_tracks(tracks, k)?;
-    let unknown = lens.focal == FocalMode::Unknown;
     let (mut solve, focals) = super::zoom::solve_zoom(
         &und,
         &k.pinhole(),
-        unknown,
+        lens.focal,
         lens.zoom_smoothness,
         lens.lens_rounds,
         options,
@@ -690,7 +684,7 @@ fn solve_zoom_with_lens(
     solve.report.intrinsics = vec![super::report::SolvedIntrinsic {
         name: "focal_px".into(),
         value: focals[0],
-        held: false,
+        held: lens.focal == FocalMode::Known,
         sd: None,
     }];
     Ok(solve)

@@ -23,10 +23,12 @@
 //!
 //! Focal lengths that vary are determined only by a camera whose centres leave a line and
 //! whose optical axes do not all meet (a dolly, an orbit and a pan are critical motions, Kahl,
-//! Triggs & Åström 2000); the prior then keeps the path smooth, not right.
+//! Triggs & Åström 2000); the prior then keeps the path smooth, not right — unless the
+//! first frame's focal length is known (`focal: known`), which the adjustment then holds.
 
 use nalgebra::Vector2;
 
+use super::lens_solve::FocalMode;
 use super::{matchmove, MatchmoveOptions, Solve};
 use crate::bundle::{Gauge, Prior, PriorTerm};
 use crate::camera::{Intrinsics, Pose};
@@ -150,14 +152,14 @@ fn with_focal(k: &Intrinsics, f: f64) -> Intrinsics {
 }
 
 /// The matchmove of a zooming lens (module docs). `und` are the tracks through an ideal
-/// pinhole (the intrinsics' own lens undistorted), `k` that pinhole, `unknown` whether its
-/// focal length is estimated (else it is the first frame's), `sigma` the prior's σ (px per
-/// frame²). Returns the solve, whose path carries every frame's focal length, and the
+/// pinhole (the intrinsics' own lens undistorted), `k` that pinhole, whose focal length is the
+/// first frame's: held through the adjustment (`focal` known), its start (refine), or
+/// estimated from the tracks (unknown); `sigma` the prior's σ (px per frame²). Returns the solve, whose path carries every frame's focal length, and the
 /// focal lengths.
 pub(crate) fn solve_zoom(
     und: &Tracks,
     k: &Intrinsics,
-    unknown: bool,
+    focal: FocalMode,
     sigma: f64,
     rounds: usize,
     options: &MatchmoveOptions,
@@ -177,7 +179,7 @@ pub(crate) fn solve_zoom(
     let mut notes = Vec::new();
     let t0 = std::time::Instant::now();
     let ratios = zoom_ratios(und, k);
-    let f0 = if unknown {
+    let f0 = if focal == FocalMode::Unknown {
         let norm = normalise(und, k, &ratios, 1.0);
         let f = super::lens_solve::estimate_focal(&norm, k, options)?;
         stages.push(super::StageTime::new("focal estimate", t0));
@@ -217,7 +219,9 @@ pub(crate) fn solve_zoom(
         ));
         let t0 = std::time::Instant::now();
         let poses = super::poses_by_index(&norm, &s.path);
-        let (poses, points, f_new) = zoom_adjust(und, k, f0, &focals, &poses, global, sigma)?;
+        let hold_first = focal == FocalMode::Known;
+        let (poses, points, f_new) =
+            zoom_adjust(und, k, f0, &focals, &poses, global, sigma, hold_first)?;
         stages.push(super::StageTime::new(
             &format!("round {}: zoom adjustment", round + 1),
             t0,
@@ -265,8 +269,9 @@ pub(crate) fn solve_zoom(
 
 /// The global adjustment of a zoom (module docs, step 3): the rounds of
 /// [`super::global::global_bundle_adjust`] with one focal-length block per frame and the
-/// smoothness prior. Returns the poses, the points and the focal lengths.
-#[allow(clippy::type_complexity)]
+/// smoothness prior; the first frame's focal length held with `hold_first`. Returns the poses,
+/// the points and the focal lengths.
+#[allow(clippy::type_complexity, clippy::too_many_arguments)]
 fn zoom_adjust(
     und: &Tracks,
     k: &Intrinsics,
@@ -275,6 +280,7 @@ fn zoom_adjust(
     poses: &[Option<Pose>],
     options: &super::global::GlobalOptions,
     sigma: f64,
+    hold_first: bool,
 ) -> Result<(super::Poses, super::TrackPoints, Vec<f64>)> {
     use super::global::triangulate_all;
     use super::track_weights::track_weights;
@@ -321,12 +327,14 @@ fn zoom_adjust(
         };
         let blocks = focals
             .iter()
-            .map(|&f| {
+            .enumerate()
+            .map(|(i, &f)| {
                 let mut b = crate::bundle::Intrinsics::pinhole(f, k.u0, k.v0, false);
                 b.model = crate::bundle::CameraModel::Pinhole {
                     aspect: k.f2 / k.f1,
                     skew: k.s,
                 };
+                b.held[0] = hold_first && i == 0;
                 b.held[1] = true;
                 b.held[2] = true;
                 b
