@@ -95,7 +95,9 @@ fn convolve_rows(img: &Image, kernel: &[f32]) -> Image {
 
 /// `img` with x and y exchanged.
 fn transpose(img: &Image) -> Image {
-    Image::from_fn(img.height, img.width, img.channels, |x, y, c| img.get(y, x, c))
+    Image::from_fn(img.height, img.width, img.channels, |x, y, c| {
+        img.get(y, x, c)
+    })
 }
 
 /// The mean of `img` along a segment of `length` px at `angle` (radians) centred on each pixel:
@@ -144,7 +146,12 @@ mod tests {
 
     /// A single bright pixel at (cx, cy) on black, one channel.
     fn point(w: usize, h: usize, cx: usize, cy: usize) -> Image {
-        Image::from_fn(w, h, 1, |x, y, _| if (x, y) == (cx, cy) { 1.0 } else { 0.0 })
+        Image::from_fn(
+            w,
+            h,
+            1,
+            |x, y, _| if (x, y) == (cx, cy) { 1.0 } else { 0.0 },
+        )
     }
 
     /// Sum, mean position and variance along x and y of a one-channel image.
@@ -199,7 +206,11 @@ mod tests {
         assert!((sum - 1.0).abs() < 1e-5, "energy {sum}");
         assert!((mean[1] - 20.0).abs() < 1e-6);
         // A box of length L has variance L²/12 = 12, the bilinear sampling adds 1/6.
-        assert!((var[1] - 12.0 - 1.0 / 6.0).abs() < 0.05, "variance along {}", var[1]);
+        assert!(
+            (var[1] - 12.0 - 1.0 / 6.0).abs() < 0.05,
+            "variance along {}",
+            var[1]
+        );
         assert!(var[0] < 1e-9, "across {}", var[0]);
         // Nothing beyond half the streak's length.
         assert_eq!(out.get(15, 20 + 8, 0), 0.0);

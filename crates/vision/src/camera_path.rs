@@ -182,7 +182,11 @@ pub fn synthetic_path(o: &SyntheticPathOptions) -> Result<(CameraPath, Intrinsic
     if o.zoom != 1.0 {
         let n = path.frames.len();
         for (i, frame) in path.frames.iter_mut().enumerate() {
-            let s = if n > 1 { i as f64 / (n - 1) as f64 } else { 0.0 };
+            let s = if n > 1 {
+                i as f64 / (n - 1) as f64
+            } else {
+                0.0
+            };
             let e = s * s * (3.0 - 2.0 * s);
             frame.focal = Some(f * (1.0 + (o.zoom - 1.0) * e));
         }

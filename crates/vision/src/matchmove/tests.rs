@@ -851,17 +851,70 @@ fn a_zoom_is_solved_frame_by_frame() {
     assert!(solve.path.zooms());
 }
 
-/// A zoom with the focal length held, or with a lens to solve, is a clear error.
+/// A zoom along a straight track (a critical motion: the focal lengths are not determined by
+/// the tracks, [`super::zoom`]) whose first focal length is known: `focal: known` holds it and
+/// the zoom and the cameras come out right; `refine` lets the whole zoom drift. 40 frames,
+/// 900 → 1300 px, 0.3 px noise. Measured: held, worst focal error 0.076 %, rotation max
+/// 0.022°; refined, 0.17 % and 0.031°. (On a rendered orbit zooming 1.5× the difference is
+/// larger: refined 18 % low and 1.5°, held 0.4 % and 0.12°.)
 #[test]
-fn a_zoom_with_a_held_focal_or_a_lens_to_solve_is_refused() {
+fn a_zoom_whose_first_focal_length_is_known_holds_it() {
+    let shot = synthetic_shot(&ShotOptions {
+        frames: 40,
+        noise: 0.3,
+        focal: (900.0, 1300.0),
+        arc: 0.0,
+        ..ShotOptions::default()
+    });
+    let solve = |focal| {
+        let lens = LensOptions {
+            focal,
+            zoom: true,
+            ..LensOptions::default()
+        };
+        let s = matchmove_with_lens(
+            &shot.tracks,
+            &shot.k,
+            &lens,
+            &MatchmoveOptions::default(),
+            &|_, _, _| {},
+        )
+        .unwrap();
+        let worst_focal = s
+            .path
+            .frames
+            .iter()
+            .zip(&shot.focals)
+            .map(|(f, t)| (f.focal.unwrap() / t - 1.0).abs())
+            .fold(0.0, f64::max);
+        let est: Vec<Pose> = s.path.frames.iter().map(|f| f.pose.clone()).collect();
+        let (rot, _) = aligned_errors(&est, &shot.truth);
+        (s, worst_focal, rot.iter().cloned().fold(0.0, f64::max))
+    };
+    let (held, held_focal, held_rot) = solve(FocalMode::Known);
+    let (_, free_focal, free_rot) = solve(FocalMode::Refine);
+    eprintln!(
+        "zoom on a straight track: held first focal length: worst {:.3} %, rotation {held_rot:.4}°; \
+         refined: {:.3} %, {free_rot:.4}°",
+        100.0 * held_focal,
+        100.0 * free_focal
+    );
+    assert_eq!(held.path.frames[0].focal, Some(shot.focals[0]));
+    assert!(held.report.intrinsics[0].held);
+    assert!(held_focal < 0.0015, "focal error {held_focal}");
+    assert!(held_rot < 0.04, "rotation error {held_rot}°");
+    assert!(held_focal < free_focal && held_rot < free_rot);
+}
+
+/// A zoom with a lens to solve is a clear error.
+#[test]
+fn a_zoom_with_a_lens_to_solve_is_refused() {
     let shot = synthetic_shot(&ShotOptions {
         frames: 20,
         ..ShotOptions::default()
     });
-    for (focal, distortion, expect) in [
-        (FocalMode::Known, DistortionMode::None, "focal: refine"),
-        (FocalMode::Refine, DistortionMode::K1, "distortion: none"),
-    ] {
+    for (focal, distortion, expect) in [(FocalMode::Refine, DistortionMode::K1, "distortion: none")]
+    {
         let lens = LensOptions {
             focal,
             distortion,
