@@ -1,7 +1,8 @@
-//! Video file nodes: `read_video` reads H.264 MP4 files (what phones and cameras write; the
-//! book's chapter 6 tracks such footage) frame by frame, through `vfxgraph-video` (OpenH264,
-//! bundled, no system library); with `backend: opencv` (a build with the `opencv` cargo
-//! feature) any file OpenCV's VideoCapture opens, into the same frames.
+//! Video file nodes: `read_video` reads what phones and cameras write (the book's chapter 6
+//! tracks such footage) frame by frame, through `vfxgraph-video`: H.264 MP4 by the bundled
+//! OpenH264 reader (no system library), everything else — B-frames, HEVC, ProRes, DNxHR, VP9,
+//! AV1, MJPEG, in MP4, MOV, MKV, MXF — through the system's FFmpeg executables; with `backend:
+//! opencv` (a build with the `opencv` cargo feature) any file OpenCV's VideoCapture opens.
 
 use vfxgraph_engine::{Context, Mode, NodeError, NodeSpec, Registry, Threads};
 use vfxgraph_video::{open_shared, write_video, ReadVideoOptions, WriteVideoOptions};
@@ -13,10 +14,13 @@ pub fn register(r: &mut Registry) {
     r.register_fn(
         NodeSpec::new(
             "read_video",
-            "Reads frame f of the graph's range from an H.264 .mp4 file (frame 0 is the first \
-             picture) as a linear-light RGB image: Y'CbCr converted with the matrix and range \
-             the stream declares (BT.709 for HD, BT.601 below, when it does not), decoded \
-             with the sRGB curve as PNG frames are.",
+            "Reads frame f of the graph's range from a video file (frame 0 is the first \
+             picture shown; frames in presentation order) as a linear-light RGB image: Y'CbCr \
+             (8–16 bits, 4:2:0, 4:2:2, 4:4:4) converted with the matrix and range the stream \
+             declares (BT.709 for HD, BT.601 below, when it does not), decoded with the sRGB \
+             curve as PNG frames are; a phone's rotation applied. H.264 MP4 by the bundled \
+             reader, every other codec through FFmpeg (`ffmpeg` on the PATH or \
+             $VFXGRAPH_FFMPEG).",
         )
         .mode(Mode::PerFrame)
         .input_file_param("path", "the video file, relative to the graph file")

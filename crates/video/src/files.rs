@@ -13,9 +13,14 @@ use crate::{write_mp4, ColorInfo, Matrix, Video, VideoError};
 /// Which reader opens a video file.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, vfxgraph_params::Choice)]
 pub enum Backend {
-    /// H.264 MP4 through OpenH264 (bundled, no system library): [`Video`].
+    /// The bundled reader for the H.264 MP4 it reads, FFmpeg for everything else.
     #[default]
+    Auto,
+    /// H.264 MP4 without B-frames through OpenH264 (bundled, no system library): [`Video`].
     Native,
+    /// Any codec and container through the system's FFmpeg executables:
+    /// [`crate::ffmpeg::FfmpegVideo`].
+    Ffmpeg,
     /// Any codec OpenCV's VideoCapture reads (a build with the `opencv` feature).
     #[param(name = "opencv")]
     OpenCv,
@@ -24,9 +29,10 @@ pub enum Backend {
 /// The options of reading a video (the `read_video` node's params besides its path).
 #[derive(Clone, Debug, Default, PartialEq, vfxgraph_params::Options)]
 pub struct ReadVideoOptions {
-    /// native (H.264 MP4, no system library) | opencv (any codec OpenCV's VideoCapture reads;
-    /// needs a build with the `opencv` cargo feature; OpenCV converts Y'CbCr with BT.601
-    /// whatever the stream declares)
+    /// auto (native where it can, else ffmpeg) | native (H.264 MP4 without B-frames, bundled) |
+    /// ffmpeg (every codec, through the system's `ffmpeg`) | opencv (any codec OpenCV's
+    /// VideoCapture reads; needs a build with the `opencv` cargo feature; OpenCV converts
+    /// Y'CbCr with BT.601 whatever the stream declares)
     pub backend: Backend,
 }
 
@@ -34,6 +40,8 @@ pub struct ReadVideoOptions {
 pub enum Reader {
     /// [`Video`].
     Native(Video),
+    /// [`crate::ffmpeg::FfmpegVideo`].
+    Ffmpeg(crate::ffmpeg::FfmpegVideo),
     /// OpenCV's VideoCapture.
     #[cfg(feature = "opencv")]
     OpenCv(crate::capture::Capture),
@@ -44,7 +52,27 @@ impl Reader {
     /// says how to get it.
     pub fn open(path: &Path, backend: Backend) -> Result<Reader, VideoError> {
         match backend {
+            Backend::Auto => match Video::open(path) {
+                Ok(v) => Ok(Reader::Native(v)),
+                Err(e @ (VideoError::Unsupported { .. } | VideoError::Container { .. })) => {
+                    if crate::ffmpeg::available() {
+                        crate::ffmpeg::FfmpegVideo::open(path).map(Reader::Ffmpeg)
+                    } else {
+                        let why = match &e {
+                            VideoError::Unsupported { message, .. }
+                            | VideoError::Container { message, .. } => message.clone(),
+                            _ => unreachable!(),
+                        };
+                        Err(crate::ffmpeg::missing(
+                            path,
+                            &format!("the bundled reader cannot ({why})"),
+                        ))
+                    }
+                }
+                Err(e) => Err(e),
+            },
             Backend::Native => Video::open(path).map(Reader::Native),
+            Backend::Ffmpeg => crate::ffmpeg::FfmpegVideo::open(path).map(Reader::Ffmpeg),
             #[cfg(feature = "opencv")]
             Backend::OpenCv => crate::capture::Capture::open(path).map(Reader::OpenCv),
             #[cfg(not(feature = "opencv"))]
@@ -58,6 +86,7 @@ impl Reader {
     pub fn frame(&self, frame: i64) -> Result<Image, VideoError> {
         match self {
             Reader::Native(v) => v.frame(frame),
+            Reader::Ffmpeg(v) => v.frame(frame),
             #[cfg(feature = "opencv")]
             Reader::OpenCv(c) => c.frame(frame),
         }

@@ -29,6 +29,7 @@ use vfxgraph_imaging::Image;
 mod bounded;
 #[cfg(feature = "opencv")]
 pub mod capture;
+pub mod ffmpeg;
 pub mod files;
 mod mux;
 pub mod sps;

@@ -103,6 +103,122 @@ pub fn to_image(p: &Planes<'_>, c: &ColorInfo) -> Image {
     }
 }
 
+/// One decoded picture of any planar Y'CbCr layout FFmpeg delivers: 8 to 16 bits a sample
+/// (held in `u16`), chroma full size or halved across (4:2:2) or across and down (4:2:0).
+pub struct Planar {
+    /// Width of the picture (the luma plane).
+    pub width: usize,
+    /// Height of the picture.
+    pub height: usize,
+    /// Bits a sample (8, 10, 12, 16).
+    pub bits: u32,
+    /// Chroma halved horizontally (4:2:2 and 4:2:0).
+    pub half_width: bool,
+    /// Chroma halved vertically (4:2:0).
+    pub half_height: bool,
+    /// Luma, `width` × `height`.
+    pub y: Vec<u16>,
+    /// Cb, [`Planar::chroma_size`].
+    pub u: Vec<u16>,
+    /// Cr, [`Planar::chroma_size`].
+    pub v: Vec<u16>,
+}
+
+impl Planar {
+    /// Width and height of each chroma plane.
+    pub fn chroma_size(
+        width: usize,
+        height: usize,
+        half_width: bool,
+        half_height: bool,
+    ) -> (usize, usize) {
+        (
+            if half_width { width.div_ceil(2) } else { width },
+            if half_height {
+                height.div_ceil(2)
+            } else {
+                height
+            },
+        )
+    }
+
+    /// Converts the picture to a linear-light RGB [`Image`] as [`to_image`] does: n-bit code
+    /// values brought to the 8-bit scale of [`ycbcr_to_rgb`] (limited range: divided by
+    /// 2ⁿ⁻⁸, as BT.709/BT.2100 define the levels; full range: by (2ⁿ − 1)/255 about the
+    /// mid-level), chroma upsampled bilinearly from H.264/HEVC's default sample position
+    /// (co-sited with even luma columns; half-way between luma rows when halved vertically).
+    pub fn to_image(&self, c: &ColorInfo) -> Image {
+        let (w, h) = (self.width, self.height);
+        let (cw, ch) = Self::chroma_size(w, h, self.half_width, self.half_height);
+        let max = ((1u32 << self.bits) - 1) as f32;
+        let half = (1u32 << (self.bits - 1)) as f32;
+        let scale = (1u32 << (self.bits - 8)) as f32;
+        let luma = |v: f32| {
+            if c.full_range {
+                v * 255.0 / max
+            } else {
+                v / scale
+            }
+        };
+        let chroma_code = |v: f32| {
+            if c.full_range {
+                128.0 + (v - half) * 255.0 / max
+            } else {
+                v / scale
+            }
+        };
+        let mut data = vec![0.0f32; w * h * 3];
+        data.par_chunks_mut(w * 3).enumerate().for_each(|(y, row)| {
+            let (cy0, cy1, fy) = if self.half_height {
+                let cy = (y as f32 - 0.5) * 0.5;
+                let cy0 = (cy.floor().max(0.0) as usize).min(ch - 1);
+                (
+                    cy0,
+                    (cy0 + 1).min(ch - 1),
+                    (cy - cy0 as f32).clamp(0.0, 1.0),
+                )
+            } else {
+                (y, y, 0.0)
+            };
+            let at = |plane: &[u16], cx: usize| {
+                let a = plane[cy0 * cw + cx] as f32;
+                let b = plane[cy1 * cw + cx] as f32;
+                a + (b - a) * fy
+            };
+            for x in 0..w {
+                let (cb, cr) = if !self.half_width {
+                    (at(&self.u, x), at(&self.v, x))
+                } else {
+                    let cx0 = (x / 2).min(cw - 1);
+                    if x % 2 == 0 || cx0 + 1 >= cw {
+                        (at(&self.u, cx0), at(&self.v, cx0))
+                    } else {
+                        (
+                            0.5 * (at(&self.u, cx0) + at(&self.u, cx0 + 1)),
+                            0.5 * (at(&self.v, cx0) + at(&self.v, cx0 + 1)),
+                        )
+                    }
+                };
+                let rgb = ycbcr_to_rgb(
+                    luma(self.y[y * w + x] as f32),
+                    chroma_code(cb),
+                    chroma_code(cr),
+                    c,
+                );
+                for k in 0..3 {
+                    row[3 * x + k] = srgb_to_linear(rgb[k].clamp(0.0, 1.0));
+                }
+            }
+        });
+        Image {
+            width: w,
+            height: h,
+            channels: 3,
+            data,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -134,5 +250,81 @@ mod tests {
             ..c709
         };
         assert!(close(ycbcr_to_rgb(255.0, 128.0, 128.0, &full), [1.0; 3]));
+    }
+
+    /// 10-bit 4:2:0 limited range is the 8-bit picture at 4× the code values; 4:2:2 and
+    /// 4:4:4 of flat colour give that colour; full range 10-bit reaches white at 1023.
+    #[test]
+    fn ten_bit_and_every_subsampling_agree_with_eight_bit() {
+        let c = ColorInfo {
+            matrix: Matrix::Bt709,
+            full_range: false,
+            matrix_from_stream: true,
+        };
+        let (w, h) = (6, 4);
+        let y8: Vec<u8> = (0..w * h).map(|i| (20 + 9 * i) as u8).collect();
+        let (cw, ch) = (3, 2);
+        let u8_: Vec<u8> = (0..cw * ch).map(|i| (100 + 11 * i) as u8).collect();
+        let v8: Vec<u8> = (0..cw * ch).map(|i| (150 - 7 * i) as u8).collect();
+        let eight = to_image(
+            &Planes {
+                width: w,
+                height: h,
+                y: &y8,
+                u: &u8_,
+                v: &v8,
+                y_stride: w,
+                uv_stride: cw,
+            },
+            &c,
+        );
+        let up = |p: &[u8]| p.iter().map(|&v| 4 * v as u16).collect::<Vec<u16>>();
+        let ten = Planar {
+            width: w,
+            height: h,
+            bits: 10,
+            half_width: true,
+            half_height: true,
+            y: up(&y8),
+            u: up(&u8_),
+            v: up(&v8),
+        }
+        .to_image(&c);
+        assert!(ten.max_abs_diff(&eight).unwrap() < 2e-4);
+        // Flat 18 % grey-ish colour in 4:2:2 and 4:4:4: every pixel the same.
+        for (hw, hh) in [(true, false), (false, false)] {
+            let (cw, ch) = Planar::chroma_size(w, h, hw, hh);
+            let p = Planar {
+                width: w,
+                height: h,
+                bits: 10,
+                half_width: hw,
+                half_height: hh,
+                y: vec![4 * 120; w * h],
+                u: vec![4 * 140; cw * ch],
+                v: vec![4 * 110; cw * ch],
+            }
+            .to_image(&c);
+            let want = ycbcr_to_rgb(120.0, 140.0, 110.0, &c).map(srgb_to_linear);
+            for px in p.data.chunks(3) {
+                assert!(px.iter().zip(&want).all(|(a, b)| (a - b).abs() < 1e-5));
+            }
+        }
+        let full = ColorInfo {
+            full_range: true,
+            ..c
+        };
+        let white = Planar {
+            width: 2,
+            height: 2,
+            bits: 10,
+            half_width: true,
+            half_height: true,
+            y: vec![1023; 4],
+            u: vec![512],
+            v: vec![512],
+        }
+        .to_image(&full);
+        assert!(white.data.iter().all(|v| (v - 1.0).abs() < 1e-5));
     }
 }
