@@ -544,12 +544,25 @@ pub fn matchmove_with_lens(
         r => r?,
     };
     if let Some(parallax) = tripod {
+        let k_start = k.clone();
         if let Some(f) = focal {
             k.f1 = f;
             k.f2 = f;
         }
         let mut solve =
             super::tripod::solve_rotations(tracks, &k, held, options, parallax.as_ref(), progress)?;
+        if let Some(general) = borderline_pan(
+            tracks,
+            &k_start,
+            held,
+            lens,
+            options,
+            progress,
+            parallax.as_ref(),
+            &mut solve,
+        ) {
+            return Ok(general);
+        }
         solve
             .report
             .stages
@@ -577,6 +590,86 @@ pub fn matchmove_with_lens(
         solve.report.notes.push(note);
     }
     Ok(solve)
+}
+
+/// A pan whose parallax is above this many times the tracks' noise is borderline: the general
+/// solve is tried as well ([`borderline_pan`]). Pure noise gives about 2.5 (the rotation's
+/// point-to-point residual against the epipolar point-to-line one).
+pub const BORDERLINE_PAN_RATIO: f64 = 3.0;
+
+/// The general solve of the tracks must fit them this much better (overall rms) than the
+/// rotation-only one to replace it: a nodal pan's rotation model is exact, so a general solve
+/// (more freedom) fits no better than its noise.
+pub const GENERAL_OVER_PAN_RMS: f64 = 0.8;
+
+/// The general solve of a shot the parallax test took for a pan, when the test was borderline
+/// (parallax over [`BORDERLINE_PAN_RATIO`] × noise, the test automatic) and the general solve
+/// fits the tracks clearly better (rms under [`GENERAL_OVER_PAN_RMS`] × the pan's): a dolly
+/// along the view axis through a long lens, its tracks short-lived, moves them little between
+/// the frames the test compares, and a rotation-only solve of it is degrees wrong. When the
+/// general solve fails or fits no better, the pan stands with a warning.
+#[allow(clippy::too_many_arguments)]
+fn borderline_pan(
+    tracks: &Tracks,
+    k: &Intrinsics,
+    held: super::Held,
+    lens: &LensOptions,
+    options: &MatchmoveOptions,
+    progress: &(dyn Fn(&str, usize, usize) + Sync),
+    parallax: Option<&super::tripod::Parallax>,
+    pan: &mut Solve,
+) -> Option<Solve> {
+    let p = parallax?;
+    if options.motion.solve != super::SolveMode::Auto
+        || !(p.parallax_px > BORDERLINE_PAN_RATIO * p.noise_px)
+    {
+        return None;
+    }
+    let r = pan.report.overall_rms;
+    let general = general_with_lens(tracks, k.clone(), held, lens, options, progress);
+    let better = match general {
+        Ok(g) if g.report.overall_rms < GENERAL_OVER_PAN_RMS * r => Some(g),
+        Ok(g) => {
+            pan.report.warnings.push(format!(
+                "{}; and a general solve fits the tracks about as well (rms {:.2} px against \
+                 the pan's {r:.2} px): check the solve against the plate, or give motion solve: \
+                 general",
+                may_travel(p),
+                g.report.overall_rms
+            ));
+            None
+        }
+        Err(_) => {
+            pan.report.warnings.push(format!(
+                "{}; and no general solve could start from these tracks (longer tracks, from \
+                 more texture or less noise, would tell)",
+                may_travel(p)
+            ));
+            None
+        }
+    };
+    let mut general = better?;
+    let g = general.report.overall_rms;
+    general.report.notes.push(format!(
+        "{}; but the general solve fits the tracks better (rms {g:.2} px against the pan's \
+         {r:.2} px): a camera that travels",
+        p.describe()
+    ));
+    Some(general)
+}
+
+/// The first half of a borderline pan's warning.
+fn may_travel(p: &super::tripod::Parallax) -> String {
+    format!(
+        "solved as a nodal pan, but the camera may travel: what a rotation leaves unexplained \
+         ({:.2} px) is {:.1}× the tracks' noise ({:.2} px), under the pan threshold ({:.2} px) \
+         yet above what noise alone leaves; a rotation-only solve of a travelling camera is \
+         wrong by degrees",
+        p.parallax_px,
+        p.parallax_px / p.noise_px,
+        p.noise_px,
+        p.threshold_px
+    )
 }
 
 /// The rotation-only solve of a shot in which nothing has parallax (`why`): the camera

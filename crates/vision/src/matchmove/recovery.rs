@@ -125,16 +125,40 @@ pub(crate) fn longest_run(pieces: &[Piece]) -> std::ops::Range<usize> {
     best.map_or(0..0, |(_, start, end)| start..end)
 }
 
+/// A fragment's error without what names the fragment (`fragment of frames a..b (n
+/// features): `), so that pieces failing alike compare equal.
+fn same_reason(text: &str) -> String {
+    match (text.find("fragment of frames"), text.find("): ")) {
+        (Some(i), Some(j)) if j > i => format!("{}{}", &text[..i], &text[j + 3..]),
+        _ => text.to_string(),
+    }
+}
+
 /// The error of a shot no part of which could be started: which frames, why, what to try.
 pub(crate) fn no_start_error(tracks: &Tracks, pieces: &[Piece]) -> VisionError {
-    let reasons: Vec<String> = pieces
+    // Consecutive pieces that failed for the same reason are one line: a shot of 2-frame
+    // tracks would otherwise list every frame.
+    let mut groups: Vec<(usize, usize, usize, String, String)> = Vec::new(); // first, last, n, key, text
+    for (f, e) in pieces.iter().filter_map(|p| p.as_ref().err()) {
+        let text = e.to_string();
+        let key = same_reason(&text);
+        match groups.last_mut() {
+            Some(g) if g.3 == key && g.1 == f.first => {
+                g.1 = f.last;
+                g.2 += 1;
+            }
+            _ => groups.push((f.first, f.last, 1, key, text)),
+        }
+    }
+    let reasons: Vec<String> = groups
         .iter()
-        .filter_map(|p| p.as_ref().err())
-        .map(|(f, e)| {
-            format!(
-                "frames {}..{}: {e}",
-                tracks.frames[f.first], tracks.frames[f.last]
-            )
+        .map(|(first, last, n, key, text)| {
+            let (a, b) = (tracks.frames[*first], tracks.frames[*last]);
+            if *n == 1 {
+                format!("frames {a}..{b}: {text}")
+            } else {
+                format!("frames {a}..{b} ({n} fragments): {key}")
+            }
         })
         .collect();
     let all_flat = pieces
@@ -155,5 +179,27 @@ pub(crate) fn no_start_error(tracks: &Tracks, pieces: &[Piece]) -> VisionError {
         VisionError::NoParallax(text)
     } else {
         VisionError::Degenerate(text)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::same_reason;
+
+    #[test]
+    fn fragments_failing_alike_have_one_reason() {
+        let a = "no parallax: fragment of frames 0..1 (30 features): no frame pair whose \
+                 features moved more than 4 px";
+        let b = "no parallax: fragment of frames 7..8 (41 features): no frame pair whose \
+                 features moved more than 4 px";
+        assert_eq!(same_reason(a), same_reason(b));
+        assert_eq!(
+            same_reason(a),
+            "no parallax: no frame pair whose features moved more than 4 px"
+        );
+        let c = "degenerate: fragment of frames 7..8 (41 features): none of 3 frame pairs gave \
+                 a consistent reconstruction";
+        assert_ne!(same_reason(a), same_reason(c));
+        assert_eq!(same_reason("too few tracks"), "too few tracks");
     }
 }
