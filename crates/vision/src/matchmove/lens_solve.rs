@@ -31,6 +31,7 @@ use vfxgraph_params::{Choice, Options};
 use super::{matchmove, MatchmoveOptions, Solve};
 use crate::camera::Intrinsics;
 use crate::error::{Result, VisionError};
+use crate::formats::CameraPath;
 use crate::klt::Tracks;
 use crate::lens::Distortion;
 
@@ -592,22 +593,53 @@ pub fn matchmove_with_lens(
     Ok(solve)
 }
 
-/// A pan whose parallax is above this many times the tracks' noise is borderline: the general
-/// solve is tried as well ([`borderline_pan`]). Pure noise gives about 2.5 (the rotation's
-/// point-to-point residual against the epipolar point-to-line one).
-pub const BORDERLINE_PAN_RATIO: f64 = 3.0;
+/// A shot solved as a pan whose picture grows or shrinks by more than this fraction over the
+/// shot ([`borderline_pan`]) is not a pan: a rotation does not scale the picture, a camera
+/// moving along its view (or a zooming lens) does. Measured on the nodal pans of a synthetic
+/// corpus: 0.2 % at most.
+pub const PAN_SCALE_LIMIT: f64 = 0.02;
 
 /// The general solve of the tracks must fit them this much better (overall rms) than the
 /// rotation-only one to replace it: a nodal pan's rotation model is exact, so a general solve
 /// (more freedom) fits no better than its noise.
 pub const GENERAL_OVER_PAN_RMS: f64 = 0.8;
 
-/// The general solve of a shot the parallax test took for a pan, when the test was borderline
-/// (parallax over [`BORDERLINE_PAN_RATIO`] × noise, the test automatic) and the general solve
-/// fits the tracks clearly better (rms under [`GENERAL_OVER_PAN_RMS`] × the pan's): a dolly
-/// along the view axis through a long lens, its tracks short-lived, moves them little between
-/// the frames the test compares, and a rotation-only solve of it is degrees wrong. When the
-/// general solve fails or fits no better, the pan stands with a warning.
+/// How much the picture scales from the first frame to the last once the pan's rotations are
+/// taken out: every observation (undistorted by `k`) turned by the `pan`'s rotation of its
+/// frame back to the first frame's orientation, then the product of the scales of the 2-D
+/// similarities between consecutive frames' tracks ([`super::zoom::zoom_ratios`]). 1 for a
+/// nodal pan, whatever it turns; the scale of a dolly or a zoom.
+fn picture_scale(tracks: &Tracks, k: &Intrinsics, pan: &CameraPath) -> Result<f64> {
+    let mut und = undistort_tracks(tracks, k)?;
+    let kp = k.pinhole();
+    let poses = super::poses_by_index(&und, pan);
+    let Some(r0) = poses.iter().flatten().next().map(|p| p.r) else {
+        return Ok(1.0);
+    };
+    for t in &mut und.tracks {
+        for (j, p) in t.points.iter_mut().enumerate() {
+            let Some(pose) = &poses[t.first + j] else {
+                continue;
+            };
+            let ray = nalgebra::Vector3::new((p[0] - kp.u0) / kp.f1, (p[1] - kp.v0) / kp.f2, 1.0);
+            let d = r0 * pose.r.transpose() * ray;
+            if d.z > 1e-9 {
+                *p = [kp.u0 + kp.f1 * d.x / d.z, kp.v0 + kp.f2 * d.y / d.z];
+            }
+        }
+    }
+    Ok(super::zoom::zoom_ratios(&und, &kp)
+        .last()
+        .copied()
+        .unwrap_or(1.0))
+}
+
+/// The general solve of a shot the parallax test took for a pan whose picture nevertheless
+/// scales (by more than [`PAN_SCALE_LIMIT`] over the shot, the test automatic), when it fits
+/// the tracks clearly better (rms under [`GENERAL_OVER_PAN_RMS`] × the pan's): a dolly along
+/// the view axis through a long lens, its tracks short-lived, moves them little between the
+/// frames the test compares, and a rotation-only solve of it is degrees wrong. When the general
+/// solve fails or fits no better, the pan stands with a warning.
 #[allow(clippy::too_many_arguments)]
 fn borderline_pan(
     tracks: &Tracks,
@@ -620,30 +652,38 @@ fn borderline_pan(
     pan: &mut Solve,
 ) -> Option<Solve> {
     let p = parallax?;
-    if options.motion.solve != super::SolveMode::Auto
-        || !(p.parallax_px > BORDERLINE_PAN_RATIO * p.noise_px)
-    {
+    if options.motion.solve != super::SolveMode::Auto {
+        return None;
+    }
+    let scale = picture_scale(tracks, k, &pan.path).ok()?;
+    if !(scale.ln().abs() > PAN_SCALE_LIMIT.ln_1p()) {
         return None;
     }
     let r = pan.report.overall_rms;
+    let may_travel = format!(
+        "the picture {} by {:.1} % over the shot, which no rotation does: the camera moves \
+         along its view (or the lens zooms), yet the shot was solved as a nodal pan ({}), \
+         which is then wrong by degrees",
+        if scale > 1.0 { "grows" } else { "shrinks" },
+        100.0 * (scale.max(1.0 / scale) - 1.0),
+        p.describe()
+    );
     let general = general_with_lens(tracks, k.clone(), held, lens, options, progress);
     let better = match general {
         Ok(g) if g.report.overall_rms < GENERAL_OVER_PAN_RMS * r => Some(g),
         Ok(g) => {
             pan.report.warnings.push(format!(
-                "{}; and a general solve fits the tracks about as well (rms {:.2} px against \
-                 the pan's {r:.2} px): check the solve against the plate, or give motion solve: \
-                 general",
-                may_travel(p),
+                "{may_travel}; a general solve fits the tracks no better (rms {:.2} px against \
+                 the pan's {r:.2} px): check the solve against the plate, give motion solve: \
+                 general, or zoom: true for a zooming lens",
                 g.report.overall_rms
             ));
             None
         }
         Err(_) => {
             pan.report.warnings.push(format!(
-                "{}; and no general solve could start from these tracks (longer tracks, from \
-                 more texture or less noise, would tell)",
-                may_travel(p)
+                "{may_travel}; no general solve could start from these tracks (longer tracks, \
+                 from more texture or less noise, would tell; zoom: true for a zooming lens)"
             ));
             None
         }
@@ -651,25 +691,12 @@ fn borderline_pan(
     let mut general = better?;
     let g = general.report.overall_rms;
     general.report.notes.push(format!(
-        "{}; but the general solve fits the tracks better (rms {g:.2} px against the pan's \
-         {r:.2} px): a camera that travels",
-        p.describe()
+        "{}; but the picture scales by {:.1} % over the shot and the general solve fits the \
+         tracks better (rms {g:.2} px against the pan's {r:.2} px): a camera that travels",
+        p.describe(),
+        100.0 * (scale - 1.0)
     ));
     Some(general)
-}
-
-/// The first half of a borderline pan's warning.
-fn may_travel(p: &super::tripod::Parallax) -> String {
-    format!(
-        "solved as a nodal pan, but the camera may travel: what a rotation leaves unexplained \
-         ({:.2} px) is {:.1}× the tracks' noise ({:.2} px), under the pan threshold ({:.2} px) \
-         yet above what noise alone leaves; a rotation-only solve of a travelling camera is \
-         wrong by degrees",
-        p.parallax_px,
-        p.parallax_px / p.noise_px,
-        p.noise_px,
-        p.threshold_px
-    )
 }
 
 /// The rotation-only solve of a shot in which nothing has parallax (`why`): the camera
@@ -976,4 +1003,91 @@ fn lens_rounds(
     }
     out.path.intrinsics = Some(k);
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::camera::Pose;
+    use crate::formats::FramePose;
+    use crate::klt::Track;
+    use nalgebra::{Matrix3, Rotation3, Vector3};
+
+    /// Tracks of 150 points 8–12 units ahead seen by `poses`, 3 frames each (short-lived, as a
+    /// noisy plate's are), and the path of `rotations` (the pan a solve would give).
+    fn shot(poses: &[Pose], rotations: &[Matrix3<f64>]) -> (Tracks, CameraPath, Intrinsics) {
+        let k = Intrinsics::new(900.0, 900.0, 239.5, 134.5).with_size(480, 270);
+        let n = poses.len();
+        let mut tracks = Vec::new();
+        for j in 0..150usize {
+            let x = Vector3::new(
+                ((j * 37) % 11) as f64 * 0.25 - 1.25,
+                ((j * 53) % 7) as f64 * 0.2 - 0.6,
+                8.0 + ((j * 29) % 5) as f64,
+            );
+            let first = (j * 5) % (n - 2);
+            let points = (first..first + 3)
+                .map(|i| {
+                    let c = poses[i].r * x + poses[i].t;
+                    [k.u0 + k.f1 * c.x / c.z, k.v0 + k.f2 * c.y / c.z]
+                })
+                .collect();
+            tracks.push(Track {
+                id: j as u64,
+                slot: j,
+                first,
+                points,
+                lost: None,
+            });
+        }
+        let tracks = Tracks {
+            frames: (0..n as i64).collect(),
+            slots: 150,
+            image_size: Some([480, 270]),
+            tracks,
+        };
+        let path = CameraPath {
+            frames: rotations
+                .iter()
+                .enumerate()
+                .map(|(i, r)| FramePose {
+                    frame: i,
+                    pose: Pose::new(*r, Vector3::zeros()),
+                    focal: None,
+                })
+                .collect(),
+            intrinsics: Some(k.clone()),
+        };
+        (tracks, path, k)
+    }
+
+    /// A nodal pan turning 12° leaves the picture's scale alone; a dolly out by 2 units along
+    /// the view shrinks it by what the depths say.
+    #[test]
+    fn a_dolly_scales_the_picture_and_a_pan_does_not() {
+        let n = 30;
+        let turn = |i: usize| {
+            *Rotation3::from_euler_angles(
+                0.01 * i as f64 / n as f64,
+                0.21 * i as f64 / n as f64,
+                0.0,
+            )
+            .matrix()
+        };
+        let pan: Vec<Pose> = (0..n)
+            .map(|i| Pose::new(turn(i), Vector3::zeros()))
+            .collect();
+        let rotations: Vec<Matrix3<f64>> = (0..n).map(turn).collect();
+        let (tracks, path, k) = shot(&pan, &rotations);
+        let s = picture_scale(&tracks, &k, &path).unwrap();
+        assert!((s - 1.0).abs() < 1e-6, "pan: {s}");
+        let back = |i: usize| 2.0 * i as f64 / (n - 1) as f64;
+        let dolly: Vec<Pose> = (0..n)
+            .map(|i| Pose::new(Matrix3::identity(), Vector3::new(0.0, 0.0, back(i))))
+            .collect();
+        let (tracks, path, k) = shot(&dolly, &vec![Matrix3::identity(); n]);
+        let s = picture_scale(&tracks, &k, &path).unwrap();
+        // Depths 8–12 (mean 10.0) moving to 10–14: 10/12 = 0.833 for the mean; 0.838 measured.
+        assert!((s - 10.0 / 12.0).abs() < 0.02, "dolly: {s}");
+    }
 }
