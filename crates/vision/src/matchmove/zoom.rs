@@ -198,7 +198,8 @@ pub(crate) fn solve_zoom(
     ));
     let k_ref = with_focal(k, f0);
     // The rounds start from focal lengths that are still wrong: the book's start (whose DLT
-    // estimates each frame's K) tolerates that, where the calibrated one takes K as exact.
+    // estimates each frame's K) tolerates that, where the calibrated one takes K as exact; the
+    // calibrated start is the fallback where the book's fails (planar sets).
     let inner = MatchmoveOptions {
         global: None,
         score: false,
@@ -208,11 +209,23 @@ pub(crate) fn solve_zoom(
         },
         ..options.clone()
     };
+    let calibrated = MatchmoveOptions {
+        pair: super::PairOptions {
+            init: super::InitMethod::Calibrated,
+            ..options.pair.clone()
+        },
+        ..inner.clone()
+    };
     let mut solved = None;
     for round in 0..rounds.max(MIN_ZOOM_ROUNDS) {
         let t0 = std::time::Instant::now();
         let norm = normalise(und, k, &focals, f0);
-        let s = matchmove(&norm, &k_ref, &inner, progress)?;
+        let s = match matchmove(&norm, &k_ref, &inner, progress) {
+            Ok(s) => s,
+            // The book's start is degenerate on a plane (a floor, a wall): the calibrated one
+            // is not, and the ratios' focal lengths are near enough for it to start.
+            Err(_) => matchmove(&norm, &k_ref, &calibrated, progress)?,
+        };
         stages.push(super::StageTime::new(
             &format!("round {}: fixed-focal solve", round + 1),
             t0,
