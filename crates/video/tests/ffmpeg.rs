@@ -94,6 +94,17 @@ fn frames_are_the_sources(
     }
 }
 
+/// A clip to encode and what reading it must show: file name, encoder arguments, codec, pixel
+/// format, full range, tolerance (mean absolute difference, linear).
+type Case = (
+    &'static str,
+    &'static [&'static str],
+    &'static str,
+    &'static str,
+    bool,
+    f32,
+);
+
 #[test]
 fn every_common_codec_reads_frame_by_frame() {
     if !have_ffmpeg() {
@@ -106,8 +117,8 @@ fn every_common_codec_reads_frame_by_frame() {
         .chain((0..n).rev())
         .chain([5, 2, 9, 9, 0, 11])
         .collect();
-    // (file, encoder arguments, codec, bits, full range, tolerance)
-    let cases: [(&str, &[&str], &str, &str, bool, f32); 7] = [
+    // (file, encoder arguments, codec, pixel format, full range, tolerance)
+    let cases: [Case; 7] = [
         (
             "h264-bframes.mp4",
             &[
