@@ -176,6 +176,7 @@ mod tests {
             "constant",
             check_defaults::<vfxgraph_imaging::ConstantOptions>,
         ),
+        ("blur", check_defaults::<vfxgraph_imaging::BlurOptions>),
         (
             "place_scene",
             check_defaults::<render::placement::place::PlaceOptions>,

@@ -508,11 +508,46 @@ pub const FOCAL_FLAT_RATIO: f64 = 1.02;
 /// too ([`FocalSearch::others`]).
 pub const SEARCH_OTHER_RATIO: f64 = 1.25;
 
+/// A shot whose tracks live fewer frames than this (their median) gets a warning: each camera
+/// then rests on features seen in two or three frames, chained from pair to pair. Measured on
+/// the rendered corpus: of its plates with a median under 4 frames, three of five were 2–5.5°
+/// wrong; none from 4 frames up was over 0.7° without a warning.
+pub const SHORT_TRACKS: usize = 4;
+
 /// The matchmove of real cameras (module docs): the book's matchmove when nothing of the lens
 /// is solved (on the tracks undistorted by the intrinsics' own lens), else the rounds of
 /// step 2 from the focal length of step 1. The returned path carries the solved intrinsics
-/// (focal length and distortion).
+/// (focal length and distortion). Tracks too short to trust ([`SHORT_TRACKS`]) are warned of.
 pub fn matchmove_with_lens(
+    tracks: &Tracks,
+    k: &Intrinsics,
+    lens: &LensOptions,
+    options: &MatchmoveOptions,
+    progress: &(dyn Fn(&str, usize, usize) + Sync),
+) -> Result<Solve> {
+    let mut solve = solve_with_lens(tracks, k, lens, options, progress)?;
+    solve.report.warnings.extend(short_tracks(tracks));
+    Ok(solve)
+}
+
+/// The warning of tracks too short to trust ([`SHORT_TRACKS`]), if they are.
+fn short_tracks(tracks: &Tracks) -> Option<String> {
+    let mut lengths: Vec<usize> = tracks.tracks.iter().map(|t| t.points.len()).collect();
+    lengths.sort_unstable();
+    let median = lengths.get(lengths.len() / 2).copied().unwrap_or(0);
+    (median < SHORT_TRACKS && tracks.frames.len() >= SHORT_TRACKS).then(|| {
+        format!(
+            "the tracks are short: half of them live {median} frames or fewer over a \
+             {}-frame shot, so every camera rests on features seen in a few frames, chained \
+             from one to the next, and can be degrees wrong: track with less noise or more \
+             texture (a larger window, a lower threshold), or check the solve against the plate",
+            tracks.frames.len()
+        )
+    })
+}
+
+/// [`matchmove_with_lens`] before its check of the tracks' length.
+fn solve_with_lens(
     tracks: &Tracks,
     k: &Intrinsics,
     lens: &LensOptions,
@@ -1059,6 +1094,32 @@ mod tests {
             intrinsics: Some(k.clone()),
         };
         (tracks, path, k)
+    }
+
+    /// Tracks of 3 frames (the test's own) are short; the same tracks doubled in length are
+    /// not; a clip of 3 frames cannot have longer ones and is not warned of.
+    #[test]
+    fn short_tracks_are_warned_of() {
+        let n = 30;
+        let still: Vec<Pose> = (0..n).map(|_| Pose::default()).collect();
+        let (mut tracks, ..) = shot(&still, &vec![Matrix3::identity(); n]);
+        let w = short_tracks(&tracks).unwrap();
+        assert!(
+            w.contains("live 3 frames or fewer over a 30-frame shot"),
+            "{w}"
+        );
+        for t in &mut tracks.tracks {
+            let more = t.points.clone();
+            t.points.extend(more);
+            t.first = t.first.min(n - t.points.len());
+        }
+        assert_eq!(short_tracks(&tracks), None);
+        tracks.frames.truncate(3);
+        for t in &mut tracks.tracks {
+            t.first = 0;
+            t.points.truncate(3);
+        }
+        assert_eq!(short_tracks(&tracks), None);
     }
 
     /// A nodal pan turning 12° leaves the picture's scale alone; a dolly out by 2 units along
