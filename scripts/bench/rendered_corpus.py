@@ -357,15 +357,25 @@ def table(title, rows, key, who):
 
 def summarize(rows, focal, colmap):
     for who in ["ours"] + (["colmap"] if colmap else []):
-        print(f"\n=== {who} (focal {focal if who == 'ours' else 'known'}), {len(rows)} plates")
+        mine = [r for r in rows if who in r]
+        print(f"\n=== {who} (focal {focal if who == 'ours' else 'known'}), {len(mine)} plates")
         for key in ["set", "motion", "lens", "quality", "size", None]:
-            table(key or "corpus", rows, key, who)
+            table(key or "corpus", mine, key, who)
+    bad = [r for r in rows if r["ours"]["status"] != "solved" or r["ours"]["rot_max_deg"] > 1.0]
+    if bad:
+        print("\nours not solved on every frame, or over 1°:")
+        for r in bad:
+            o = r["ours"]
+            print(f"  {r['spec']['name']:<48} {o['status']:>7} "
+                  f"{o.get('rot_max_deg', float('nan')):7.3f}° "
+                  f"{'warned' if o.get('warnings') else 'SILENT' if o['status'] == 'solved' else ''}")
     if colmap:
-        both = [r for r in rows if r["colmap"]["status"] == "solved"]
+        paired = [r for r in rows if "colmap" in r]
+        both = [r for r in paired if r["colmap"]["status"] == "solved"]
         good = [r for r in both if r["ours"]["status"] == "solved"
                 and r["ours"]["rot_max_deg"] <= r["colmap"]["rot_max_deg"] + 1e-9]
-        t_ours = sum(r["ours"]["solve_seconds"] for r in rows)
-        t_colmap = sum(r["colmap"]["seconds"] for r in rows)
+        t_ours = sum(r["ours"]["solve_seconds"] for r in paired)
+        t_colmap = sum(r["colmap"]["seconds"] for r in paired)
         print(f"\nCOLMAP solved {len(both)} of {len(rows)}; ours at least as accurate on "
               f"{len(good)} of those; time: COLMAP {t_colmap:.1f} s, our read + track + solve "
               f"{t_ours:.1f} s ({t_colmap / max(t_ours, 1e-9):.1f}x)")
@@ -378,6 +388,9 @@ def main():
     ap.add_argument("--first", type=int, default=0, help="skip the plates before this one")
     ap.add_argument("--focal", choices=["known", "unknown"], default="known")
     ap.add_argument("--colmap", action="store_true", help="COLMAP on the same frames too")
+    ap.add_argument("--colmap-from", metavar="JSON",
+                    help="COLMAP's figures from an earlier run's --json of the same plates "
+                         "(COLMAP's result does not depend on ours: re-solve without re-running it)")
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--work", default=str(Path.home() / ".cache/vfxgraph/rendered-corpus"))
     ap.add_argument("--vfxgraph", default=str(REPO / "target/release/vfxgraph"))
@@ -393,6 +406,10 @@ def main():
     work = Path(a.work)
     work.mkdir(parents=True, exist_ok=True)
     cache = work / "cache"
+    earlier = {}
+    if a.colmap_from:
+        earlier = {r["spec"]["name"]: r["colmap"] for r in json.loads(Path(a.colmap_from).read_text())
+                   if "colmap" in r}
     rows = []
     for p in plate_specs(a.count, a.seed)[a.first:]:
         g = write_plate(p, work, a.focal)
@@ -419,6 +436,8 @@ def main():
         row = {"spec": p, "ours": ours}
         if a.colmap:
             row["colmap"] = run_colmap(p, work, a.threads)
+        elif p["name"] in earlier:
+            row["colmap"] = earlier[p["name"]]
         rows.append(row)
         if a.json:
             Path(a.json).write_text(json.dumps(rows, indent=1, default=float))
@@ -427,7 +446,7 @@ def main():
               f"w{len(ours['warnings'])}"
               + (f"  colmap {c['status']:>7} {c.get('rot_max_deg', float('nan')):7.3f}° "
                  f"{c['seconds']:6.1f} s" if c else ""), flush=True)
-    summarize(rows, a.focal, a.colmap)
+    summarize(rows, a.focal, a.colmap or bool(earlier))
 
 
 if __name__ == "__main__":

@@ -537,10 +537,11 @@ fn short_tracks(tracks: &Tracks) -> Option<String> {
     let median = lengths.get(lengths.len() / 2).copied().unwrap_or(0);
     (median < SHORT_TRACKS && tracks.frames.len() >= SHORT_TRACKS).then(|| {
         format!(
-            "the tracks are short: half of them live {median} frames or fewer over a \
+            "the tracks are short: half of them live {median} frame{} or fewer over a \
              {}-frame shot, so every camera rests on features seen in a few frames, chained \
              from one to the next, and can be degrees wrong: track with less noise or more \
              texture (a larger window, a lower threshold), or check the solve against the plate",
+            if median == 1 { "" } else { "s" },
             tracks.frames.len()
         )
     })
