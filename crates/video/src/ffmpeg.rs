@@ -454,9 +454,9 @@ impl FfmpegVideo {
                     bits,
                     half_width,
                     half_height,
-                    y: y.to_vec(),
-                    u: u.to_vec(),
-                    v: v.to_vec(),
+                    y,
+                    u,
+                    v,
                 }
                 .to_image(&self.probe.color)
             }

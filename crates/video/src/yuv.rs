@@ -51,61 +51,25 @@ pub fn ycbcr_to_rgb(y: f32, cb: f32, cr: f32, c: &ColorInfo) -> [f32; 3] {
 /// Converts a picture to a linear-light RGB [`Image`] (values clamped to 0–1 before the
 /// sRGB decoding, as a display would).
 pub fn to_image(p: &Planes<'_>, c: &ColorInfo) -> Image {
-    let (w, h) = (p.width, p.height);
-    let (cw, ch) = (w.div_ceil(2), h.div_ceil(2));
-    // sRGB decoding of the 8-bit-and-between values through a fine table.
-    const N: usize = 4096;
-    let lut: Vec<f32> = (0..=N)
-        .map(|i| srgb_to_linear(i as f32 / N as f32))
-        .collect();
-    let decode = |v: f32| {
-        let t = v.clamp(0.0, 1.0) * N as f32;
-        let i = (t as usize).min(N - 1);
-        let f = t - i as f32;
-        lut[i] + (lut[i + 1] - lut[i]) * f
-    };
-    let mut data = vec![0.0f32; w * h * 3];
-    data.par_chunks_mut(w * 3).enumerate().for_each(|(y, row)| {
-        // Chroma row position of this luma row: (y − 0.5) / 2.
-        let cy = (y as f32 - 0.5) * 0.5;
-        let cy0 = cy.floor().max(0.0) as usize;
-        let cy0 = cy0.min(ch - 1);
-        let cy1 = (cy0 + 1).min(ch - 1);
-        let fy = (cy - cy0 as f32).clamp(0.0, 1.0);
-        let chroma = |plane: &[u8], cx: usize| {
-            let a = plane[cy0 * p.uv_stride + cx] as f32;
-            let b = plane[cy1 * p.uv_stride + cx] as f32;
-            a + (b - a) * fy
-        };
-        for x in 0..w {
-            let yv = p.y[y * p.y_stride + x] as f32;
-            // Co-sited horizontally: even columns on a chroma sample, odd ones half-way.
-            let cx0 = (x / 2).min(cw - 1);
-            let (cb, cr) = if x % 2 == 0 || cx0 + 1 >= cw {
-                (chroma(p.u, cx0), chroma(p.v, cx0))
-            } else {
-                (
-                    0.5 * (chroma(p.u, cx0) + chroma(p.u, cx0 + 1)),
-                    0.5 * (chroma(p.v, cx0) + chroma(p.v, cx0 + 1)),
-                )
-            };
-            let rgb = ycbcr_to_rgb(yv, cb, cr, c);
-            for k in 0..3 {
-                row[3 * x + k] = decode(rgb[k]);
-            }
-        }
-    });
-    Image {
-        width: w,
-        height: h,
-        channels: 3,
-        data,
-    }
+    convert(
+        Layout {
+            width: p.width,
+            height: p.height,
+            half_width: true,
+            half_height: true,
+            y_stride: p.y_stride,
+            uv_stride: p.uv_stride,
+        },
+        [p.y, p.u, p.v],
+        |v| v,
+        |v| v,
+        c,
+    )
 }
 
 /// One decoded picture of any planar Y'CbCr layout FFmpeg delivers: 8 to 16 bits a sample
 /// (held in `u16`), chroma full size or halved across (4:2:2) or across and down (4:2:0).
-pub struct Planar {
+pub struct Planar<'a> {
     /// Width of the picture (the luma plane).
     pub width: usize,
     /// Height of the picture.
@@ -117,14 +81,14 @@ pub struct Planar {
     /// Chroma halved vertically (4:2:0).
     pub half_height: bool,
     /// Luma, `width` × `height`.
-    pub y: Vec<u16>,
+    pub y: &'a [u16],
     /// Cb, [`Planar::chroma_size`].
-    pub u: Vec<u16>,
+    pub u: &'a [u16],
     /// Cr, [`Planar::chroma_size`].
-    pub v: Vec<u16>,
+    pub v: &'a [u16],
 }
 
-impl Planar {
+impl Planar<'_> {
     /// Width and height of each chroma plane.
     pub fn chroma_size(
         width: usize,
@@ -148,74 +112,119 @@ impl Planar {
     /// mid-level), chroma upsampled bilinearly from H.264/HEVC's default sample position
     /// (co-sited with even luma columns; half-way between luma rows when halved vertically).
     pub fn to_image(&self, c: &ColorInfo) -> Image {
-        let (w, h) = (self.width, self.height);
-        let (cw, ch) = Self::chroma_size(w, h, self.half_width, self.half_height);
         let max = ((1u32 << self.bits) - 1) as f32;
         let half = (1u32 << (self.bits - 1)) as f32;
         let scale = (1u32 << (self.bits - 8)) as f32;
-        let luma = |v: f32| {
-            if c.full_range {
-                v * 255.0 / max
-            } else {
-                v / scale
-            }
-        };
-        let chroma_code = |v: f32| {
-            if c.full_range {
-                128.0 + (v - half) * 255.0 / max
-            } else {
-                v / scale
-            }
-        };
-        let mut data = vec![0.0f32; w * h * 3];
-        data.par_chunks_mut(w * 3).enumerate().for_each(|(y, row)| {
-            let (cy0, cy1, fy) = if self.half_height {
-                let cy = (y as f32 - 0.5) * 0.5;
-                let cy0 = (cy.floor().max(0.0) as usize).min(ch - 1);
-                (
-                    cy0,
-                    (cy0 + 1).min(ch - 1),
-                    (cy - cy0 as f32).clamp(0.0, 1.0),
-                )
-            } else {
-                (y, y, 0.0)
-            };
-            let at = |plane: &[u16], cx: usize| {
-                let a = plane[cy0 * cw + cx] as f32;
-                let b = plane[cy1 * cw + cx] as f32;
-                a + (b - a) * fy
-            };
-            for x in 0..w {
-                let (cb, cr) = if !self.half_width {
-                    (at(&self.u, x), at(&self.v, x))
+        let full = c.full_range;
+        let (cw, _) = Self::chroma_size(self.width, self.height, self.half_width, self.half_height);
+        convert(
+            Layout {
+                width: self.width,
+                height: self.height,
+                half_width: self.half_width,
+                half_height: self.half_height,
+                y_stride: self.width,
+                uv_stride: cw,
+            },
+            [self.y, self.u, self.v],
+            |v| if full { v * 255.0 / max } else { v / scale },
+            |v| {
+                if full {
+                    128.0 + (v - half) * 255.0 / max
                 } else {
-                    let cx0 = (x / 2).min(cw - 1);
-                    if x % 2 == 0 || cx0 + 1 >= cw {
-                        (at(&self.u, cx0), at(&self.v, cx0))
-                    } else {
-                        (
-                            0.5 * (at(&self.u, cx0) + at(&self.u, cx0 + 1)),
-                            0.5 * (at(&self.v, cx0) + at(&self.v, cx0 + 1)),
-                        )
-                    }
-                };
-                let rgb = ycbcr_to_rgb(
-                    luma(self.y[y * w + x] as f32),
-                    chroma_code(cb),
-                    chroma_code(cr),
-                    c,
-                );
-                for k in 0..3 {
-                    row[3 * x + k] = srgb_to_linear(rgb[k].clamp(0.0, 1.0));
+                    v / scale
                 }
+            },
+            c,
+        )
+    }
+}
+
+/// The geometry of a planar picture: its size, which chroma directions are halved, strides.
+struct Layout {
+    width: usize,
+    height: usize,
+    half_width: bool,
+    half_height: bool,
+    y_stride: usize,
+    uv_stride: usize,
+}
+
+/// The conversion both pictures share: Y', Cb, Cr `planes` of samples brought to 8-bit code
+/// values by `luma` and `chroma`, chroma upsampled bilinearly from its sample position
+/// (co-sited with even luma columns; half-way between luma rows when halved vertically),
+/// [`ycbcr_to_rgb`], clamped to 0–1 and decoded with the sRGB curve through a fine table.
+fn convert<S: Copy + Into<f32> + Sync>(
+    l: Layout,
+    planes: [&[S]; 3],
+    luma: impl Fn(f32) -> f32 + Sync,
+    chroma: impl Fn(f32) -> f32 + Sync,
+    c: &ColorInfo,
+) -> Image {
+    let (w, h) = (l.width, l.height);
+    let cw = if l.half_width { w.div_ceil(2) } else { w };
+    let ch = if l.half_height { h.div_ceil(2) } else { h };
+    let [py, pu, pv] = planes;
+    const N: usize = 4096;
+    let lut: Vec<f32> = (0..=N)
+        .map(|i| srgb_to_linear(i as f32 / N as f32))
+        .collect();
+    let decode = |v: f32| {
+        let t = v.clamp(0.0, 1.0) * N as f32;
+        let i = (t as usize).min(N - 1);
+        let f = t - i as f32;
+        lut[i] + (lut[i + 1] - lut[i]) * f
+    };
+    let mut data = vec![0.0f32; w * h * 3];
+    data.par_chunks_mut(w * 3).enumerate().for_each(|(y, row)| {
+        let (cy0, cy1, fy) = if l.half_height {
+            // Chroma row position of this luma row: (y − 0.5) / 2.
+            let cy = (y as f32 - 0.5) * 0.5;
+            let cy0 = (cy.floor().max(0.0) as usize).min(ch - 1);
+            (
+                cy0,
+                (cy0 + 1).min(ch - 1),
+                (cy - cy0 as f32).clamp(0.0, 1.0),
+            )
+        } else {
+            (y, y, 0.0)
+        };
+        let at = |plane: &[S], cx: usize| {
+            let a: f32 = plane[cy0 * l.uv_stride + cx].into();
+            let b: f32 = plane[cy1 * l.uv_stride + cx].into();
+            a + (b - a) * fy
+        };
+        for x in 0..w {
+            let (cb, cr) = if !l.half_width {
+                (at(pu, x), at(pv, x))
+            } else {
+                // Co-sited horizontally: even columns on a chroma sample, odd ones half-way.
+                let cx0 = (x / 2).min(cw - 1);
+                if x % 2 == 0 || cx0 + 1 >= cw {
+                    (at(pu, cx0), at(pv, cx0))
+                } else {
+                    (
+                        0.5 * (at(pu, cx0) + at(pu, cx0 + 1)),
+                        0.5 * (at(pv, cx0) + at(pv, cx0 + 1)),
+                    )
+                }
+            };
+            let rgb = ycbcr_to_rgb(
+                luma(py[y * l.y_stride + x].into()),
+                chroma(cb),
+                chroma(cr),
+                c,
+            );
+            for k in 0..3 {
+                row[3 * x + k] = decode(rgb[k]);
             }
-        });
-        Image {
-            width: w,
-            height: h,
-            channels: 3,
-            data,
         }
+    });
+    Image {
+        width: w,
+        height: h,
+        channels: 3,
+        data,
     }
 }
 
@@ -285,9 +294,9 @@ mod tests {
             bits: 10,
             half_width: true,
             half_height: true,
-            y: up(&y8),
-            u: up(&u8_),
-            v: up(&v8),
+            y: &up(&y8),
+            u: &up(&u8_),
+            v: &up(&v8),
         }
         .to_image(&c);
         assert!(ten.max_abs_diff(&eight).unwrap() < 2e-4);
@@ -300,9 +309,9 @@ mod tests {
                 bits: 10,
                 half_width: hw,
                 half_height: hh,
-                y: vec![4 * 120; w * h],
-                u: vec![4 * 140; cw * ch],
-                v: vec![4 * 110; cw * ch],
+                y: &vec![4 * 120; w * h],
+                u: &vec![4 * 140; cw * ch],
+                v: &vec![4 * 110; cw * ch],
             }
             .to_image(&c);
             let want = ycbcr_to_rgb(120.0, 140.0, 110.0, &c).map(srgb_to_linear);
@@ -320,9 +329,9 @@ mod tests {
             bits: 10,
             half_width: true,
             half_height: true,
-            y: vec![1023; 4],
-            u: vec![512],
-            v: vec![512],
+            y: &[1023; 4],
+            u: &[512],
+            v: &[512],
         }
         .to_image(&full);
         assert!(white.data.iter().all(|v| (v - 1.0).abs() < 1e-5));

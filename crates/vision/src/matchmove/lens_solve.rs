@@ -588,7 +588,7 @@ fn solve_with_lens(
         }
         let mut solve =
             super::tripod::solve_rotations(tracks, &k, held, options, parallax.as_ref(), progress)?;
-        if let Some(general) = borderline_pan(
+        if let Some(general) = scaling_pan(
             tracks,
             &k_start,
             held,
@@ -630,7 +630,7 @@ fn solve_with_lens(
 }
 
 /// A shot solved as a pan whose picture grows or shrinks by more than this fraction over the
-/// shot ([`borderline_pan`]) is not a pan: a rotation does not scale the picture, a camera
+/// shot ([`scaling_pan`]) is not a pan: a rotation does not scale the picture, a camera
 /// moving along its view (or a zooming lens) does. Measured on the nodal pans of a synthetic
 /// corpus: 0.2 % at most.
 pub const PAN_SCALE_LIMIT: f64 = 0.02;
@@ -677,7 +677,7 @@ fn picture_scale(tracks: &Tracks, k: &Intrinsics, pan: &CameraPath) -> Result<f6
 /// frames the test compares, and a rotation-only solve of it is degrees wrong. When the general
 /// solve fails or fits no better, the pan stands with a warning.
 #[allow(clippy::too_many_arguments)]
-fn borderline_pan(
+fn scaling_pan(
     tracks: &Tracks,
     k: &Intrinsics,
     held: super::Held,
