@@ -54,18 +54,15 @@ impl Reader {
         match backend {
             Backend::Auto => match Video::open(path) {
                 Ok(v) => Ok(Reader::Native(v)),
-                Err(e @ (VideoError::Unsupported { .. } | VideoError::Container { .. })) => {
+                Err(
+                    VideoError::Unsupported { message, .. } | VideoError::Container { message, .. },
+                ) => {
                     if crate::ffmpeg::available() {
                         crate::ffmpeg::FfmpegVideo::open(path).map(Reader::Ffmpeg)
                     } else {
-                        let why = match &e {
-                            VideoError::Unsupported { message, .. }
-                            | VideoError::Container { message, .. } => message.clone(),
-                            _ => unreachable!(),
-                        };
                         Err(crate::ffmpeg::missing(
                             path,
-                            &format!("the bundled reader cannot ({why})"),
+                            &format!("the bundled reader cannot ({message})"),
                         ))
                     }
                 }
