@@ -16,6 +16,8 @@ pub fn register(r: &mut Registry) {
             "klt_track_opencv",
             &TrackerParams {
                 drift_correction: None,
+                noisy_window: 0,
+                spread_factor: 0.0,
                 ..TrackerParams::default()
             },
             "klt_track with OpenCV's goodFeaturesToTrack + calcOpticalFlowPyrLK (what the book \
@@ -34,6 +36,12 @@ fn run_klt_track_opencv(ctx: &mut Context<'_>) -> Result<(), NodeError> {
         return Err(NodeError::msg(
             "klt_track_opencv: drift_correction is only implemented by klt_track (OpenCV's \
              tracker has no first-window monitoring); set it to 0 or use klt_track",
+        ));
+    }
+    if params.noisy_window != 0 || params.spread_factor != 0.0 {
+        return Err(NodeError::msg(
+            "klt_track_opencv: noisy_window and spread_factor are only implemented by klt_track; \
+             set them to 0 or use klt_track",
         ));
     }
     let grays = gray_frames(ctx)?;
@@ -68,6 +76,8 @@ mod tests {
             ("noise_factor", ParamValue::Float(0.0)),
             ("fb_threshold", ParamValue::Float(0.0)),
             ("drift_correction", ParamValue::Float(0.0)),
+            ("noisy_window", ParamValue::Int(0)),
+            ("spread_factor", ParamValue::Float(0.0)),
         ];
         all.extend_from_slice(set);
         let p = params(&s, &all);
@@ -100,9 +110,9 @@ mod tests {
         })
     }
 
-    /// The same params (names, types, defaults) and ports, but for the default drift
-    /// correction: 1 px in `klt_track`, 0 here (OpenCV's tracker has none, and the node refuses
-    /// any other value).
+    /// The same params (names, types, defaults) and ports, but for the defaults of drift
+    /// correction (1 px in `klt_track`), the noisy window and the spread factor: 0 here
+    /// (OpenCV's tracker has none of them, and the node refuses any other value).
     #[test]
     fn same_params_and_ports_as_klt_track() {
         let (a, b) = (spec("klt_track"), spec("klt_track_opencv"));
@@ -110,7 +120,9 @@ mod tests {
             s.params
                 .iter()
                 .map(|p| match p.name {
-                    "drift_correction" => format!("{} {:?}", p.name, p.ty),
+                    "drift_correction" | "noisy_window" | "spread_factor" => {
+                        format!("{} {:?}", p.name, p.ty)
+                    }
                     _ => format!("{} {:?} {:?}", p.name, p.ty, p.default),
                 })
                 .collect()

@@ -446,10 +446,23 @@ fn bad_input_is_an_error_not_a_panic() {
 /// translated by a sub-pixel step every frame and slowly zoomed, with noise of `sigma` gray
 /// levels, frame to frame and with drift correction ([`super::drift`]).
 fn drift_sequence_errors(sigma: f32) -> (f64, f64) {
-    let (w, h) = (200usize, 160usize);
-    let step = [0.37f32, 0.21f32];
-    let zoom = 0.004f32;
-    let n = 40;
+    let (plain, corrected, _) = noisy_sequence(sigma, 15, |drift| TrackerParams {
+        drift_correction: drift,
+        ..TrackerParams::default()
+    });
+    (plain, corrected)
+}
+
+/// The frame size, per-frame step (px), per-frame zoom and length of [`noisy_frames`].
+const SEQ_SIZE: (usize, usize) = (200, 160);
+const SEQ_STEP: [f32; 2] = [0.37, 0.21];
+const SEQ_ZOOM: f32 = 0.004;
+const SEQ_FRAMES: usize = 40;
+
+/// A smooth texture translated by a sub-pixel step every frame and slowly zoomed about the
+/// image centre, with noise of `sigma` gray levels.
+fn noisy_frames(sigma: f32) -> Vec<GrayImage> {
+    let (w, h) = SEQ_SIZE;
     let mut state = 0x2545_F491_4F6C_DD1Du64;
     let mut noise = move || {
         // Sum of four uniforms (σ = 0.577): roughly normal.
@@ -469,11 +482,11 @@ fn drift_sequence_errors(sigma: f32) -> (f64, f64) {
             + 35.0 * (0.13 * y - 0.08 * x).cos()
             + 25.0 * (0.31 * x * 0.7 + 0.27 * y).sin()
     };
-    let frames: Vec<GrayImage> = (0..n)
+    (0..SEQ_FRAMES)
         .map(|k| {
-            let (dx, dy) = (step[0] * k as f32, step[1] * k as f32);
-            // A slow zoom about the image centre as well: the windows change shape.
-            let s = 1.0 + zoom * k as f32;
+            let (dx, dy) = (SEQ_STEP[0] * k as f32, SEQ_STEP[1] * k as f32);
+            // The windows change shape as well.
+            let s = 1.0 + SEQ_ZOOM * k as f32;
             let (cx, cy) = (w as f32 / 2.0, h as f32 / 2.0);
             let data = (0..w * h)
                 .map(|i| {
@@ -483,7 +496,19 @@ fn drift_sequence_errors(sigma: f32) -> (f64, f64) {
                 .collect();
             GrayImage::new(w, h, data).unwrap()
         })
-        .collect();
+        .collect()
+}
+
+/// Tracks [`noisy_frames`] with noise of `sigma` under `params(drift)` (frame to frame:
+/// `drift` None; with drift correction: Some(1.0)): the mean end-point error of the features
+/// that lasted the whole sequence, each way, and how many lasted with drift correction.
+fn noisy_sequence(
+    sigma: f32,
+    min_lasting: usize,
+    params: impl Fn(Option<f32>) -> TrackerParams,
+) -> (f64, f64, usize) {
+    let ((w, h), step, zoom, n) = (SEQ_SIZE, SEQ_STEP, SEQ_ZOOM, SEQ_FRAMES);
+    let frames = noisy_frames(sigma);
     let seq = numbered(&frames);
     let end_error = |drift: Option<f32>| {
         let params = TrackerParams {
@@ -495,8 +520,7 @@ fn drift_sequence_errors(sigma: f32) -> (f64, f64) {
             },
             replace_lost: false,
             border: 25.0,
-            drift_correction: drift,
-            ..TrackerParams::default()
+            ..params(drift)
         };
         let tracks = track_sequence(&seq, &params, |_| {}).unwrap();
         let full: Vec<f64> = tracks
@@ -514,15 +538,19 @@ fn drift_sequence_errors(sigma: f32) -> (f64, f64) {
                 (pn[0] - tx).hypot(pn[1] - ty)
             })
             .collect();
-        assert!(full.len() >= 15, "only {} features lasted", full.len());
-        full.iter().sum::<f64>() / full.len() as f64
+        assert!(
+            full.len() >= min_lasting,
+            "only {} features lasted",
+            full.len()
+        );
+        (full.iter().sum::<f64>() / full.len() as f64, full.len())
     };
-    let (plain, corrected) = (end_error(None), end_error(Some(1.0)));
+    let ((plain, _), (corrected, lasted)) = (end_error(None), end_error(Some(1.0)));
     eprintln!(
         "noise σ {sigma}: mean end-point error after {n} frames: frame to frame {plain:.4} px, \
-         drift-corrected {corrected:.4} px"
+         drift-corrected {corrected:.4} px ({lasted} features lasted)"
     );
-    (plain, corrected)
+    (plain, corrected, lasted)
 }
 
 /// Drift correction on a long sequence with known motion and mild sensor noise (σ ≈ 2 gray
@@ -551,6 +579,61 @@ fn drift_correction_on_grainy_footage() {
         plain > 2.0 * corrected,
         "frame to frame {plain}, corrected {corrected}"
     );
+}
+
+/// Under heavy noise (σ = 25 gray levels) with the 21 px window, the forward–backward and
+/// drift bounds that follow the frame pair's measured spread keep more features to the end of
+/// the 40 frames than the fixed 1 px bounds, and the features they keep end as close to the
+/// truth.
+#[test]
+fn bounds_following_the_spread_keep_noisy_features() {
+    let run = |spread_factor: f32| {
+        noisy_sequence(25.0, 0, |drift| TrackerParams {
+            drift_correction: drift,
+            noisy_window: 0,
+            spread_factor,
+            ..TrackerParams::default()
+        })
+    };
+    let ((_, fixed, fixed_lasted), (_, spread, spread_lasted)) =
+        (run(0.0), run(super::tracker::SPREAD_FACTOR));
+    eprintln!("fixed bounds: {fixed_lasted} lasted, {fixed:.3} px; spread: {spread_lasted}, {spread:.3} px");
+    assert!(
+        spread_lasted >= fixed_lasted + 3,
+        "{spread_lasted} against {fixed_lasted}"
+    );
+    assert!(spread < 1.25 * fixed, "{spread} px against {fixed} px");
+}
+
+/// The tracker measures how precisely the footage tracks on its first frame pairs: under
+/// heavy noise (σ = 45 gray levels here, where the pairs' median forward–backward distance is
+/// above [`super::tracker::NOISY_FB`]) it tracks the whole shot exactly as with the `noisy_window` set as the
+/// window; on clean footage (σ = 2) exactly as with the window it was given.
+#[test]
+fn heavy_noise_switches_to_the_noisy_window() {
+    let track = |sigma: f32, params: TrackerParams| {
+        let frames = noisy_frames(sigma);
+        track_sequence(&numbered(&frames), &params, |_| {}).unwrap()
+    };
+    let points = |t: &Tracks| {
+        t.tracks
+            .iter()
+            .map(|t| t.points.clone())
+            .collect::<Vec<_>>()
+    };
+    let fixed = |window: usize| TrackerParams {
+        lk: LkParams {
+            window,
+            ..LkParams::default()
+        },
+        noisy_window: 0,
+        ..TrackerParams::default()
+    };
+    let noisy = track(45.0, TrackerParams::default());
+    assert_eq!(points(&noisy), points(&track(45.0, fixed(31))));
+    assert_ne!(points(&noisy), points(&track(45.0, fixed(21))));
+    let clean = track(2.0, TrackerParams::default());
+    assert_eq!(points(&clean), points(&track(2.0, fixed(21))));
 }
 
 /// Frames numbered 0, 1, … for [`track_sequence`].
