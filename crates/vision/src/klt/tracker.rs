@@ -73,19 +73,20 @@ pub struct TrackerParams {
     /// ([`LostReason::Drift`]). `None`: frame-to-frame only, the book's tracker.
     #[param(range = 0.0..=1e3)]
     pub drift_correction: Option<f32>,
-    /// LK window used instead when the first frame pairs track worse than a fifth of a pixel
-    /// (heavy noise); 0 = never
+    /// LK window of noisy footage (its first frame pairs track worse than a fifth of a pixel);
+    /// 0 = keep `window`
     ///
     /// When the median forward–backward distance of the first [`NOISY_PAIRS`] frame pairs
-    /// exceeds [`NOISY_FB`] px (and this is larger than `window`), tracking starts again with
-    /// this window: a larger window averages more pixels, so noise moves it less. Needs the
-    /// forward–backward check.
+    /// exceeds [`NOISY_FB`] px the footage is noisy: tracking starts again from the first
+    /// frame with this window where it is larger than `window` (a larger window averages more
+    /// pixels, so noise moves it less) and with `spread_factor`. Needs the forward–backward
+    /// check.
     #[param(range = 0..=255)]
     pub noisy_window: usize,
-    /// the forward–backward and drift bounds grow to this many times the frame pair's median
-    /// distance where that is larger (noisy footage); 0 = fixed bounds
+    /// on noisy footage the forward–backward and drift bounds grow to this many times the frame
+    /// pair's median distance where that is larger; 0 = fixed bounds
     ///
-    /// See [`SPREAD_FACTOR`], the default.
+    /// Noisy as for `noisy_window`. See [`SPREAD_FACTOR`], the default.
     #[param(range = 0.0..=100.0)]
     pub spread_factor: f32,
 }
@@ -162,26 +163,28 @@ pub const AUTO_FEATURE_AREA: usize = 36 * 36;
 /// 0.103° smoothed against 0.057°).
 pub const GRAINY_SIGMA: f32 = 5.0;
 
-/// The default [`TrackerParams::spread_factor`]: a feature is lost by the forward–backward
-/// check or drift correction only beyond this many times the frame pair's median forward–backward distance (or median drift-correction move)
-/// when that exceeds the fixed bound. The median measures how precisely this footage tracks
-/// (noise, blur, texture) on the features themselves; for distances spread as the length of a
-/// 2-D Gaussian error the 99th percentile is 2.6 × the median, so 3 × loses features that
-/// jumped, not the precision the footage allows. On clean footage (medians of 0.01–0.05 px)
-/// the fixed 1 px bounds hold.
+/// The default [`TrackerParams::spread_factor`]: on noisy footage a feature is lost by the
+/// forward–backward check or drift correction only beyond this many times the frame pair's
+/// median forward–backward distance (or median drift-correction move) when that exceeds the
+/// fixed bound. The median measures how precisely the footage tracks on the features
+/// themselves; for distances spread as the length of a 2-D Gaussian error the 99th percentile
+/// is 2.6 × the median, so 3 × loses features that jumped, not the precision the footage
+/// allows. Only on noisy footage ([`NOISY_FB`]): the drift-correction moves of the Blender dev
+/// plate have a median of 0.33 px, and the fixed 1 px bound there ends features whose window
+/// changed (its solve: 0.012° with the fixed bound, 0.017° with the spread's).
 pub const SPREAD_FACTOR: f32 = 3.0;
 
 /// The median over the first [`NOISY_PAIRS`] frame pairs of each pair's median
-/// forward–backward distance (px) above which the tracker switches to
-/// [`TrackerParams::noisy_window`]. Clean renders track to 0.01–0.05 px with the 21 px window,
+/// forward–backward distance (px) above which footage is noisy: tracked with
+/// [`TrackerParams::noisy_window`] and [`TrackerParams::spread_factor`]. Clean renders track to 0.01–0.05 px with the 21 px window,
 /// the Cycles grain of the Blender dev plate (σ ≈ 10 gray levels) to 0.14 px, where the larger
 /// window solves worse (its windows straddle more depth and perspective: 0.069° against
 /// 0.037°); 4-sample renders of a dark room corner (σ ≈ 25) to 0.25–0.6 px, where it solves
 /// better (on eight such plates the worst rotation error falls from 0.12–1.7° to 0.05–1.6°).
 pub const NOISY_FB: f32 = 0.2;
 
-/// How many first frame pairs decide the switch to [`TrackerParams::noisy_window`]: the first
-/// pair's spread reads high (its fresh corners include noise peaks that the checks then end).
+/// How many first frame pairs decide whether footage is noisy ([`NOISY_FB`]): the first pair's
+/// spread reads high (its fresh corners include noise peaks that the checks then end).
 pub const NOISY_PAIRS: usize = 3;
 
 /// Incremental tracker: push frames in order, then [`Tracker::finish`] (book 6.2–6.5).
@@ -206,6 +209,9 @@ pub struct Tracker {
     early: Vec<(i64, GrayImage)>,
     /// The median forward–backward distance of each of the first frame pairs.
     early_spread: Vec<f32>,
+    /// The first frame pairs tracked worse than [`NOISY_FB`]: the shot is tracked with the
+    /// noisy window and bounds that follow the spread.
+    noisy: bool,
 }
 
 impl Tracker {
@@ -243,6 +249,7 @@ impl Tracker {
             border_mask: None,
             early: Vec::new(),
             early_spread: Vec::new(),
+            noisy: false,
         })
     }
 
@@ -387,12 +394,12 @@ impl Tracker {
                     if self.early_spread.len() == NOISY_PAIRS
                         && median(self.early_spread.iter().copied()) > NOISY_FB
                     {
-                        // The shot tracks worse than a fifth of a pixel: start again with the
-                        // larger window.
-                        return self.restart_with_noisy_window(frame, img);
+                        // The shot tracks worse than a fifth of a pixel: start again as noisy
+                        // footage.
+                        return self.restart_as_noisy(frame, img);
                     }
                 }
-                let fb = fb.max(self.params.spread_factor * spread);
+                let fb = self.spread_bound(fb, spread);
                 for (r, d) in res.iter_mut().zip(d) {
                     if r.lost.is_none() && !d.is_some_and(|d| d <= fb) {
                         r.lost = Some(LostReason::ForwardBackward);
@@ -419,7 +426,7 @@ impl Tracker {
                     Some(Ok((q, _, _))) => Some(moved(r, *q)),
                     _ => None,
                 }));
-                let bound = bound.max(self.params.spread_factor * spread);
+                let bound = self.spread_bound(bound, spread);
                 let accepted: Vec<Option<(usize, nalgebra::Matrix3<f64>)>> = res
                     .iter_mut()
                     .zip(&ks)
@@ -477,22 +484,35 @@ impl Tracker {
         Ok(())
     }
 
+    /// A forward–backward or drift `bound` raised to [`TrackerParams::spread_factor`] × the
+    /// frame pair's median distance `spread`, on noisy footage only.
+    fn spread_bound(&self, bound: f32, spread: f32) -> f32 {
+        if self.noisy {
+            bound.max(self.params.spread_factor * spread)
+        } else {
+            bound
+        }
+    }
+
     /// Whether the first frame pairs are still being measured for the switch to
     /// [`TrackerParams::noisy_window`].
     fn watch_noise(&self) -> bool {
-        self.params.noisy_window > self.params.lk.window
+        !self.noisy
+            && (self.params.noisy_window > self.params.lk.window || self.params.spread_factor > 0.0)
             && self.params.fb_threshold.is_some()
             && self.early_spread.len() < NOISY_PAIRS
     }
 
-    /// Tracks the shot again from its first frame with [`TrackerParams::noisy_window`]; `img`
+    /// Tracks the shot again from its first frame as noisy footage (with
+    /// [`TrackerParams::noisy_window`] and [`TrackerParams::spread_factor`]); `img`
     /// is the frame after the first [`NOISY_PAIRS`] pairs, which were tracked and measured to
     /// decide it.
-    fn restart_with_noisy_window(&mut self, frame: i64, img: &GrayImage) -> Result<(), KltError> {
+    fn restart_as_noisy(&mut self, frame: i64, img: &GrayImage) -> Result<(), KltError> {
         let early = std::mem::take(&mut self.early);
         let mut params = self.params.clone();
-        params.lk.window = params.noisy_window;
+        params.lk.window = params.lk.window.max(params.noisy_window);
         *self = Tracker::new(params)?;
+        self.noisy = true;
         for (f, im) in &early {
             self.push(*f, im)?;
         }
