@@ -1,4 +1,4 @@
-//! One cache shared by many processes at once (issue 16, point 3): the way farm tasks on many
+//! One cache shared by many processes at once: the way farm tasks on many
 //! hosts use it. Five processes — two `run`s of the whole shot and three overlapping `exec`s
 //! of its renders (frames 1-4, 3-8 and 1-8) — start together on one cache, three rounds on a
 //! fresh cache each; then a sixth process must find everything cached. Nothing may be
@@ -197,4 +197,70 @@ fn many_processes_share_one_cache() {
     let gc = ok(spawn(&g, &["cache", "gc", "--cache", "cache"]), "cache gc");
     assert!(gc.starts_with("removed 0 entries and 0 objects"), "{gc}");
     assert_eq!(entries(&cache), want);
+}
+
+/// The instances a `run --json` computed (an uncached reader's "ran" only names its outputs).
+fn computed(json: &str) -> Vec<(String, Option<i64>)> {
+    let v: serde_json::Value = serde_json::from_str(json).unwrap();
+    v["nodes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|n| {
+            n["status"] == "ran"
+                && !n["reason"]
+                    .as_str()
+                    .unwrap_or("")
+                    .contains("read when a consumer runs")
+        })
+        .map(|n| (n["id"].as_str().unwrap().to_string(), n["frame"].as_i64()))
+        .collect()
+}
+
+/// Eight `run`s of one graph started together on one empty cache compute each instance
+/// exactly once between them (the others wait for its lease and take the entry), and their
+/// outputs are a single run's.
+#[test]
+fn eight_concurrent_runs_compute_each_instance_once() {
+    let tmp = tempfile::tempdir().unwrap();
+    let r = shot(&tmp.path().join("ref"));
+    let alone = ok(
+        spawn(&r, &["run", "--json", "farm_shot.yaml", "--cache", "cache"]),
+        "reference run",
+    );
+    let mut want = computed(&alone);
+    want.sort();
+    assert!(want.len() >= 20, "{want:?}");
+    let g = shot(&tmp.path().join("shared"));
+    let runs: Vec<Child> = (0..8)
+        .map(|_| spawn(&g, &["run", "--json", "farm_shot.yaml", "--cache", "cache"]))
+        .collect();
+    let mut all = Vec::new();
+    let mut served = 0;
+    for (k, p) in runs.into_iter().enumerate() {
+        let json = ok(p, &format!("run {k}"));
+        all.extend(computed(&json));
+        served += json.matches("computed by a concurrent run").count();
+    }
+    all.sort();
+    eprintln!(
+        "8 runs: {} computations for {} instances; {served} served by a concurrent run's lease",
+        all.len(),
+        want.len()
+    );
+    assert_eq!(all, want, "each instance computed exactly once");
+    assert_eq!(outputs(&g), outputs(&r), "output files differ");
+    assert_eq!(
+        entries(&g.parent().unwrap().join("cache")),
+        entries(&r.parent().unwrap().join("cache"))
+    );
+    let leases = g.parent().unwrap().join("cache/leases");
+    let left: usize = fs::read_dir(&leases)
+        .map(|d| {
+            d.flatten()
+                .map(|s| fs::read_dir(s.path()).map_or(0, |f| f.count()))
+                .sum()
+        })
+        .unwrap_or(0);
+    assert_eq!(left, 0, "leases left behind");
 }

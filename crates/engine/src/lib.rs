@@ -16,6 +16,7 @@ pub mod exec;
 pub mod frames;
 pub mod fsutil;
 pub mod graph;
+pub mod lease;
 pub mod node;
 pub mod options;
 pub mod param;

@@ -8,6 +8,7 @@
 //!   records/<node>/       the key components of each node's last run, to explain reruns:
 //!                         node.json (type, version, params) and <frame>.json per instance
 //!   files/ab/<path hash>  the (path, size, mtime) → digest memo, one file per input file
+//!   leases/ab/<key>       the run computing an action now (see [`crate::lease`])
 //!   tmp/                  temporaries, renamed into place when complete
 //! ```
 //!
@@ -34,6 +35,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::artifact::{content_digest, Digest};
 use crate::fsutil::atomic_write_parts_unsynced;
+use crate::lease::{self, Holder, Lease};
 
 /// An object whose payload is stored as is.
 const OBJECT_MAGIC: &[u8; 5] = b"VFXO1";
@@ -176,6 +178,26 @@ impl Store {
 
     fn action_path(&self, key: &Digest) -> PathBuf {
         shard(&self.root.join("actions"), &key.to_hex())
+    }
+
+    fn lease_path(&self, key: &Digest) -> PathBuf {
+        shard(&self.root.join("leases"), &key.to_hex())
+    }
+
+    /// Takes the lease of action `key` (see [`crate::lease`]): `Ok(None)` when another run
+    /// computes it.
+    pub fn try_lease(&self, key: &Digest) -> io::Result<Option<Lease>> {
+        lease::try_take(&self.lease_path(key))
+    }
+
+    /// Who holds the lease of action `key`.
+    pub fn lease_holder(&self, key: &Digest) -> Holder {
+        lease::holder(&self.lease_path(key))
+    }
+
+    /// Breaks the stale lease of action `key`.
+    pub fn break_lease(&self, key: &Digest) {
+        lease::break_stale(&self.lease_path(key))
     }
 
     /// Stores an encoded artifact under its digest (a no-op if present).

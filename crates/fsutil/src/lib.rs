@@ -33,8 +33,14 @@ static TMP_COUNTER: AtomicU64 = AtomicU64::new(0);
 /// A name unique to this host, process and call: `host-pid-n`. Process ids repeat across the
 /// hosts of a farm writing into one shared folder; host names do not.
 pub fn unique_token() -> String {
+    let n = TMP_COUNTER.fetch_add(1, Ordering::Relaxed);
+    format!("{}-{}-{n}", host_name(), std::process::id())
+}
+
+/// This host's name, reduced to ASCII letters, digits, `.` and `_` (`host` when unknown).
+pub fn host_name() -> &'static str {
     static HOST: OnceLock<String> = OnceLock::new();
-    let host = HOST.get_or_init(|| {
+    HOST.get_or_init(|| {
         let raw = fs::read_to_string("/proc/sys/kernel/hostname").unwrap_or_default();
         let clean: String = raw
             .trim()
@@ -52,9 +58,7 @@ pub fn unique_token() -> String {
         } else {
             clean
         }
-    });
-    let n = TMP_COUNTER.fetch_add(1, Ordering::Relaxed);
-    format!("{host}-{}-{n}", std::process::id())
+    })
 }
 
 /// A temporary name beside `path`, unique to this host, process and call:

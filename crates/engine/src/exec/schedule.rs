@@ -4,7 +4,7 @@
 use std::collections::{BTreeMap, HashMap};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use super::common::Common;
 use super::compute::Computed;
@@ -15,6 +15,7 @@ use super::report::{InstanceReport, Observer, RunReport, Status};
 use super::{ExecError, RunOptions};
 use crate::artifact::{Digest, Value};
 use crate::graph::Graph;
+use crate::lease::{Holder, Lease};
 use crate::registry::Registry;
 use crate::store::ActionEntry;
 
@@ -36,6 +37,16 @@ impl Done {
             digests: BTreeMap::new(),
         }
     }
+}
+
+/// What waiting for an action's lease gave.
+enum Leased {
+    /// Compute it (holding its lease, if the cache has leases).
+    Compute(Option<Lease>),
+    /// Another run computed it meanwhile: its entry.
+    Served(ActionEntry),
+    /// The run was cancelled while waiting.
+    Cancelled,
 }
 
 /// The run state of one instance.
@@ -184,7 +195,7 @@ impl<'a> Runner<'a> {
             return self.resolve_uncached(i, parts);
         }
         let miss = match self.c.lookup(i, &parts.key) {
-            Ok(entry) => return self.serve_cached(i, parts, &entry),
+            Ok(entry) => return self.serve_cached(i, parts, &entry, "cache hit"),
             Err(m) => m,
         };
         if self.c.role[i] == Role::CacheOnly {
@@ -215,7 +226,7 @@ impl<'a> Runner<'a> {
     }
 
     /// Resolves instance `i` from its valid cache entry, without loading its values.
-    fn serve_cached(&self, i: usize, parts: KeyParts, entry: &ActionEntry) {
+    fn serve_cached(&self, i: usize, parts: KeyParts, entry: &ActionEntry, reason: &str) {
         if let Some(store) = &self.c.store {
             store.touch_action(&parts.key);
         }
@@ -237,11 +248,59 @@ impl<'a> Runner<'a> {
             i,
             Done {
                 status: Status::Cached,
-                reason: "cache hit".into(),
+                reason: reason.into(),
                 seconds: 0.0,
                 digests,
             },
         );
+    }
+
+    /// The lease to compute instance `i` (`None`: compute without one), or the entry another
+    /// run computed while this one waited for its lease, or the run was cancelled meanwhile.
+    fn take_lease(&self, i: usize, key: &Digest) -> Leased {
+        let Some(store) = &self.c.store else {
+            return Leased::Compute(None);
+        };
+        if self.c.forced[self.c.insts[i].node] {
+            return Leased::Compute(None);
+        }
+        loop {
+            match store.try_lease(key) {
+                Ok(Some(lease)) => {
+                    // Finished by another run between the miss and the lease?
+                    return match self.c.lookup(i, key) {
+                        Ok(entry) => Leased::Served(entry),
+                        Err(_) => Leased::Compute(Some(lease)),
+                    };
+                }
+                Ok(None) => {}
+                // A cache whose leases cannot be written (read-only) still runs.
+                Err(e) => {
+                    tracing::debug!("no lease for {}: {e}", key.to_hex());
+                    return Leased::Compute(None);
+                }
+            }
+            let mut nap = Duration::from_millis(5);
+            loop {
+                if self.cancel.load(Ordering::Relaxed) {
+                    return Leased::Cancelled;
+                }
+                match store.lease_holder(key) {
+                    Holder::None => break,
+                    Holder::Stale => {
+                        store.break_lease(key);
+                        break;
+                    }
+                    Holder::Live => {
+                        std::thread::sleep(nap);
+                        nap = (nap * 2).min(Duration::from_millis(200));
+                    }
+                }
+            }
+            if let Ok(entry) = self.c.lookup(i, key) {
+                return Leased::Served(entry);
+            }
+        }
     }
 
     /// Resolves an instance of an uncached node without computing it: its outputs are named
@@ -282,6 +341,16 @@ impl<'a> Runner<'a> {
 
     /// Computes instance `i` (a cache miss for reason `miss`) and stores its result.
     fn run_instance(&self, i: usize, parts: KeyParts, miss: &str) {
+        let _lease = match self.take_lease(i, &parts.key) {
+            Leased::Compute(lease) => lease,
+            Leased::Served(entry) => {
+                return self.serve_cached(i, parts, &entry, "computed by a concurrent run")
+            }
+            Leased::Cancelled => {
+                let done = Done::empty(Status::Skipped, "run cancelled".into(), 0.0);
+                return self.finish(i, done);
+            }
+        };
         let reason = self.c.explain(i, &parts, miss);
         let inst = &self.c.insts[i];
         self.observer.started(inst.node, inst.frame);
