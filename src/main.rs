@@ -30,6 +30,13 @@ struct Cli {
     /// Only errors; no progress bars or summary table.
     #[arg(short, long, global = true)]
     quiet: bool,
+    /// Refuse a graph of more node instances than this (a mistyped frame range).
+    #[arg(long, global = true, value_name = "N", default_value_t = graph::DEFAULT_MAX_INSTANCES)]
+    max_instances: u64,
+    /// Refuse a node whose one instance declares more memory than this, in GiB (a render's
+    /// image size).
+    #[arg(long, global = true, value_name = "GIB", default_value_t = graph::DEFAULT_MAX_INSTANCE_GIB)]
+    max_instance_memory: u64,
     #[command(subcommand)]
     command: Command,
 }
@@ -226,6 +233,10 @@ fn main() -> ExitCode {
         default_sigpipe();
     }
     init_logging(cli.verbose, cli.quiet);
+    let _ = LIMITS.set(graph::Limits {
+        max_instances: cli.max_instances,
+        max_instance_gib: cli.max_instance_memory,
+    });
     let registry = vfxgraph_nodes::registry();
     match dispatch(cli, &registry) {
         Ok(code) => ExitCode::from(code),
@@ -279,13 +290,22 @@ fn init_logging(verbose: u8, quiet: bool) {
 }
 
 /// Loads a graph, printing its diagnostics on failure.
+/// The graph limits of the command line (`--max-instances`, `--max-instance-memory`).
+static LIMITS: std::sync::OnceLock<graph::Limits> = std::sync::OnceLock::new();
+
 fn load_graph(args: &GraphArgs, registry: &Registry) -> Result<Graph, u8> {
     let overrides = Overrides {
         set: args.set.clone(),
         frames: args.frames.clone(),
     };
     match graph::load(&args.graph, registry, &overrides) {
-        Ok(g) => Ok(g),
+        Ok(g) => match g.check_limits(LIMITS.get().unwrap_or(&graph::Limits::default())) {
+            Ok(()) => Ok(g),
+            Err(e) => {
+                eprintln!("error: {}: {e}", args.graph.display());
+                Err(EXIT_INVALID)
+            }
+        },
         Err(LoadError::Io { path, source }) => {
             eprintln!("error: cannot read graph file {}: {source}", path.display());
             Err(EXIT_INVALID)

@@ -762,3 +762,96 @@ fn twin_graphs_sharing_a_cache_each_write_their_files() {
     assert!(out.status.success());
     assert!(tmp.path().join("a/out/f.0000.png").is_file());
 }
+
+/// A graph of 100 000 nodes is checked and planned (no recursion deep enough to overflow the
+/// stack: the cycle search is iterative).
+#[test]
+fn a_graph_of_100000_nodes_is_checked_and_planned() {
+    use std::fmt::Write as _;
+    let n = 100_000;
+    let mut g =
+        String::from("version: 1\nnodes:\n  n0: {type: constant, params: {width: 2, height: 2}}\n");
+    for i in 1..n {
+        writeln!(
+            g,
+            "  n{i}: {{type: exposure, inputs: {{image: n{}.image}}, params: {{stops: 0.001}}}}",
+            i - 1
+        )
+        .unwrap();
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    fs::write(tmp.path().join("g.yaml"), &g).unwrap();
+    let out = bin()
+        .current_dir(tmp.path())
+        .args(["check", "g.yaml"])
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        stdout.contains("100000 nodes, 100000 instances"),
+        "{stdout}"
+    );
+    let out = bin()
+        .current_dir(tmp.path())
+        .args(["plan", "g.yaml"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(
+        String::from_utf8_lossy(&out.stdout)
+            .lines()
+            .filter(|l| l.starts_with('n'))
+            .count(),
+        n
+    );
+}
+
+/// A mistyped frame range (a million frames for a hundred) and a render of 65536 × 65536 are
+/// refused by `check` with the figure and the flag that allows them; the flag does.
+#[test]
+fn a_huge_graph_is_refused_at_check_with_the_figure_and_the_flag() {
+    let tmp = tempfile::tempdir().unwrap();
+    let g = common::farm_shot_copy(tmp.path());
+    let check = |args: &[&str]| {
+        let out = bin()
+            .current_dir(g.parent().unwrap())
+            .arg("check")
+            .arg(&g)
+            .args(args)
+            .output()
+            .unwrap();
+        (
+            out.status.code(),
+            String::from_utf8_lossy(&out.stderr).into_owned(),
+        )
+    };
+    let (code, err) = check(&["--frames", "0..1000000"]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(
+        err.contains("3000003 node instances")
+            && err.contains("1000000 frames")
+            && err.contains("--max-instances 3000003"),
+        "{err}"
+    );
+    let (code, err) = check(&["--frames", "0..1000000", "--max-instances", "3000003"]);
+    assert_eq!(code, Some(0), "{err}");
+    let big = ["--set", "plate.width=65536", "--set", "plate.height=65536"];
+    let (code, err) = check(&big);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(
+        err.contains("node `plate` (render) declares 385 GiB")
+            && err.contains("--max-instance-memory 385"),
+        "{err}"
+    );
+    let (code, err) = check(&[&big[..], &["--max-instance-memory", "385"]].concat());
+    assert_eq!(code, Some(0), "{err}");
+}

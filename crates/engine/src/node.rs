@@ -170,8 +170,9 @@ impl Memory {
                     Some(crate::ParamValue::Int(v)) if *v > 0 => *v as u64,
                     _ => default,
                 };
-                let pixels = dim("width", 2048) * dim("height", 1556);
-                Some(base_mib as u64 + (pixels * bytes_per_pixel as u64).div_ceil(1 << 20))
+                let pixels = dim("width", 2048).saturating_mul(dim("height", 1556));
+                let bytes = pixels.saturating_mul(bytes_per_pixel as u64);
+                Some((base_mib as u64).saturating_add(bytes.div_ceil(1 << 20)))
             }
         }
     }

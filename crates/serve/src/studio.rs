@@ -420,7 +420,18 @@ fn load(file: &std::path::Path, registry: &Registry, sets: &[String]) -> Loaded 
         frames: None,
     };
     match graph::load(file, registry, &overrides) {
-        Ok(g) => Loaded::Ok(Arc::new(g)),
+        Ok(g) => match g.check_limits(&graph::Limits::default()) {
+            Ok(()) => Loaded::Ok(Arc::new(g)),
+            Err(e) => Loaded::Failed(vec![DiagnosticLine {
+                code: "limits".into(),
+                text: format!("{}: {e}", file.display()),
+                file: file.display().to_string(),
+                line: None,
+                col: None,
+                message: e,
+                help: None,
+            }]),
+        },
         Err(LoadError::Io { path, source }) => Loaded::Failed(vec![DiagnosticLine {
             code: "io".into(),
             text: format!("{}: cannot read the graph file: {source}", path.display()),

@@ -19,6 +19,7 @@
 //! - `order`: cycles, the topological order, and the checked nodes in that order.
 //! - `per_frame`: which nodes run per frame, resolved in topological order.
 
+pub use limits::{Limits, DEFAULT_MAX_INSTANCES, DEFAULT_MAX_INSTANCE_GIB};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -31,6 +32,7 @@ use crate::yaml;
 
 mod document;
 mod edges;
+mod limits;
 mod nodes;
 mod order;
 mod params;

@@ -1,10 +1,11 @@
-//! Order: cycles reported (Tarjan's strongly connected components), a topological order that
+//! Order: cycles reported (Kosaraju's strongly connected components, iterative: a chain of
+//! 100 000 nodes must not overflow the stack), a topological order that
 //! keeps the file's order where dependencies allow, and the checked nodes built in it.
 
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 
-use petgraph::algo::tarjan_scc;
+use petgraph::algo::kosaraju_scc;
 use petgraph::graphmap::DiGraphMap;
 
 use super::edges::Edges;
@@ -25,18 +26,22 @@ pub(super) fn find_cycles(raws: &[Raw], edges: &Edges, d: &mut Diagnostics) -> V
             g.add_edge(e.from, i, ());
         }
     }
-    let sccs = tarjan_scc(&g);
+    let mut cycles: Vec<Vec<usize>> = kosaraju_scc(&g)
+        .into_iter()
+        .filter(|scc| scc.len() > 1 || g.contains_edge(scc[0], scc[0]))
+        .map(|mut scc| {
+            scc.sort_unstable();
+            scc
+        })
+        .collect();
+    // Reported in the file's order, whatever order the components were found in.
+    cycles.sort_unstable();
     let mut cyclic = vec![false; raws.len()];
-    for scc in &sccs {
-        let self_loop = scc.len() == 1 && g.contains_edge(scc[0], scc[0]);
-        if scc.len() > 1 || self_loop {
-            let mut members: Vec<usize> = scc.clone();
-            members.sort_unstable();
-            for &m in &members {
-                cyclic[m] = true;
-            }
-            report_cycle(raws, edges, &members, d);
+    for members in &cycles {
+        for &m in members {
+            cyclic[m] = true;
         }
+        report_cycle(raws, edges, members, d);
     }
     cyclic
 }
