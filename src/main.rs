@@ -233,9 +233,16 @@ fn main() -> ExitCode {
         default_sigpipe();
     }
     init_logging(cli.verbose, cli.quiet);
-    let _ = LIMITS.set(graph::Limits {
-        max_instances: cli.max_instances,
-        max_instance_gib: cli.max_instance_memory,
+    // A farm task runs what its submission was allowed to submit: no limits of its own.
+    let _ = LIMITS.set(match cli.command {
+        Command::Exec(_) => graph::Limits {
+            max_instances: u64::MAX,
+            max_instance_gib: u64::MAX,
+        },
+        _ => graph::Limits {
+            max_instances: cli.max_instances,
+            max_instance_gib: cli.max_instance_memory,
+        },
     });
     let registry = vfxgraph_nodes::registry();
     match dispatch(cli, &registry) {
