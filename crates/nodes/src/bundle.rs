@@ -28,7 +28,7 @@ pub fn register(r: &mut Registry) {
         .output_of::<IntrinsicsArt>("intrinsics", "K (refined if asked)")
         .output_of::<ReportArt>(
             "report",
-            "initial/final cost and RMS, iterations, time, termination, per-camera and per-point error",
+            "initial/final cost and RMS, iterations, termination, per-camera and per-point error",
         ),
         |ctx| {
             let o: SequenceAdjustOptions = ctx.options()?;
@@ -40,6 +40,11 @@ pub fn register(r: &mut Registry) {
                 o.refine_intrinsics,
                 &o.solver_options(),
             )?;
+            tracing::info!(
+                "{}: adjustment took {:.3} s",
+                ctx.node_id(),
+                out.report.seconds
+            );
             let mut report = serde_json::to_value(&out.report)?;
             // The per-step log is for benchmarks; keep the artifact small.
             if let Some(o) = report.as_object_mut() {

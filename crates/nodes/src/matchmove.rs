@@ -46,6 +46,9 @@ fn solve_node(name: &'static str, doc: &'static str, cameras_in: bool) -> NodeSp
 }
 
 fn set_solve(ctx: &mut Context<'_>, solve: Solve) -> Result<(), NodeError> {
+    for s in &solve.report.stages {
+        tracing::info!("{}: {} took {:.3} s", ctx.node_id(), s.stage, s.seconds);
+    }
     ctx.output("report", ReportArt(serde_json::to_value(&solve.report)?));
     ctx.output("cameras", CameraPathArt(solve.path));
     ctx.output("points", PointCloudArt(solve.cloud));

@@ -216,6 +216,7 @@ fn run_differential_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let layers = l.named(&image);
     let shadow = layers[2].1.clone();
     let report = out.report(ctx.frame(), &camera, &settings, o.mode, plate.is_some());
+    tracing::info!("{}: render took {:.3} s", ctx.node_id(), out.stats.seconds);
     ctx.output("image", ImageArt(image));
     ctx.output("beauty", ImageArt(l.beauty.clone()));
     ctx.output("shadow", ImageArt(shadow));

@@ -51,7 +51,9 @@ pub struct IterationSummary {
     pub relative_decrease: f64,
     /// Whether the step was accepted.
     pub accepted: bool,
-    /// Seconds since the solve started, at the end of this step.
+    /// Seconds since the solve started, at the end of this step (not serialized: a report
+    /// is the same on every machine).
+    #[serde(skip_serializing, default)]
     pub elapsed_seconds: f64,
 }
 
@@ -70,7 +72,9 @@ pub struct SolverReport {
     pub iterations: usize,
     /// Accepted steps.
     pub successful_steps: usize,
-    /// Wall-clock seconds of the solve.
+    /// Wall-clock seconds of the solve (not serialized: a report is the same on every
+    /// machine).
+    #[serde(skip_serializing, default)]
     pub seconds: f64,
     /// Why it stopped.
     pub termination: TerminationReason,

@@ -78,7 +78,9 @@ pub struct SolveReport {
     pub frames: Vec<FrameReport>,
     /// Per reconstructed track.
     pub tracks: Vec<TrackReport>,
-    /// Time per stage.
+    /// Time per stage: kept for the caller (logged by the node), not serialized — a report
+    /// says what was computed, the same on every machine; how long it took is the run's.
+    #[serde(skip_serializing, default)]
     pub stages: Vec<StageTime>,
     /// Per fragment (empty for stages that do not cut fragments).
     pub fragments: Vec<FragmentReport>,
