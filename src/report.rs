@@ -292,9 +292,11 @@ pub fn print_cache_du(store: &Store) {
     for (ty, (n, bytes)) in store.usage_by_type() {
         println!("{ty:<20} {n:>8} objects {:>12}", human_bytes(bytes));
     }
+    let (bytes, files) = store.disk_usage_detail();
     println!(
-        "{:<20} {:>29}",
+        "{:<20} {:>8} files   {:>12}",
         "total on disk",
-        human_bytes(store.disk_usage())
+        files,
+        human_bytes(bytes)
     );
 }

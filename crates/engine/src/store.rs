@@ -125,6 +125,19 @@ pub struct Store {
     root: PathBuf,
 }
 
+/// The bytes file `m` takes on disk (its blocks), or its length where blocks are unknown.
+fn allocated(m: &fs::Metadata) -> u64 {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        m.blocks() * 512
+    }
+    #[cfg(not(unix))]
+    {
+        m.len()
+    }
+}
+
 fn shard(dir: &Path, hex: &str) -> PathBuf {
     dir.join(&hex[..2]).join(hex)
 }
@@ -353,13 +366,31 @@ impl Store {
         out
     }
 
-    /// Total bytes on disk (objects, actions, records).
+    /// What the whole cache folder takes on disk: `(bytes allocated, files)` over every file
+    /// (objects, actions, records, the file memo, temporaries, leases). Allocated, not
+    /// apparent, sizes: a cache of many small entries takes a block each (a million 200-byte
+    /// entries are ~4 GB, not 200 MB).
+    pub fn disk_usage_detail(&self) -> (u64, u64) {
+        let (mut bytes, mut files) = (0u64, 0u64);
+        let mut dirs = vec![self.root.clone()];
+        while let Some(d) = dirs.pop() {
+            let Ok(rd) = fs::read_dir(&d) else { continue };
+            for e in rd.flatten() {
+                let Ok(m) = e.metadata() else { continue };
+                if m.is_dir() {
+                    dirs.push(e.path());
+                } else {
+                    bytes += allocated(&m);
+                    files += 1;
+                }
+            }
+        }
+        (bytes, files)
+    }
+
+    /// Bytes the whole cache folder takes on disk (see [`Store::disk_usage_detail`]).
     pub fn disk_usage(&self) -> u64 {
-        ["objects", "actions"]
-            .iter()
-            .flat_map(|d| Self::walk(&self.root.join(d)))
-            .map(|(_, m)| m.len())
-            .sum()
+        self.disk_usage_detail().0
     }
 
     /// Removes objects no action refers to, then (with `max_bytes`) the least recently used
@@ -505,6 +536,39 @@ mod tests {
         fs::write(&p, raw).unwrap();
         assert_eq!(s.get_object(&d), None);
         assert!(!s.has_object(&d));
+    }
+
+    /// The usage `cache du` reports is what `du` sees: many small entries take a block each.
+    #[test]
+    #[cfg(target_os = "linux")]
+    fn disk_usage_counts_blocks_of_every_file_as_du_does() {
+        let dir = tempfile::tempdir().unwrap();
+        let store = Store::open(dir.path()).unwrap();
+        for i in 0..500u32 {
+            let bytes = i.to_le_bytes();
+            let d = content_digest("t", &bytes);
+            store.put_object(&d, "t", &bytes).unwrap();
+        }
+        let (ours, files) = store.disk_usage_detail();
+        assert_eq!(files, 500);
+        let du = std::process::Command::new("du")
+            .args(["-s", "--block-size=1"])
+            .arg(dir.path())
+            .output()
+            .unwrap();
+        let du: u64 = String::from_utf8_lossy(&du.stdout)
+            .split_whitespace()
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap();
+        // `du` also counts the folders (root, 4 subfolders, up to 256 shards).
+        let dirs = fs::read_dir(dir.path().join("objects")).unwrap().count() as u64 + 5;
+        assert!(
+            ours <= du && du - ours <= dirs * 4096,
+            "ours {ours}, du {du}"
+        );
+        assert!(ours >= 500 * 512, "{ours}: apparent sizes, not blocks");
     }
 
     #[test]
