@@ -88,19 +88,22 @@ pub struct YamlScene {
     pub files: Vec<PathBuf>,
 }
 
+/// The largest image side a scene's camera may ask for.
+const MAX_SIDE: f64 = 65536.0;
+
 fn camera(n: &Node) -> R<Camera> {
     let f = n.fields("camera", &["look_at", "size", "K", "R", "t"])?;
     let [w, h] = f.req("size")?.nums::<2>("size")?;
-    if !(w >= 1.0
-        && h >= 1.0
-        && w.fract() == 0.0
-        && h.fract() == 0.0
-        && w <= 65536.0
-        && h <= 65536.0)
-    {
+    if !(w >= 1.0 && h >= 1.0 && w.fract() == 0.0 && h.fract() == 0.0) {
         return err(
             f.req("size")?,
-            "size: two positive whole numbers [width, height]",
+            format!("size: two positive whole numbers [width, height], not [{w}, {h}]"),
+        );
+    }
+    if w > MAX_SIDE || h > MAX_SIDE {
+        return err(
+            f.req("size")?,
+            format!("size: [{w}, {h}] is over the largest image side, {MAX_SIDE}"),
         );
     }
     let (w, h) = (w as usize, h as usize);

@@ -261,3 +261,23 @@ fn deep_nesting_is_an_error_not_a_stack_overflow() {
     assert_eq!(line, 3, "{message}");
     assert!(col > 2 * 128, "{col}: {message}");
 }
+
+/// An image size over the limit says so, with the figure and the limit (not "two positive
+/// whole numbers", which it is); a size that is not two positive whole numbers says that.
+#[test]
+fn an_oversized_camera_names_the_size_and_the_limit() {
+    let scene = |size: &str| {
+        format!("camera:\n  look_at: {{from: [0, 1, 4], at: [0, 0, 0]}}\n  size: {size}\n")
+    };
+    let (line, col, m) = error_at(&scene("[70000, 70000]"));
+    assert_eq!((line, col), (3, 9));
+    assert!(
+        m.contains("[70000, 70000]") && m.contains("over the largest image side, 65536"),
+        "{m}"
+    );
+    let (_, _, m) = error_at(&scene("[0, 10.5]"));
+    assert!(
+        m.contains("two positive whole numbers") && m.contains("not [0, 10.5]"),
+        "{m}"
+    );
+}
