@@ -1,74 +1,148 @@
-//! What stands around each input: a panic hook that records every panic (also those a reader
-//! catches itself and turns into an error — "contained"), a watchdog thread that ends the run
-//! when one input takes longer than the time bound (a hang), a global allocator that ends it
-//! when one allocation asks for more than the memory bound (a header's claimed size honoured
-//! before the data was checked), and a note on stderr naming the input when the process dies
-//! of a fatal signal (abort, stack overflow, a fault in C code).
+//! What stands around each input inside the process that runs it: a panic hook that records
+//! every panic quietly (also those a reader catches itself and turns into an error —
+//! "contained"), a watchdog thread that ends the process when one input takes longer than the
+//! time bound (a hang), a counting global allocator that ends it when one allocation asks for
+//! more than the memory bound or when the bytes live during one input rise above it (a
+//! header's claimed size honoured before the data was checked), and a note on stderr naming the
+//! input when the process dies of a fatal signal (abort, stack overflow, a fault in C code).
 //!
-//! A hang or blow-up cannot be recovered from inside the process (a thread cannot be stopped;
-//! the allocation would exhaust the machine), so both write the input to the crash folder,
-//! print how to reproduce it and exit with status 3 — libFuzzer's `-timeout`/`-rss_limit_mb`
-//! behaviour.
+//! A hang or an allocation over the bound cannot be recovered from inside the process (a thread
+//! cannot be stopped; the allocation would exhaust the machine), so both call the hook set with
+//! [`on_fatal`] (the campaign's worker records the finding there), print what happened and exit
+//! with [`FATAL_EXIT`]. The campaign's supervisor ([`crate::run`]) then starts a new worker at
+//! the next input.
 
 use std::alloc::{GlobalAlloc, Layout, System};
-use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Mutex, Once, OnceLock};
 use std::time::{Duration, Instant};
 
-/// The allocator of every binary linking this crate: [`System`] with the memory bound.
+/// The exit status of a process ended by a hang or an allocation over the bound.
+pub const FATAL_EXIT: i32 = 1;
+
+/// A finding that ends the process.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Fatal {
+    /// One input ran past the time bound.
+    Hang,
+    /// One allocation, or the bytes live during one input, went over the memory bound.
+    OverAlloc,
+}
+
+impl std::fmt::Display for Fatal {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Fatal::Hang => "hang",
+            Fatal::OverAlloc => "over-allocation",
+        })
+    }
+}
+
+/// The allocator of every binary linking this crate: [`System`], counting the bytes live, with
+/// the memory bound on one allocation and on the rise of live bytes during one input.
 pub struct GuardedAlloc;
 
 static MAX_ALLOC: AtomicUsize = AtomicUsize::new(usize::MAX);
 static TRIPPED: AtomicBool = AtomicBool::new(false);
+/// Bytes allocated and not yet freed, all threads.
+static LIVE: AtomicUsize = AtomicUsize::new(0);
+/// [`LIVE`] when the current input began.
+static BASE: AtomicUsize = AtomicUsize::new(0);
+/// The highest [`LIVE`] since the current input began.
+static PEAK: AtomicUsize = AtomicUsize::new(0);
 
 unsafe impl GlobalAlloc for GuardedAlloc {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        check_size(layout.size());
-        System.alloc(layout)
+        check_one(layout.size());
+        add(layout.size());
+        let p = System.alloc(layout);
+        if p.is_null() {
+            LIVE.fetch_sub(layout.size(), Ordering::Relaxed);
+        }
+        p
     }
     unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
-        check_size(layout.size());
-        System.alloc_zeroed(layout)
+        check_one(layout.size());
+        add(layout.size());
+        let p = System.alloc_zeroed(layout);
+        if p.is_null() {
+            LIVE.fetch_sub(layout.size(), Ordering::Relaxed);
+        }
+        p
     }
     unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        System.dealloc(ptr, layout)
+        System.dealloc(ptr, layout);
+        LIVE.fetch_sub(layout.size(), Ordering::Relaxed);
     }
     unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        check_size(new_size);
-        System.realloc(ptr, layout, new_size)
+        let old = layout.size();
+        if new_size > old {
+            check_one(new_size);
+            add(new_size - old);
+        }
+        let p = System.realloc(ptr, layout, new_size);
+        if p.is_null() {
+            if new_size > old {
+                LIVE.fetch_sub(new_size - old, Ordering::Relaxed);
+            }
+        } else if new_size < old {
+            LIVE.fetch_sub(old - new_size, Ordering::Relaxed);
+        }
+        p
     }
 }
 
-fn check_size(size: usize) {
-    if size > MAX_ALLOC.load(Ordering::Relaxed) && !TRIPPED.swap(true, Ordering::SeqCst) {
+/// One allocation of `size` bytes: over the bound, a finding.
+fn check_one(size: usize) {
+    let max = MAX_ALLOC.load(Ordering::Relaxed);
+    if size > max && !TRIPPED.swap(true, Ordering::SeqCst) {
         // Allocations made while reporting pass (TRIPPED is set).
         fail(
-            "blow-up",
-            &format!(
-                "one allocation of {size} bytes (bound {} bytes)",
-                MAX_ALLOC.load(Ordering::Relaxed)
-            ),
+            Fatal::OverAlloc,
+            running_index(),
+            &format!("one allocation of {size} bytes, bound {max} bytes"),
         );
     }
 }
 
-/// The input being run, for the reports of the watchdog, the allocator and the signal note.
-struct Current {
-    target: String,
-    index: u64,
-    seed: u64,
-    bytes: Vec<u8>,
+/// `size` more bytes live: a rise over the bound during an input is a finding.
+fn add(size: usize) {
+    let live = LIVE.fetch_add(size, Ordering::Relaxed) + size;
+    if live > PEAK.load(Ordering::Relaxed) {
+        PEAK.fetch_max(live, Ordering::Relaxed);
+        let max = MAX_ALLOC.load(Ordering::Relaxed);
+        if STARTED.load(Ordering::Relaxed) != 0
+            && live.saturating_sub(BASE.load(Ordering::Relaxed)) > max
+            && !TRIPPED.swap(true, Ordering::SeqCst)
+        {
+            fail(
+                Fatal::OverAlloc,
+                running_index(),
+                &format!(
+                    "{} bytes live at once during the input, bound {max} bytes",
+                    live.saturating_sub(BASE.load(Ordering::Relaxed))
+                ),
+            );
+        }
+    }
 }
 
-static CURRENT: Mutex<Option<Current>> = Mutex::new(None);
-static CRASH_DIR: OnceLock<PathBuf> = OnceLock::new();
+/// The memory bound in bytes (`usize::MAX` before [`install`]).
+pub fn max_alloc() -> usize {
+    MAX_ALLOC.load(Ordering::Relaxed)
+}
+
+/// The input being run (target and run seed), for the reports of the watchdog and allocator.
+static LABEL: Mutex<Option<(String, u64)>> = Mutex::new(None);
 /// Milliseconds since [`epoch`] + 1 when the current input started; 0 when idle.
 static STARTED: AtomicU64 = AtomicU64::new(0);
 static TIMEOUT_MS: AtomicU64 = AtomicU64::new(u64::MAX);
-/// The signal note: target name and input index, readable without locks.
+/// The signal note: target name and run seed, readable without locks.
 static SIGNAL_NOTE: Mutex<Vec<u8>> = Mutex::new(Vec::new());
+/// The index of the current (or last) input.
 static INDEX: AtomicU64 = AtomicU64::new(0);
+/// Called with a fatal finding before the process exits.
+static ON_FATAL: OnceLock<fn(Fatal, Option<u64>, &str)> = OnceLock::new();
 
 fn epoch() -> Instant {
     static E: OnceLock<Instant> = OnceLock::new();
@@ -79,15 +153,25 @@ fn now_ms() -> u64 {
     epoch().elapsed().as_millis() as u64 + 1
 }
 
+/// The index of the input running now, if one is.
+fn running_index() -> Option<u64> {
+    (STARTED.load(Ordering::SeqCst) != 0).then(|| INDEX.load(Ordering::SeqCst))
+}
+
 /// Panics seen by the hook since the last [`take_panic`], with the first one's message.
 static PANICS: AtomicUsize = AtomicUsize::new(0);
 static FIRST_PANIC: Mutex<Option<String>> = Mutex::new(None);
 
+/// Sets the hook called (once, on the thread that found it) with a hang or an allocation over
+/// the bound — its kind, the input's index, what happened — before the process exits.
+pub fn on_fatal(hook: fn(Fatal, Option<u64>, &str)) {
+    let _ = ON_FATAL.set(hook);
+}
+
 /// Installs the hook, the watchdog and the signal note (once per process) and sets the bounds.
-pub fn install(timeout: Duration, max_alloc: usize, crash_dir: PathBuf) {
+pub fn install(timeout: Duration, max_alloc: usize) {
     TIMEOUT_MS.store(timeout.as_millis() as u64, Ordering::SeqCst);
     MAX_ALLOC.store(max_alloc, Ordering::SeqCst);
-    let _ = CRASH_DIR.set(crash_dir);
     static ONCE: Once = Once::new();
     ONCE.call_once(|| {
         epoch();
@@ -97,6 +181,7 @@ pub fn install(timeout: Duration, max_alloc: usize, crash_dir: PathBuf) {
                 // Not inside an input (e.g. a failing assertion of a test): the usual report.
                 return previous(info);
             }
+            // Inside an input: counted and kept, never printed (contained panics are expected).
             if PANICS.fetch_add(1, Ordering::SeqCst) == 0 {
                 let loc = info
                     .location()
@@ -117,12 +202,17 @@ pub fn install(timeout: Duration, max_alloc: usize, crash_dir: PathBuf) {
             .name("fuzz-watchdog".into())
             .spawn(|| loop {
                 std::thread::sleep(Duration::from_millis(25));
+                // STARTED read twice around INDEX: an equal non-zero stamp means no input ended
+                // in between, so INDEX is the index of the input that started then.
                 let s = STARTED.load(Ordering::SeqCst);
-                if s != 0 && now_ms().saturating_sub(s) > TIMEOUT_MS.load(Ordering::SeqCst) {
-                    fail(
-                        "hang",
-                        &format!("over {} ms", TIMEOUT_MS.load(Ordering::SeqCst)),
-                    );
+                let index = INDEX.load(Ordering::SeqCst);
+                let limit = TIMEOUT_MS.load(Ordering::SeqCst);
+                if s != 0
+                    && STARTED.load(Ordering::SeqCst) == s
+                    && now_ms().saturating_sub(s) > limit
+                    && !TRIPPED.swap(true, Ordering::SeqCst)
+                {
+                    fail(Fatal::Hang, Some(index), &format!("over {limit} ms"));
                 }
             })
             .expect("watchdog thread");
@@ -130,44 +220,35 @@ pub fn install(timeout: Duration, max_alloc: usize, crash_dir: PathBuf) {
     });
 }
 
-/// Marks the start of input `index` of `target`.
-pub fn begin(target: &str, seed: u64, index: u64, bytes: &[u8]) {
+/// Marks the start of input `index` of `target` in the run with `seed`.
+pub fn begin(target: &str, seed: u64, index: u64) {
     PANICS.store(0, Ordering::SeqCst);
     if let Ok(mut f) = FIRST_PANIC.lock() {
         *f = None;
     }
-    if let Ok(mut c) = CURRENT.lock() {
-        match c.as_mut() {
-            Some(c) if c.target == target => {
-                c.index = index;
-                c.seed = seed;
-                c.bytes.clear();
-                c.bytes.extend_from_slice(bytes);
-            }
-            _ => {
-                *c = Some(Current {
-                    target: target.to_string(),
-                    index,
-                    seed,
-                    bytes: bytes.to_vec(),
-                });
-                if let Ok(mut n) = SIGNAL_NOTE.lock() {
-                    *n = format!(
-                        "\nvfxgraph-fuzz: fatal signal while running target `{target}` (seed {seed}), input #"
-                    )
-                    .into_bytes();
-                }
+    if let Ok(mut l) = LABEL.lock() {
+        if l.as_ref().is_none_or(|(t, s)| t != target || *s != seed) {
+            *l = Some((target.to_string(), seed));
+            if let Ok(mut n) = SIGNAL_NOTE.lock() {
+                *n = format!(
+                    "\nvfxgraph-fuzz: fatal signal while running target `{target}` (seed {seed}), input #"
+                )
+                .into_bytes();
             }
         }
     }
+    let live = LIVE.load(Ordering::SeqCst);
+    BASE.store(live, Ordering::SeqCst);
+    PEAK.store(live, Ordering::SeqCst);
     INDEX.store(index, Ordering::SeqCst);
     STARTED.store(now_ms(), Ordering::SeqCst);
 }
 
-/// Marks the end of the current input; returns its duration.
-pub fn end() -> Duration {
-    let s = STARTED.swap(0, Ordering::SeqCst);
-    Duration::from_millis(now_ms().saturating_sub(s))
+/// Marks the end of the current input; returns the largest rise of live bytes during it.
+pub fn end() -> usize {
+    STARTED.store(0, Ordering::SeqCst);
+    PEAK.load(Ordering::SeqCst)
+        .saturating_sub(BASE.load(Ordering::SeqCst))
 }
 
 /// The number of panics since [`begin`] and the first one's message.
@@ -177,46 +258,19 @@ pub fn take_panic() -> (usize, Option<String>) {
     (n, m)
 }
 
-/// The file an input of `target` is saved to.
-pub fn crash_path(kind: &str, target: &str, bytes: &[u8]) -> PathBuf {
-    let dir = CRASH_DIR
-        .get()
-        .cloned()
-        .unwrap_or_else(|| PathBuf::from("fuzz-crashes"));
-    let h = blake3::hash(bytes).to_hex();
-    dir.join(format!("{kind}-{target}-{}", &h[..16]))
-}
-
-/// Writes `bytes` under the crash folder; returns the path.
-pub fn save(kind: &str, target: &str, bytes: &[u8]) -> PathBuf {
-    let p = crash_path(kind, target, bytes);
-    if let Some(d) = p.parent() {
-        let _ = std::fs::create_dir_all(d);
+/// Reports a fatal finding (stderr, then the [`on_fatal`] hook) and exits with [`FATAL_EXIT`].
+fn fail(kind: Fatal, index: Option<u64>, what: &str) -> ! {
+    let label = LABEL.try_lock().ok().and_then(|l| l.clone());
+    match (label, index) {
+        (Some((target, seed)), Some(i)) => eprintln!(
+            "\nvfxgraph-fuzz: {kind} in target `{target}` (seed {seed}) on input #{i} ({what})"
+        ),
+        _ => eprintln!("\nvfxgraph-fuzz: {kind} ({what}) outside of an input"),
     }
-    let _ = std::fs::write(&p, bytes);
-    p
-}
-
-/// Saves the current input, prints the failure and how to reproduce it, and exits (status 3).
-fn fail(kind: &str, what: &str) -> ! {
-    let cur = CURRENT.try_lock().ok().and_then(|mut c| c.take());
-    match cur {
-        Some(c) => {
-            let p = save(kind, &c.target, &c.bytes);
-            eprintln!(
-                "\nvfxgraph-fuzz: {kind} in target `{}` on input #{} ({what}); input saved to {} \
-                 (reproduce: vfxgraph-fuzz --target {} --seed {} --index {})",
-                c.target,
-                c.index,
-                p.display(),
-                c.target,
-                c.seed,
-                c.index
-            );
-        }
-        None => eprintln!("\nvfxgraph-fuzz: {kind} ({what}) outside of an input"),
+    if let Some(hook) = ON_FATAL.get() {
+        hook(kind, index, what);
     }
-    std::process::exit(3);
+    std::process::exit(FATAL_EXIT);
 }
 
 /// On SIGABRT (Rust's abort: stack overflow, a panic while panicking, allocation failure),

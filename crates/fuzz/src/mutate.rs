@@ -35,6 +35,9 @@ pub enum Kind {
     Text,
     /// Binary: byte mutations only.
     Binary,
+    /// No mutation: input `i` is the decimal text of `i` (the harness's self-test target,
+    /// [`crate::targets::probe`]).
+    Index,
 }
 
 /// Replacements for a number token: the values that break naive parsers.

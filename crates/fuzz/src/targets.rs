@@ -369,6 +369,103 @@ pub fn all() -> Vec<Target> {
     ]
 }
 
+/// The target named `name`: one of [`all`], or the hidden [`probe`] target.
+pub fn find(name: &str) -> Option<Target> {
+    all()
+        .into_iter()
+        .chain([probe_target()])
+        .find(|t| t.name == name)
+}
+
+/// The harness's self-test target: not a reader, so never listed (`--list`) nor run by default,
+/// only by name (`--target probe`). Input `i` is `i` in decimal ([`Kind::Index`]); the inputs
+/// named here misbehave in each way a campaign must survive, every other input is accepted when
+/// even and refused when odd.
+pub mod probe {
+    /// The target's name.
+    pub const NAME: &str = "probe";
+    /// A panic escapes the reader.
+    pub const PANIC: u64 = 3;
+    /// An endless loop.
+    pub const HANG: u64 = 5;
+    /// `abort()`.
+    pub const ABORT: u64 = 7;
+    /// One allocation one byte over the memory bound.
+    pub const ALLOC: u64 = 9;
+    /// Two allocations of ¾ of the bound each, both live: every allocation under the bound, the
+    /// live bytes over it.
+    pub const PEAK: u64 = 11;
+    /// Unbounded recursion: a stack overflow.
+    pub const STACK: u64 = 13;
+    /// The process stops itself (SIGSTOP): its own watchdog stops with it, so only the
+    /// supervisor can end it.
+    pub const STOP: u64 = 15;
+    /// The reader calls `exit(0)`.
+    pub const EXIT: u64 = 17;
+    /// A panic the reader catches itself (contained; the input is refused).
+    pub const CONTAINED: u64 = 19;
+    /// Every misbehaving input, in order.
+    pub const ALL: [u64; 9] = [
+        PANIC, HANG, ABORT, ALLOC, PEAK, STACK, STOP, EXIT, CONTAINED,
+    ];
+}
+
+fn probe_target() -> Target {
+    Target {
+        name: probe::NAME,
+        what: "the harness's self-test (not a reader; see targets::probe)",
+        kind: Kind::Index,
+        dict: &[],
+        seeds: |_| vec![generated("probe", "seed")],
+        run: run_probe,
+    }
+}
+
+fn run_probe(b: &[u8]) -> bool {
+    use std::hint::black_box;
+    let Some(i) = std::str::from_utf8(b)
+        .ok()
+        .and_then(|s| s.parse::<u64>().ok())
+    else {
+        return true; // the seed
+    };
+    match i {
+        probe::PANIC => panic!("probe: a panic escaping the reader"),
+        probe::HANG => loop {
+            std::thread::sleep(std::time::Duration::from_millis(5));
+        },
+        probe::ABORT => std::process::abort(),
+        probe::ALLOC => {
+            let n = crate::guard::max_alloc().saturating_add(1);
+            black_box(Vec::<u8>::with_capacity(n)).capacity() > 0
+        }
+        probe::PEAK => {
+            let n = crate::guard::max_alloc() / 4 * 3;
+            let a = black_box(vec![0u8; n]);
+            let b = black_box(vec![0u8; n]);
+            a.len() + b.len() > 0
+        }
+        probe::STACK => black_box(recurse(0)) > 0,
+        probe::STOP => {
+            // SAFETY: raise(3) with a valid signal.
+            unsafe { libc::raise(libc::SIGSTOP) };
+            true
+        }
+        probe::EXIT => std::process::exit(0),
+        probe::CONTAINED => std::panic::catch_unwind(|| panic!("probe: contained")).is_ok(),
+        _ => i % 2 == 0,
+    }
+}
+
+/// Recurses with 4 KiB frames until the stack overflows.
+fn recurse(depth: u64) -> u64 {
+    let frame = std::hint::black_box([depth as u8; 4096]);
+    if depth == u64::MAX {
+        return 0;
+    }
+    recurse(depth + 1).wrapping_add(frame[(depth % 4096) as usize] as u64)
+}
+
 /// `[&[a, b], &[c]].concat()` as a `'static` slice (leaked once per call of [`all`]).
 trait ConcatStatic {
     fn concat_static(&self) -> &'static [&'static str];

@@ -1,11 +1,13 @@
 //! The CI budget of the fuzz targets: every reader of a user file gets its seeds and a fixed
-//! number of mutated inputs (seed 0) under the harness's guards; none may panic, hang or ask
-//! for an allocation over the bound, and every seed — a valid file — must be accepted.
-//! The long run is `cargo run --release -p vfxgraph-fuzz -- --inputs 100000`.
+//! number of mutated inputs (seed 0) in a supervised campaign under the harness's guards; none
+//! may panic, die, hang or allocate over the bound (1 GiB at once, or live during one input),
+//! and every seed — a valid file — must be accepted. The long run is
+//! `scripts/bench/fuzz_campaign.sh` (10⁶ inputs per target).
 
+use std::path::PathBuf;
 use std::time::Duration;
 
-use vfxgraph_fuzz::run::{campaign, on_fuzz_thread, table, Options, MAX_ALLOC};
+use vfxgraph_fuzz::run::{campaign, findings_report, table, Options, MAX_ALLOC};
 use vfxgraph_fuzz::targets::{all, SeedDirs};
 
 /// Mutated inputs per target in CI (the dev profile; see the README for the measured cost).
@@ -19,9 +21,6 @@ fn budget(target: &str) -> u64 {
 
 #[test]
 fn every_reader_survives_its_ci_budget() {
-    let _ = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build_global();
     let dirs = SeedDirs::default();
     if !dirs.shared.exists() {
         eprintln!(
@@ -36,16 +35,19 @@ fn every_reader_survives_its_ci_budget() {
             inputs: budget(t.name),
             seed: 0,
             // Generous for the dev profile on a loaded 2-core machine: the slowest input of
-            // the long run takes well under this (see the README).
+            // the long run takes well under this (docs/validation/fuzzing.md).
             timeout: Duration::from_secs(10),
             max_alloc: MAX_ALLOC,
             crash_dir: crash_dir.clone(),
             dirs: dirs.clone(),
             progress_every: 0,
+            threads: 1,
+            worker_exe: Some(PathBuf::from(env!("CARGO_BIN_EXE_vfxgraph-fuzz"))),
         };
-        outcomes.push(on_fuzz_thread(|| campaign(&t, &opts)));
+        outcomes.push(campaign(&t, &opts));
     }
     eprint!("{}", table(&outcomes));
+    eprint!("{}", findings_report(&outcomes));
     for o in &outcomes {
         assert!(o.seeds >= 1, "target {} has no seeds", o.target);
         assert!(
@@ -54,13 +56,18 @@ fn every_reader_survives_its_ci_budget() {
             o.target,
             o.seeds_refused
         );
-        assert!(
-            o.crashes.is_empty(),
-            "target {}: {} panics, first: {:?}",
+        assert_eq!(
+            o.finding_count(),
+            0,
+            "target {}: {} crashes, {} hangs, {} over-allocations, first: {:?}",
             o.target,
-            o.crashes.len(),
-            o.crashes.first()
+            o.crashes,
+            o.hangs,
+            o.over_allocs,
+            o.findings.first()
         );
+        // The whole budget ran.
+        assert_eq!(o.executions, o.seeds as u64 + budget(&o.target));
         // The mutations keep part of the inputs valid (the readers are reached, not only
         // their first check) and break the rest.
         assert!(
