@@ -30,7 +30,7 @@ echo "vfxgraph-fuzz campaign: seed $seed, $inputs inputs per target, $(nproc) co
 # workspace during the run cannot swap it.
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
-cp target/release/vfxgraph-fuzz "$work/vfxgraph-fuzz"
+cp "${CARGO_TARGET_DIR:-$here/target}/release/vfxgraph-fuzz" "$work/vfxgraph-fuzz"
 start=$(date +%s)
 status=0
 # The workers are the supervisor's children: time's %M is the largest resident size of the
