@@ -2,7 +2,8 @@
 """OpenImageIO's side of the image-format checks (crates/imaging/tests/oiio.rs).
 
     oiio_images.py write DIR   writes DPX files of every depth, packing, byte order and channel
-                               count OpenImageIO writes, each with `<name>.codes.f32` (the
+                               count OpenImageIO writes, and TIFF files of 8/16-bit and float
+                               samples, uncompressed, LZW and Deflate, 1/3/4 channels, each with `<name>.codes.f32` (the
                                codes it was given, over [0, 1], little-endian floats),
                                `<name>.f32` (OpenImageIO's own float read of it) and
                                `cases.json` (name → width, height, channels, bits)
@@ -60,6 +61,29 @@ def write(dir_):
         _, f = float_read(path)
         f.tofile(path + ".f32")
         cases[name] = {"width": w, "height": h, "channels": ch, "bits": bits}
+    for fmt, bits in (("uint8", 8), ("uint16", 16), ("float", 32)):
+        for compression in ("none", "lzw", "zip"):
+            for ch in (1, 3, 4):
+                w, h = 13, 5
+                name = "oiio_%s_%s_%d.tif" % (fmt, compression, ch)
+                spec = oiio.ImageSpec(w, h, ch, fmt)
+                spec.attribute("compression", compression)
+                if bits == 32:
+                    values = rng.uniform(-0.5, 20.0, size=(h, w, ch)).astype("<f4")
+                    pixels = values
+                else:
+                    codes = rng.integers(0, 2 ** bits, size=(h, w, ch))
+                    values = codes / (2 ** bits - 1)
+                    pixels = codes.astype(fmt)
+                path = os.path.join(dir_, name)
+                out = oiio.ImageOutput.create(path)
+                if not out.open(path, spec) or not out.write_image(pixels):
+                    raise SystemExit("OpenImageIO cannot write %s: %s" % (path, out.geterror()))
+                out.close()
+                np.asarray(values, dtype="<f4").tofile(path + ".codes.f32")
+                _, f = float_read(path)
+                f.tofile(path + ".f32")
+                cases[name] = {"width": w, "height": h, "channels": ch, "bits": bits}
     with open(os.path.join(dir_, "cases.json"), "w") as fh:
         json.dump(cases, fh, indent=1)
 

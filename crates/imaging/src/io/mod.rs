@@ -1,4 +1,4 @@
-//! Reading and writing image files: PNG, JPEG, OpenEXR, PFM, Radiance RGBE and DPX.
+//! Reading and writing image files: PNG, JPEG, OpenEXR, PFM, Radiance RGBE, DPX and TIFF.
 //!
 //! All decoders return linear-light `f32` [`Image`]s with pixel `(0, 0)` at the top-left:
 //! 8/16-bit sRGB formats (PNG, JPEG) are decoded with the IEC 61966-2-1 curve (alpha stays linear),
@@ -16,6 +16,7 @@ pub mod exr;
 pub mod hdr;
 pub mod pfm;
 pub mod png_jpeg;
+pub mod tiff;
 
 use std::path::Path;
 
@@ -44,21 +45,24 @@ pub enum Format {
     Hdr,
     /// Digital Picture Exchange (SMPTE ST 268), 8–16-bit codes, Cineon log by default.
     Dpx,
+    /// TIFF 6.0, 8/16-bit sRGB or float linear, uncompressed, LZW or Deflate.
+    Tiff,
 }
 
 impl Format {
     /// All formats, in a fixed order.
-    pub const ALL: [Format; 6] = [
+    pub const ALL: [Format; 7] = [
         Format::Png,
         Format::Jpeg,
         Format::Exr,
         Format::Pfm,
         Format::Hdr,
         Format::Dpx,
+        Format::Tiff,
     ];
 
     /// The format named by the file extension of `p` (case-insensitive): `png`; `jpg`, `jpeg`,
-    /// `jpe`; `exr`; `pfm`; `hdr`, `rgbe`; `dpx`. `None` for anything else.
+    /// `jpe`; `exr`; `pfm`; `hdr`, `rgbe`; `dpx`; `tif`, `tiff`. `None` for anything else.
     pub fn from_path(p: &Path) -> Option<Format> {
         let ext = p.extension()?.to_str()?.to_ascii_lowercase();
         match ext.as_str() {
@@ -68,13 +72,15 @@ impl Format {
             "pfm" => Some(Format::Pfm),
             "hdr" | "rgbe" => Some(Format::Hdr),
             "dpx" => Some(Format::Dpx),
+            "tif" | "tiff" => Some(Format::Tiff),
             _ => None,
         }
     }
 
     /// The format recognised from the first bytes of a file (its magic number): PNG
     /// `89 50 4E 47`, JPEG `FF D8 FF`, OpenEXR `76 2F 31 01`, PFM `PF`/`Pf` + whitespace,
-    /// Radiance `#?RADIANCE` or `#?RGBE`, DPX `SDPX` or `XPDS`.
+    /// Radiance `#?RADIANCE` or `#?RGBE`, DPX `SDPX` or `XPDS`, TIFF `II*\0` or `MM\0*` (and
+    /// BigTIFF's `II+\0`, `MM\0+`).
     pub fn sniff(bytes: &[u8]) -> Option<Format> {
         if bytes.starts_with(b"\x89PNG") {
             Some(Format::Png)
@@ -90,6 +96,11 @@ impl Format {
             Some(Format::Hdr)
         } else if bytes.starts_with(b"SDPX") || bytes.starts_with(b"XPDS") {
             Some(Format::Dpx)
+        } else if [b"II*\0", b"MM\0*", b"II+\0", b"MM\0+"]
+            .iter()
+            .any(|m| bytes.starts_with(*m))
+        {
+            Some(Format::Tiff)
         } else {
             None
         }
@@ -104,6 +115,7 @@ impl Format {
             Format::Pfm => "pfm",
             Format::Hdr => "hdr",
             Format::Dpx => "dpx",
+            Format::Tiff => "tif",
         }
     }
 
@@ -116,6 +128,7 @@ impl Format {
             Format::Pfm => "PFM",
             Format::Hdr => "Radiance HDR",
             Format::Dpx => "DPX",
+            Format::Tiff => "TIFF",
         }
     }
 
@@ -141,12 +154,13 @@ pub fn decode(bytes: &[u8], format: Format) -> Result<Image, ImageError> {
         Format::Pfm => pfm::decode(bytes),
         Format::Hdr => hdr::decode(bytes),
         Format::Dpx => dpx::decode(bytes),
+        Format::Tiff => tiff::decode(bytes),
     }
 }
 
 /// Encode a linear-light image as a file of `format` with default options: PNG 8-bit sRGB,
 /// JPEG quality 95 sRGB (alpha dropped), EXR 32-bit float ZIP, PFM little-endian, HDR RLE,
-/// DPX 10-bit Cineon log.
+/// DPX 10-bit Cineon log, TIFF 16-bit sRGB Deflate.
 /// For other choices use [`encode_png16`], [`encode_jpeg`], [`encode_exr`].
 pub fn encode(img: &Image, format: Format) -> Result<Vec<u8>, ImageError> {
     check_encodable(img, format)?;
@@ -157,6 +171,7 @@ pub fn encode(img: &Image, format: Format) -> Result<Vec<u8>, ImageError> {
         Format::Pfm => pfm::encode(img),
         Format::Hdr => hdr::encode(img),
         Format::Dpx => dpx::encode(img, &dpx::DpxOptions::default()),
+        Format::Tiff => tiff::encode(img, &tiff::TiffOptions::default()),
     }
 }
 
@@ -286,7 +301,8 @@ mod tests {
         }
         assert_eq!(Format::from_path(Path::new("A.JPEG")), Some(Format::Jpeg));
         assert_eq!(Format::from_path(Path::new("a.Hdr")), Some(Format::Hdr));
-        assert_eq!(Format::from_path(Path::new("a.tif")), None);
+        assert_eq!(Format::from_path(Path::new("a.TIFF")), Some(Format::Tiff));
+        assert_eq!(Format::from_path(Path::new("a.bmp")), None);
         assert_eq!(Format::from_path(Path::new("exr")), None);
         assert_eq!(Format::sniff(b"Pf\n1 1\n-1\n"), Some(Format::Pfm));
         assert_eq!(Format::sniff(b"#?RGBE\n"), Some(Format::Hdr));
@@ -311,6 +327,7 @@ mod tests {
                 Format::Jpeg => 0.03,
                 // Half a 10-bit Cineon code at white (0.0078 a code there).
                 Format::Dpx => 0.004,
+                Format::Tiff => 0.0002,
             };
             let err = img.max_abs_diff(&back).unwrap();
             assert!(err <= tol, "{f}: error {err}");
