@@ -34,14 +34,8 @@ pub fn print_diagnostics(d: &Diagnostics) {
 
 /// Prints the failed instances with their causes.
 pub fn print_failures(r: &RunReport) {
-    for n in &r.nodes {
-        if n.status == Status::Failed {
-            let frame = n.frame.map(|f| format!(" frame {f}")).unwrap_or_default();
-            eprintln!(
-                "error: node `{}` ({}){frame} failed: {}",
-                n.id, n.node_type, n.reason
-            );
-        }
+    for line in failure_lines(r) {
+        eprintln!("{line}");
     }
     let skipped = r
         .nodes
@@ -51,6 +45,63 @@ pub fn print_failures(r: &RunReport) {
     if skipped > 0 {
         eprintln!("{skipped} instance(s) skipped because an input failed");
     }
+}
+
+/// Most distinct errors printed per node; the rest are counted.
+const ERRORS_PER_NODE: usize = 3;
+
+/// One line per distinct error of a node, with the frames that failed with it (a plate that
+/// cannot be decoded is one line, not one per frame), at most [`ERRORS_PER_NODE`] a node.
+fn failure_lines(r: &RunReport) -> Vec<String> {
+    // (node, reason) → frames, in report order.
+    let mut groups: Vec<(&str, &str, &str, Vec<i64>, bool)> = Vec::new();
+    for n in r.nodes.iter().filter(|n| n.status == Status::Failed) {
+        match groups.iter_mut().find(|g| g.0 == n.id && g.2 == n.reason) {
+            Some(g) => g.3.extend(n.frame),
+            None => groups.push((
+                &n.id,
+                &n.node_type,
+                &n.reason,
+                n.frame.into_iter().collect(),
+                n.frame.is_none(),
+            )),
+        }
+    }
+    let mut out = Vec::new();
+    let mut shown: Vec<(&str, usize)> = Vec::new();
+    for (id, ty, reason, frames, once) in &groups {
+        let count = match shown.iter_mut().find(|s| s.0 == *id) {
+            Some(s) => {
+                s.1 += 1;
+                s.1
+            }
+            None => {
+                shown.push((id, 1));
+                1
+            }
+        };
+        if count > ERRORS_PER_NODE {
+            continue;
+        }
+        let at = match (once, frames.len()) {
+            (true, _) | (_, 0) => String::new(),
+            (_, 1) => format!(" frame {}", frames[0]),
+            (_, k) => format!(
+                " frames {} ({k} frames)",
+                vfxgraph_engine::FrameSet::from_frames(frames.clone())
+            ),
+        };
+        out.push(format!("error: node `{id}` ({ty}){at} failed: {reason}"));
+    }
+    for (id, k) in shown {
+        if k > ERRORS_PER_NODE {
+            out.push(format!(
+                "… and {} more distinct errors of node `{id}` (`--json` lists every instance)",
+                k - ERRORS_PER_NODE
+            ));
+        }
+    }
+    out
 }
 
 /// The closing table: node, instances, cached, ran, failed, seconds.
@@ -299,4 +350,53 @@ pub fn print_cache_du(store: &Store) {
         files,
         human_bytes(bytes)
     );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use vfxgraph_engine::exec::InstanceReport;
+
+    fn failed(id: &str, frame: Option<i64>, reason: &str) -> InstanceReport<Status> {
+        InstanceReport {
+            id: id.into(),
+            node_type: "read_video".into(),
+            frame,
+            status: Status::Failed,
+            reason: reason.into(),
+            seconds: 0.0,
+        }
+    }
+
+    #[test]
+    fn one_error_line_per_node_and_reason_with_its_frames() {
+        let mut nodes: Vec<_> = (0..40)
+            .map(|f| failed("plate", Some(f), "clip.mp4: unsupported codec"))
+            .collect();
+        nodes.push(failed("plate", Some(41), "clip.mp4: frame 41 is corrupt"));
+        nodes.push(failed("solve", None, "no start"));
+        for k in 0..5 {
+            nodes.push(failed("grade", Some(k), &format!("error {k}")));
+        }
+        let r = RunReport {
+            nodes,
+            wall_seconds: 0.0,
+        };
+        let lines = failure_lines(&r);
+        assert_eq!(
+            lines[0],
+            "error: node `plate` (read_video) frames 0-39 (40 frames) failed: clip.mp4: \
+             unsupported codec"
+        );
+        assert_eq!(
+            lines[1],
+            "error: node `plate` (read_video) frame 41 failed: clip.mp4: frame 41 is corrupt"
+        );
+        assert_eq!(
+            lines[2],
+            "error: node `solve` (read_video) failed: no start"
+        );
+        assert_eq!(lines.len(), 3 + 3 + 1, "{lines:#?}");
+        assert!(lines[6].starts_with("… and 2 more distinct errors of node `grade`"));
+    }
 }
