@@ -90,13 +90,20 @@ impl Reader {
     }
 }
 
-/// The last opened video (the file is parsed once for all the frames of a run); keyed by
-/// path, size, modification time and backend.
-type Opened = Option<(PathBuf, u64, Option<SystemTime>, Backend, Arc<Reader>)>;
+/// The last opened video (the file is parsed once for all the frames of a run) — or why it
+/// could not be opened (a clip in a codec no backend reads fails once, not once a frame);
+/// keyed by path, size, modification time and backend.
+type Opened = Option<(
+    PathBuf,
+    u64,
+    Option<SystemTime>,
+    Backend,
+    Result<Arc<Reader>, Arc<VideoError>>,
+)>;
 static OPEN: Mutex<Opened> = Mutex::new(None);
 
-/// `path` opened with `backend`, or the reader opened last when it is the same file (path,
-/// size and modification time) and backend.
+/// `path` opened with `backend`, or the reader opened last (or the error it gave) when it is
+/// the same file (path, size and modification time) and backend.
 pub fn open_shared(path: &Path, backend: Backend) -> Result<Arc<Reader>, VideoError> {
     let meta = std::fs::metadata(path).map_err(|source| VideoError::Io {
         path: path.to_path_buf(),
@@ -106,12 +113,12 @@ pub fn open_shared(path: &Path, backend: Backend) -> Result<Arc<Reader>, VideoEr
     let mut guard = OPEN.lock().unwrap_or_else(|p| p.into_inner());
     if let Some((p, l, m, b, v)) = guard.as_ref() {
         if p == path && *l == len && *m == mtime && *b == backend {
-            return Ok(v.clone());
+            return v.clone().map_err(|e| e.replay());
         }
     }
-    let v = Arc::new(Reader::open(path, backend)?);
+    let v = Reader::open(path, backend).map(Arc::new).map_err(Arc::new);
     *guard = Some((path.to_path_buf(), len, mtime, backend, v.clone()));
-    Ok(v)
+    v.map_err(|e| e.replay())
 }
 
 /// The options of writing a video (the `write_video` node's params besides its path).
@@ -189,4 +196,32 @@ pub fn write_video(
         matrix_from_stream: true,
     };
     write_mp4(path, &mapped, o.fps, o.keyframe_interval, o.quality, color)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A file no backend reads fails with the same error for every frame, from the one open
+    /// attempt; once the file changes it is opened again.
+    #[test]
+    fn a_failed_open_is_remembered_until_the_file_changes() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("clip.mp4");
+        std::fs::write(&p, b"not a video at all").unwrap();
+        let first = open_shared(&p, Backend::Native).err().unwrap().to_string();
+        assert!(first.contains("clip.mp4"), "{first}");
+        for _ in 0..3 {
+            let again = open_shared(&p, Backend::Native).err().unwrap().to_string();
+            assert_eq!(again, first);
+        }
+        let guard = OPEN.lock().unwrap();
+        assert!(matches!(guard.as_ref(), Some((q, _, _, _, Err(_))) if q == &p));
+        drop(guard);
+        std::fs::write(&p, b"still not a video, but longer").unwrap();
+        let changed = open_shared(&p, Backend::Native).err().unwrap().to_string();
+        assert!(changed.contains("clip.mp4"));
+        let guard = OPEN.lock().unwrap();
+        assert!(matches!(guard.as_ref(), Some((_, l, _, _, Err(_))) if *l == 29));
+    }
 }

@@ -114,6 +114,50 @@ pub enum VideoError {
     },
 }
 
+impl VideoError {
+    /// The same error again (for a cached failure: `std::io::Error` is not `Clone`, so an I/O
+    /// error keeps its kind and message).
+    pub fn replay(&self) -> VideoError {
+        use VideoError::*;
+        match self {
+            Io { path, source } => Io {
+                path: path.clone(),
+                source: std::io::Error::new(source.kind(), source.to_string()),
+            },
+            Container { path, message } => Container {
+                path: path.clone(),
+                message: message.clone(),
+            },
+            Unsupported { path, message } => Unsupported {
+                path: path.clone(),
+                message: message.clone(),
+            },
+            Decode {
+                path,
+                frame,
+                message,
+            } => Decode {
+                path: path.clone(),
+                frame: *frame,
+                message: message.clone(),
+            },
+            FrameOutOfRange { path, frame, count } => FrameOutOfRange {
+                path: path.clone(),
+                frame: *frame,
+                count: *count,
+            },
+            Unavailable { path } => Unavailable { path: path.clone() },
+            Invalid { message } => Invalid {
+                message: message.clone(),
+            },
+            Encode { path, message } => Encode {
+                path: path.clone(),
+                message: message.clone(),
+            },
+        }
+    }
+}
+
 /// One video sample (an access unit) in the file.
 #[derive(Clone, Copy, Debug)]
 struct SampleRef {
