@@ -84,6 +84,23 @@ def write(dir_):
                 _, f = float_read(path)
                 f.tofile(path + ".f32")
                 cases[name] = {"width": w, "height": h, "channels": ch, "bits": bits}
+    # Photographs with a camera's focal length in EXIF: the focal plane's resolution (an APS-C
+    # sensor 23.5 mm across at 600 px, a 35 mm lens), and a phone's 35 mm equivalent (26 mm).
+    for name, (w, h), attrs in (
+        ("camera.jpg", (600, 400), {"Exif:FocalLength": 35.0,
+                                    "Exif:FocalPlaneXResolution": 600 / 2.35,
+                                    "Exif:FocalPlaneYResolution": 600 / 2.35,
+                                    "Exif:FocalPlaneResolutionUnit": 3}),
+        ("phone.jpg", (400, 300), {"Exif:FocalLength": 4.2, "Exif:FocalLengthIn35mmFilm": 26}),
+    ):
+        spec = oiio.ImageSpec(w, h, 3, "uint8")
+        for k, v in attrs.items():
+            spec.attribute(k, v)
+        path = os.path.join(dir_, name)
+        out = oiio.ImageOutput.create(path)
+        if not out.open(path, spec) or not out.write_image(np.zeros((h, w, 3), np.uint8)):
+            raise SystemExit("OpenImageIO cannot write %s: %s" % (path, out.geterror()))
+        out.close()
     with open(os.path.join(dir_, "cases.json"), "w") as fh:
         json.dump(cases, fh, indent=1)
 

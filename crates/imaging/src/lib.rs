@@ -43,6 +43,7 @@ mod error;
 pub mod hdr;
 pub mod image;
 pub mod io;
+pub mod metadata;
 pub mod tonemap;
 
 pub use crate::blur::{blur, BlurOptions};

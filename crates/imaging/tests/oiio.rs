@@ -306,3 +306,26 @@ fn tiff_files_agree_with_openimageio_both_ways() {
         }
     }
 }
+
+/// The focal length in JPEGs whose EXIF OpenImageIO wrote: the focal plane's resolution (35 mm
+/// on a 23.5 mm sensor 600 px across: 893.6 px) and a phone's 35 mm equivalent (26 mm on a
+/// 400 × 300 frame: the same diagonal field of view as 26 mm on 36 × 24 mm).
+#[test]
+fn exif_focal_lengths_written_by_openimageio() {
+    use vfxgraph_imaging::metadata::{camera_focal, FocalSource};
+    if !have_oiio() {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    oiio("write", tmp.path());
+    let f = camera_focal(&fs::read(tmp.path().join("camera.jpg")).unwrap(), 600, 400).unwrap();
+    assert_eq!(f.source, FocalSource::FocalPlane);
+    let want = 35.0 * 600.0 / 23.5;
+    assert!((f.pixels - want).abs() < 1e-4 * want, "{f:?}: {want}");
+    let f = camera_focal(&fs::read(tmp.path().join("phone.jpg")).unwrap(), 400, 300).unwrap();
+    assert_eq!(f.source, FocalSource::Equivalent35mm);
+    let fov = 2.0 * (36f64.hypot(24.0) / 2.0 / 26.0).atan();
+    let ours = 2.0 * (500.0 / 2.0 / f.pixels).atan();
+    assert!((fov - ours).abs() < 1e-9, "{fov} {ours}");
+    assert!((f.millimetres.unwrap() - 4.2).abs() < 1e-6);
+}

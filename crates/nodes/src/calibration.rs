@@ -1,5 +1,6 @@
 //! Camera calibration nodes (book chapters 2–5): `read_intrinsics`, `read_points2d`,
-//! `read_points3d`, `calibrate_camera`, `two_view`, `write_camera`, `write_report`.
+//! `read_points3d`, `calibrate_camera`, `two_view`, `write_camera`, `write_report`, and
+//! `intrinsics_from_metadata` (K from a photograph's EXIF focal length).
 
 use vfxgraph_engine::{ArtifactType, Context, Mode, NodeError, NodeSpec, PortSpec, Registry};
 use vfxgraph_vision::calibration::{calibrate_camera, CalibrateParams};
@@ -33,8 +34,39 @@ fn file_reader(
         .output(port)
 }
 
+/// K of a photograph or plate frame from its EXIF focal length
+/// ([`vfxgraph_imaging::metadata::camera_focal`]), square pixels, the principal point at the
+/// image's centre, its size set.
+fn run_intrinsics_from_metadata(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+    let path = ctx.path("path");
+    let img = vfxgraph_imaging::io::read_image(&path)?;
+    let bytes = std::fs::read(&path)
+        .map_err(|e| NodeError::msg(format!("cannot read {}: {e}", path.display())))?;
+    let f = vfxgraph_imaging::metadata::camera_focal(&bytes, img.width, img.height)
+        .map_err(|e| NodeError::msg(format!("{}: {e}", path.display())))?;
+    let (w, h) = (img.width as f64, img.height as f64);
+    let k = vfxgraph_vision::Intrinsics::new(f.pixels, f.pixels, (w - 1.0) / 2.0, (h - 1.0) / 2.0)
+        .with_size(img.width as u32, img.height as u32);
+    ctx.output("intrinsics", IntrinsicsArt(k));
+    Ok(())
+}
+
 /// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
+    r.register_fn(
+        file_reader(
+            "intrinsics_from_metadata",
+            "K from the focal length a camera recorded in an image's EXIF (the focal plane's \
+             resolution, else the 35 mm equivalent): a start for `matchmove` (`focal: refine`) \
+             on footage shot without a calibration; square pixels, principal point at the \
+             centre, the image's size.",
+            "a photograph or frame of the shot with EXIF (JPEG, TIFF, PNG)",
+            PortSpec::of::<IntrinsicsArt>("intrinsics", "K from the metadata"),
+        )
+        .threads(vfxgraph_engine::Threads::One)
+        .memory(vfxgraph_engine::Memory::Fixed(512)),
+        run_intrinsics_from_metadata,
+    );
     r.register_fn(
         file_reader(
             "read_intrinsics",
@@ -182,6 +214,66 @@ mod tests {
             points3d: Points3d(pts),
             points2d: Points2d(obs),
         }
+    }
+
+    /// K from a JPEG whose EXIF gives a phone's 35 mm equivalent (26 mm on 40 × 30 px: the
+    /// 36 × 24 mm frame's diagonal field of view): f = 26 · 50 / 43.267 px, centred.
+    #[test]
+    fn intrinsics_from_metadata_reads_the_exif_focal_length() {
+        use exif::experimental::Writer;
+        use exif::{Field, In, Tag};
+        let mut w = Writer::new();
+        let f35 = Field {
+            tag: Tag::FocalLengthIn35mmFilm,
+            ifd_num: In::PRIMARY,
+            value: exif::Value::Short(vec![26]),
+        };
+        w.push_field(&f35);
+        let mut tiff = std::io::Cursor::new(Vec::new());
+        w.write(&mut tiff, false).unwrap();
+        let mut app1 = b"Exif\0\0".to_vec();
+        app1.extend(tiff.into_inner());
+        let jpeg = vfxgraph_imaging::io::encode(
+            &vfxgraph_imaging::Image::new(40, 30, 3),
+            vfxgraph_imaging::Format::Jpeg,
+        )
+        .unwrap();
+        // SOI, then the APP1 segment, then the rest of the JPEG.
+        let mut bytes = jpeg[..2].to_vec();
+        bytes.extend([0xFF, 0xE1]);
+        bytes.extend(((app1.len() + 2) as u16).to_be_bytes());
+        bytes.extend(app1);
+        bytes.extend(&jpeg[2..]);
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("frame.jpg"), bytes).unwrap();
+        let s = spec("intrinsics_from_metadata");
+        let p = params(&s, &[("path", ParamValue::Str("frame.jpg".into()))]);
+        let mut ctx = Context::for_test(&s, &p, dir.path(), None, vec![]);
+        run_intrinsics_from_metadata(&mut ctx).unwrap();
+        let k = ctx.take_output::<IntrinsicsArt>("intrinsics").unwrap().0;
+        let want = 26.0 * 50.0 / 36f64.hypot(24.0);
+        assert!(
+            (k.f1 - want).abs() < 1e-9 && (k.f2 - want).abs() < 1e-9,
+            "{k:?}"
+        );
+        assert_eq!((k.u0, k.v0), (19.5, 14.5));
+        assert_eq!((k.width, k.height), (Some(40), Some(30)));
+        // Without EXIF: an error naming the file.
+        std::fs::write(
+            dir.path().join("bare.jpg"),
+            vfxgraph_imaging::io::encode(
+                &vfxgraph_imaging::Image::new(4, 4, 3),
+                vfxgraph_imaging::Format::Jpeg,
+            )
+            .unwrap(),
+        )
+        .unwrap();
+        let p = params(&s, &[("path", ParamValue::Str("bare.jpg".into()))]);
+        let mut ctx = Context::for_test(&s, &p, dir.path(), None, vec![]);
+        let e = run_intrinsics_from_metadata(&mut ctx)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("bare.jpg") && e.contains("no EXIF"), "{e}");
     }
 
     #[test]
