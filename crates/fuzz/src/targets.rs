@@ -358,6 +358,8 @@ pub fn all() -> Vec<Target> {
             Png
         ),
         image_target!("jpeg", "JPEG (imaging::decode)", Jpeg),
+        image_target!("dpx", "DPX (imaging::decode)", Dpx),
+        image_target!("tiff", "TIFF (imaging::decode, the tiff crate inside)", Tiff),
         Target {
             name: "mp4",
             what: "H.264 MP4 (video::Video::from_bytes, then the first and last frames)",
@@ -840,6 +842,34 @@ fn image_seeds(d: &SeedDirs, format: Format) -> Vec<Seed> {
             Format::Jpeg => {
                 add("-q90", vfxgraph_imaging::io::encode_jpeg(img, 90));
                 add("-q20", vfxgraph_imaging::io::encode_jpeg(img, 20));
+            }
+            Format::Dpx => {
+                use vfxgraph_imaging::io::dpx::{encode, DpxOptions, Transfer};
+                for bits in [8, 10, 12, 16] {
+                    for transfer in [Transfer::PrintingDensity, Transfer::Linear] {
+                        let o = DpxOptions { bits, transfer };
+                        add(&format!("-{bits}-{}", transfer.code()), encode(img, &o));
+                    }
+                }
+            }
+            Format::Tiff => {
+                use vfxgraph_imaging::io::tiff::{encode, TiffCompression, TiffDepth, TiffOptions};
+                for (di, depth) in [TiffDepth::U8, TiffDepth::U16, TiffDepth::F32]
+                    .into_iter()
+                    .enumerate()
+                {
+                    for (ci, compression) in [
+                        TiffCompression::None,
+                        TiffCompression::Lzw,
+                        TiffCompression::Deflate,
+                    ]
+                    .into_iter()
+                    .enumerate()
+                    {
+                        let o = TiffOptions { depth, compression };
+                        add(&format!("-d{di}c{ci}"), encode(img, &o));
+                    }
+                }
             }
             other => add("", vfxgraph_imaging::encode(img, other)),
         }

@@ -87,6 +87,10 @@ pub struct ExrOptions {
     pub compression: ExrCompression,
 }
 
+/// The largest display window (in RGBA samples: 8192 × 8192) decoded around a smaller data
+/// window: 1 GiB as f32, the bound every reader of a user file is fuzzed against.
+const ZERO_FILLED_SAMPLES: u128 = 1 << 28;
+
 fn err(reason: impl Into<String>) -> ImageError {
     ImageError::decode(Format::Exr, reason)
 }
@@ -160,6 +164,18 @@ pub fn decode_layer(bytes: &[u8], name: &str) -> Result<Image, ImageError> {
             .map_err(|e| err(format!("window too large: {e}")))?;
         if size.0 == 0 || size.1 == 0 {
             return Err(err("empty display window"));
+        }
+        // The display window is zero-filled around the data window, and nothing in the file
+        // codes that: a frame larger than its data window is bounded by ZERO_FILLED_SAMPLES
+        // (a 1 KB file declared a display window 16 M pixels wide around 9 × 5 of data).
+        let display = size.0 as u128 * size.1 as u128 * 4;
+        let data = h.layer_size.0 as u128 * h.layer_size.1 as u128 * 4;
+        if display > data && display > ZERO_FILLED_SAMPLES {
+            return Err(err(format!(
+                "display window {}x{} around a data window {}x{}: the zero-filled frame is \
+                 over {ZERO_FILLED_SAMPLES} samples",
+                size.0, size.1, h.layer_size.0, h.layer_size.1
+            )));
         }
         // The decoder sizes the data window's samples before reading a block: refuse a window
         // the file is too short to hold at its compression's best ratio.
@@ -928,6 +944,17 @@ mod tests {
         forged[at + 8..at + 12].copy_from_slice(&i32::MAX.to_le_bytes());
         forged[at + 12..at + 16].copy_from_slice(&i32::MAX.to_le_bytes());
         assert!(decode(&forged).is_err());
+        // A display window of 16 M × 5 pixels zero-filled around 4 × 4 of data (1.3 GB as
+        // f32, the fuzzer's find) is refused; 8192 × 8192 around it is decoded.
+        for (x1, ok) in [(1 << 24, false), (8191, true)] {
+            let mut forged = bytes.clone();
+            forged[at + 8..at + 12].copy_from_slice(&(x1 as i32).to_le_bytes());
+            forged[at + 12..at + 16].copy_from_slice(&(if ok { 8191i32 } else { 4 }).to_le_bytes());
+            match decode(&forged) {
+                Ok(img) => assert!(ok && img.width == 8192 && img.height == 8192),
+                Err(e) => assert!(!ok && e.to_string().contains("zero-filled"), "{e}"),
+            }
+        }
         // Not an EXR at all.
         assert!(decode(b"\x76\x2f\x31").is_err());
         assert!(decode(b"PF\n1 1\n-1\n").is_err());
