@@ -359,7 +359,11 @@ pub fn all() -> Vec<Target> {
         ),
         image_target!("jpeg", "JPEG (imaging::decode)", Jpeg),
         image_target!("dpx", "DPX (imaging::decode)", Dpx),
-        image_target!("tiff", "TIFF (imaging::decode, the tiff crate inside)", Tiff),
+        image_target!(
+            "tiff",
+            "TIFF (imaging::decode, the tiff crate inside)",
+            Tiff
+        ),
         Target {
             name: "mp4",
             what: "H.264 MP4 (video::Video::from_bytes, then the first and last frames)",

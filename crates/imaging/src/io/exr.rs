@@ -946,9 +946,9 @@ mod tests {
         assert!(decode(&forged).is_err());
         // A display window of 16 M × 5 pixels zero-filled around 4 × 4 of data (1.3 GB as
         // f32, the fuzzer's find) is refused; 8192 × 8192 around it is decoded.
-        for (x1, ok) in [(1 << 24, false), (8191, true)] {
+        for (x1, ok) in [(1i32 << 24, false), (8191, true)] {
             let mut forged = bytes.clone();
-            forged[at + 8..at + 12].copy_from_slice(&(x1 as i32).to_le_bytes());
+            forged[at + 8..at + 12].copy_from_slice(&x1.to_le_bytes());
             forged[at + 12..at + 16].copy_from_slice(&(if ok { 8191i32 } else { 4 }).to_le_bytes());
             match decode(&forged) {
                 Ok(img) => assert!(ok && img.width == 8192 && img.height == 8192),
