@@ -165,6 +165,10 @@ pub fn print_plan(p: &PlanReport) {
                     .or_default()
                     .push(n.frame.unwrap_or(0));
             }
+            // By their first frame, in numeric order (not the reasons' text order, which put
+            // "frame 100" before "frame 20").
+            let mut reasons: Vec<(&str, Vec<i64>)> = reasons.into_iter().collect();
+            reasons.sort_by_key(|(_, frames)| frames.iter().min().copied());
             for (reason, frames) in reasons {
                 let set = vfxgraph_engine::FrameSet::from_frames(frames);
                 println!("{:<16}   frames {set}: {reason}", "");

@@ -1064,3 +1064,40 @@ fn cache_gc_during_a_farm_run_keeps_what_its_tasks_need() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(entries(&g.parent().unwrap().join("cache")).is_empty());
 }
+
+/// `plan`'s per-frame reasons are listed by frame, in numeric order (they were in text order:
+/// 0, 100, 120, 20, 5).
+#[test]
+fn plan_lists_frames_in_numeric_order() {
+    let tmp = tempfile::tempdir().unwrap();
+    let g = shot(tmp.path());
+    let out = vfx(
+        &g,
+        &[
+            "plan",
+            "farm_shot.yaml",
+            "--cache",
+            "cache",
+            "--frames",
+            "0,5,20,100,120",
+        ],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout).into_owned();
+    // The lines under `graded`: one per frame (each waits on the render of its frame).
+    let frames: Vec<i64> = text
+        .lines()
+        .skip_while(|l| !l.starts_with("graded "))
+        .skip(1)
+        .take_while(|l| l.starts_with(' '))
+        .map(|l| {
+            let f = l.trim().strip_prefix("frames ").unwrap();
+            f.split(':').next().unwrap().parse().unwrap()
+        })
+        .collect();
+    assert_eq!(frames, [0, 5, 20, 100, 120], "{text}");
+}
