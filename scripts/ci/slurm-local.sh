@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # A one-node Slurm cluster on this machine, for the farm tests (tests/farm.rs) and benchmarks:
-#   scripts/ci/slurm-local.sh start   # munged (if not running), slurmctld, slurmd; waits idle
+#   scripts/ci/slurm-local.sh start   # munged (if not running), slurmctld, slurmd; waits idle,
+#                                     # then checks both daemons stay up (exit 1 and their
+#                                     # logs' tails if not, e.g. another Slurm holds the ports)
 #   scripts/ci/slurm-local.sh stop    # stops only the daemons this script started
 #   scripts/ci/slurm-local.sh env     # prints `export SLURM_CONF=…` for the shell
 # Idempotent. Runs as root without systemd (Debian's slurm-wlm + munge). Everything it writes
@@ -19,7 +21,42 @@ cpus="${VFXGRAPH_SLURM_CPUS:-$(nproc)}"
 mem="$(awk '/^MemTotal:/ {print int($2 / 1024 * 0.95)}' /proc/meminfo)"
 export SLURM_CONF="$conf"
 
-alive() { [ -f "$1" ] && kill -0 "$(cat "$1" 2>/dev/null)" 2>/dev/null; }
+# True when pid file $1 names a live process of daemon $2 (default: the file's name), not
+# another process that reused a dead daemon's pid.
+alive() {
+  local pid name="${2:-$(basename "$1" .pid)}"
+  pid="$(cat "$1" 2>/dev/null)" || return 1
+  [ -n "$pid" ] && kill -0 "$pid" 2>/dev/null || return 1
+  [ "$(cat "/proc/$pid/comm" 2>/dev/null)" = "$name" ]
+}
+
+# The controller that answers on our config is ours: its state folder is ours (another
+# cluster on the same ports would answer with its own).
+ours_answers() {
+  local state
+  state="$(scontrol show config 2>/dev/null | awk -F' = ' '$1 ~ /^StateSaveLocation/ {print $2}')"
+  [ "$state" = "$dir/state" ]
+}
+
+# The size of daemon $1's log, so a failure shows only what this start logged.
+log_size() { stat -c %s "$dir/log/$1.log" 2>/dev/null || echo 0; }
+declare -A log_from=([slurmctld]=0 [slurmd]=0)
+
+# The last lines our daemons logged since this start, on stderr.
+log_tails() {
+  for d in slurmctld slurmd; do
+    echo "--- $dir/log/$d.log (the last 15 lines of this start)" >&2
+    tail -c +"$((log_from[$d] + 1))" "$dir/log/$d.log" 2>/dev/null | tail -n 15 >&2 || true
+  done
+}
+
+# Fails (log tails, the daemons this call started stopped, exit 1) with message $1.
+fail() {
+  echo "slurm-local: $1" >&2
+  log_tails
+  if [ "${started:-0}" = 1 ]; then stop_slurm; fi
+  exit 1
+}
 
 write_conf() {
   mkdir -p "$dir"/{state,spool,log}
@@ -95,18 +132,41 @@ stop_slurm() {
 start() {
   write_conf
   start_munge
-  alive "$dir/slurmctld.pid" || slurmctld -f "$conf"
-  alive "$dir/slurmd.pid" || slurmd -f "$conf"
+  started=0
+  if alive "$dir/slurmctld.pid" && alive "$dir/slurmd.pid"; then
+    echo "slurm: already running from $dir (slurmctld $(cat "$dir/slurmctld.pid"), slurmd $(cat "$dir/slurmd.pid"))"
+  else
+    started=1
+    for d in slurmctld slurmd; do
+      if ! alive "$dir/$d.pid"; then
+        log_from[$d]="$(log_size "$d")"
+        "$d" -f "$conf" || fail "$d -f $conf failed to start"
+      fi
+    done
+  fi
+  local state="" up=0
   for _ in $(seq 100); do
-    state="$(sinfo -h -N -o %t 2>/dev/null | head -n1 || true)"
+    state="$(sinfo -h -N -n "$host" -o %t 2>/dev/null | head -n1 || true)"
     case "$state" in
-      idle|mix|alloc) echo "slurm: node $host ($cpus CPUs) $state; export SLURM_CONF=$conf"; return 0 ;;
+      idle|mix|alloc) up=1; break ;;
       down*|drain*) scontrol update nodename="$host" state=resume 2>/dev/null || true ;;
     esac
     sleep 0.2
   done
-  echo "slurm did not come up; logs in $dir/log" >&2
-  exit 1
+  [ "$up" = 1 ] || fail "node $host did not come up (state '${state:-no answer}')"
+  # A daemon that cannot bind its port (another Slurm holds it) dies a moment after it
+  # forked, while the other cluster answers `sinfo`: the daemons must still be alive after a
+  # couple of seconds, and the controller answering must be ours.
+  sleep 2
+  for d in slurmctld slurmd; do
+    alive "$dir/$d.pid" || fail "$d is not running (pid file $dir/$d.pid)"
+  done
+  ours_answers || fail "the controller answering on $conf is not this one (state $dir/state): another Slurm on this host's ports?"
+  state="$(sinfo -h -N -n "$host" -o %t 2>/dev/null | head -n1 || true)"
+  case "$state" in
+    idle|mix|alloc) echo "slurm: node $host ($cpus CPUs) $state; export SLURM_CONF=$conf" ;;
+    *) fail "node $host is ${state:-not answering} after the start" ;;
+  esac
 }
 
 stop() {
