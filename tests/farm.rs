@@ -1,12 +1,13 @@
-//! Render farms (issue 16) on a real one-node Slurm cluster (`scripts/ci/slurm-local.sh
-//! start`) and a real `openjd run`: the small shot `graphs/farm_shot.yaml` (per-frame renders,
-//! grade and EXR writes, a whole-sequence MP4) submitted and compared with a local run, the
-//! per-chunk dependencies read from Slurm's start times, a task killed halfway and resubmitted,
-//! and bad input. Under `CI=true` a missing Slurm or openjd fails; elsewhere the test prints a
-//! notice and returns.
+//! Render farms on a real one-node Slurm cluster (`scripts/ci/slurm-local.sh start`) and a
+//! real `openjd run`: the small shot `graphs/farm_shot.yaml` (per-frame renders, grade and EXR
+//! writes, a whole-sequence MP4) submitted and compared with a local run, the per-chunk
+//! dependencies read from Slurm's start times, a task killed halfway and resubmitted, a second
+//! submit while the first is queued, the submission records `status` reads, the `--dry-run`
+//! script run by `sh` with a fake `sbatch`, and bad input. Under `CI=true` a missing Slurm or
+//! openjd fails; elsewhere the test prints a notice and returns.
 //!
-//! The Slurm tests share one cluster (and one of them takes its partition down for a moment),
-//! so they run one at a time (`CLUSTER`).
+//! The Slurm tests share one cluster (and some take its partition down for a while, so that
+//! their jobs stay queued), so they run one at a time (`CLUSTER`).
 
 mod common;
 
@@ -280,7 +281,9 @@ fn tasks_of(jobs: &[Json]) -> Vec<(String, u64)> {
 fn task_logs(cache: &Path) -> Vec<(String, String)> {
     fs::read_dir(cache.join("farm"))
         .unwrap()
-        .flat_map(|d| fs::read_dir(d.unwrap().path().join("logs")).unwrap())
+        .map(|d| d.unwrap().path())
+        .filter(|d| d.is_dir())
+        .flat_map(|d| fs::read_dir(d.join("logs")).unwrap())
         .map(|f| {
             let f = f.unwrap();
             let text = fs::read_to_string(f.path()).unwrap();
@@ -914,8 +917,9 @@ fn slurm_mem(graph: &Path, set: &[&str]) -> BTreeMap<String, Option<u64>> {
     );
     let text = String::from_utf8_lossy(&out.stdout).into_owned();
     let mut mem = BTreeMap::new();
-    for script in format!("\n{text}").split("\n# ").skip(1) {
-        let node = script.split('/').nth(1).unwrap().to_string();
+    // The script's jobs: each starts with a `# farm_shot/<node>/<frames>` line.
+    for script in format!("\n{text}").split("\n# farm_shot/").skip(1) {
+        let node = script.split('/').next().unwrap().to_string();
         let m = script.lines().find_map(|l| {
             l.strip_prefix("#SBATCH --mem=")
                 .map(|v| v.trim_end_matches('M').parse().unwrap())
@@ -1100,4 +1104,479 @@ fn plan_lists_frames_in_numeric_order() {
         })
         .collect();
     assert_eq!(frames, [0, 5, 20, 100, 120], "{text}");
+}
+
+/// `submit … --json`: the whole answer.
+fn submit_all(graph: &Path, extra: &[&str]) -> Json {
+    let mut args = vec![
+        "submit",
+        "farm_shot.yaml",
+        "--farm",
+        "slurm",
+        "--cache",
+        "cache",
+    ];
+    args.extend_from_slice(extra);
+    args.push("--json");
+    ok_json(graph, &args)
+}
+
+/// `status … --json`: the whole answer.
+fn status_all(graph: &Path, extra: &[&str]) -> Json {
+    let mut args = vec!["status", "farm_shot.yaml", "--cache", "cache", "--json"];
+    args.extend_from_slice(extra);
+    ok_json(graph, &args)
+}
+
+/// The JSON file at `path` (a string value of a submit's answer).
+fn json_file(path: &Json) -> Json {
+    let p = path.as_str().unwrap_or_else(|| panic!("no path: {path}"));
+    serde_json::from_str(&fs::read_to_string(p).unwrap()).unwrap()
+}
+
+/// The job ids of a submit's answer or of a record, in order.
+fn job_ids(v: &Json) -> Vec<String> {
+    v["jobs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|j| j["job_id"].as_str().unwrap().to_string())
+        .collect()
+}
+
+/// The graph's tasks in Slurm's queue (one per array task).
+fn queued_tasks() -> usize {
+    let out = slurm(&["-h", "-r", "-o", "%j"], "squeue");
+    String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .filter(|l| l.starts_with("farm_shot/"))
+        .count()
+}
+
+/// The local cluster's partition down until dropped (also when a test fails halfway, so the
+/// next test finds it up).
+struct Down;
+
+impl Down {
+    fn new() -> Down {
+        partition("down");
+        Down
+    }
+}
+
+impl Drop for Down {
+    fn drop(&mut self) {
+        let o = slurm(&["update", "partitionname=farm", "state=up"], "scontrol");
+        if !o.status.success() {
+            eprintln!(
+                "cannot take the partition up: {}",
+                String::from_utf8_lossy(&o.stderr)
+            );
+        }
+    }
+}
+
+/// One node's line of a `status --json` answer.
+fn node_line(st: &Json, node: &str) -> Json {
+    st["nodes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|n| n["id"] == node)
+        .unwrap_or_else(|| panic!("no node {node}: {st}"))
+        .clone()
+}
+
+/// A submit while an earlier one's tasks are queued submits only what neither has: nothing
+/// for the same selection; for a changed grade, only the grade and what reads it, waiting for
+/// the earlier renders; the earlier tasks that left the queue without their outputs (a
+/// cancelled movie) again. Each submission records its selection beside its scripts, and
+/// `status` without flags shows the latest one's.
+#[test]
+fn a_second_submit_while_the_first_is_queued_submits_only_what_neither_has() {
+    let _lock = CLUSTER.lock().unwrap_or_else(|e| e.into_inner());
+    if !slurm_up() {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let g = shot(tmp.path());
+    let cache = g.parent().unwrap().join("cache");
+    let sel = ["--chunk", "3", "--set", "plate.spp=2"];
+    // Nothing starts while the partition is down: every task stays queued.
+    let down = Down::new();
+    let first = submit_all(&g, &sel);
+    let first_ids = job_ids(&first);
+    assert_eq!(first_ids.len(), 6, "{first}");
+    assert_eq!(queued_tasks(), 12);
+    // Its record, beside its scripts: the selection, the farm, the jobs and the token.
+    let rec = json_file(&first["record"]);
+    assert_eq!(
+        Path::new(first["record"].as_str().unwrap()).parent(),
+        Some(Path::new(first["dir"].as_str().unwrap()))
+    );
+    assert_eq!(
+        (&rec["farm"], &rec["frames"], &rec["set"], &rec["chunk"]),
+        (
+            &Json::from("slurm"),
+            &Json::Null,
+            &serde_json::json!(["plate.spp=2"]),
+            &Json::from(3)
+        ),
+        "{rec}"
+    );
+    assert_eq!(job_ids(&rec), first_ids);
+    let token = rec["token"].as_str().unwrap().to_string();
+    assert!(cache.join("farm-tokens").join(&token).is_file());
+    let id = |v: &Json, n: &str| {
+        v["jobs"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|j| j["node"] == n)
+            .unwrap()["job_id"]
+            .as_str()
+            .unwrap()
+            .to_string()
+    };
+
+    // The same submit again: every instance is queued; nothing submitted, no folder named.
+    let again = submit_all(&g, &sel);
+    assert!(again["jobs"].as_array().unwrap().is_empty(), "{again}");
+    assert!(
+        again["dir"].is_null() && again["record"].is_null(),
+        "{again}"
+    );
+    let mut sorted = first_ids.clone();
+    sorted.sort();
+    assert_eq!(
+        again["left_to_queued"],
+        serde_json::json!({"instances": 27, "submissions": [token], "jobs": sorted})
+    );
+    assert_eq!(queued_tasks(), 12, "no task submitted twice");
+    let mut args = vec![
+        "submit",
+        "farm_shot.yaml",
+        "--farm",
+        "slurm",
+        "--cache",
+        "cache",
+    ];
+    args.extend(sel);
+    let text = String::from_utf8_lossy(&vfx(&g, &args).stdout).into_owned();
+    assert!(
+        text.starts_with(&format!(
+            "nothing to submit: every instance is cached, or one of 27 instance(s) that queued \
+             tasks of submission {token}"
+        )),
+        "{text}"
+    );
+    assert_eq!(queued_tasks(), 12);
+
+    // A grade of its own (its files elsewhere) on the same renders: only the grade and what
+    // reads it are submitted; the grade waits for the first submission's renders.
+    let own_sets = [
+        "--set",
+        "plate.spp=2",
+        "--set",
+        "graded.stops=1.0",
+        "--set",
+        "exr.path=out/stops1/graded.%04d.exr",
+        "--set",
+        "movie.path=out/stops1/graded.mp4",
+    ];
+    let second = submit_all(&g, &[&["--chunk", "3"][..], &own_sets].concat());
+    let jobs = second["jobs"].as_array().unwrap().clone();
+    let expect: Vec<(String, u64)> = [("graded", 3), ("exr", 3), ("movie", 1)]
+        .iter()
+        .map(|(n, t)| (n.to_string(), *t))
+        .collect();
+    assert_eq!(tasks_of(&jobs), expect, "{second}");
+    let graded = jobs.iter().find(|j| j["node"] == "graded").unwrap();
+    assert_eq!(
+        graded["dependency"],
+        format!("afterok:{}", id(&first, "plate")),
+        "{second}"
+    );
+    assert_eq!(second["left_to_queued"]["instances"], 10, "{second}");
+    assert_eq!(queued_tasks(), 12 + 7);
+
+    // The first's movie cancelled (as a failed task's dependants are): a submit of the
+    // first's selection submits it again, and nothing else, after the first's grade.
+    let movie = id(&first, "movie");
+    assert!(slurm(&[&movie], "scancel").status.success());
+    let t = Instant::now();
+    while queued_tasks() != 18 {
+        assert!(t.elapsed() < Duration::from_secs(60), "movie still queued");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let third = submit_all(&g, &sel);
+    let jobs = third["jobs"].as_array().unwrap().clone();
+    assert_eq!(tasks_of(&jobs), [("movie".to_string(), 1)], "{third}");
+    assert_eq!(
+        jobs[0]["dependency"],
+        format!("afterok:{}", id(&first, "graded")),
+        "{third}"
+    );
+    assert_eq!(queued_tasks(), 19);
+
+    // `status` without flags: the latest submission's selection (the first's).
+    let third_token = json_file(&third["record"])["token"].clone();
+    let st = status_all(&g, &[]);
+    assert_eq!(st["submission"]["token"], third_token, "{st}");
+    assert_eq!(
+        st["selection"]["set"],
+        serde_json::json!(["plate.spp=2"]),
+        "{st}"
+    );
+    let plate = node_line(&st, "plate");
+    assert_eq!(
+        (&plate["missing"], &plate["queued"]),
+        (&8.into(), &8.into())
+    );
+    drop(down);
+    wait_idle();
+    // Every instance of the latest submission's selection is cached; of the graph's own
+    // (4 samples) no render is; explicit flags win over the record.
+    for n in status_all(&g, &[])["nodes"].as_array().unwrap() {
+        assert_eq!(n["missing"], 0, "{n}");
+    }
+    for flags in [&["--submission", "none"][..], &["--set", "plate.spp=4"]] {
+        let st = status_all(&g, flags);
+        assert_eq!(node_line(&st, "plate")["cached"], 0, "{flags:?}: {st}");
+    }
+    for n in status_all(&g, &own_sets)["nodes"].as_array().unwrap() {
+        assert_eq!(n["missing"], 0, "the second's selection: {n}");
+    }
+    // The text names the submission and its selection.
+    let out = vfx(&g, &["status", "farm_shot.yaml", "--cache", "cache"]);
+    let text = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(
+        text.starts_with(&format!(
+            "submission {} (slurm, 1 job(s), ",
+            third_token.as_str().unwrap()
+        )) && text
+            .lines()
+            .next()
+            .unwrap()
+            .ends_with("): --set plate.spp=2"),
+        "{text}"
+    );
+}
+
+/// `status` without `--frames` and `--set` uses the latest submission's (here an OpenJD one,
+/// whose template nothing ran yet); flags given win, and `--submission none` is the graph's own
+/// selection.
+#[test]
+fn status_uses_the_latest_submissions_selection() {
+    let tmp = tempfile::tempdir().unwrap();
+    let g = shot(tmp.path());
+    let v = ok_json(
+        &g,
+        &[
+            "submit",
+            "farm_shot.yaml",
+            "--farm",
+            "openjd",
+            "--cache",
+            "cache",
+            "--frames",
+            "1-4",
+            "--set",
+            "plate.spp=2",
+            "--json",
+        ],
+    );
+    let rec = json_file(&v["record"]);
+    assert_eq!(
+        (&rec["farm"], &rec["frames"], &rec["set"], &rec["template"]),
+        (
+            &Json::from("openjd"),
+            &Json::from("1-4"),
+            &serde_json::json!(["plate.spp=2"]),
+            &v["template"]
+        ),
+        "{rec}"
+    );
+    // A task of it computes frame 2 of the render.
+    for args in [
+        &["--node", "path", "--node", "plate_scene"][..],
+        &["--node", "plate", "--frames", "2"],
+    ] {
+        let mut a = vec!["exec", "farm_shot.yaml", "--cache", "cache"];
+        a.extend(args);
+        a.extend(["--range", "1-4", "--set", "plate.spp=2"]);
+        let o = vfx(&g, &a);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let plate = |flags: &[&str]| {
+        let l = node_line(&status_all(&g, flags), "plate");
+        (
+            l["cached"].as_u64().unwrap(),
+            l["instances"].as_u64().unwrap(),
+        )
+    };
+    assert_eq!(plate(&[]), (1, 4), "the submission's frames and samples");
+    assert_eq!(plate(&["--frames", "1-8"]), (1, 8));
+    assert_eq!(plate(&["--set", "plate.spp=4"]), (0, 4));
+    assert_eq!(plate(&["--submission", "none"]), (0, 8));
+    let token = rec["token"].as_str().unwrap();
+    assert_eq!(plate(&["--submission", token]), (1, 4));
+    let o = vfx(
+        &g,
+        &[
+            "status",
+            "farm_shot.yaml",
+            "--cache",
+            "cache",
+            "--submission",
+            "x-1",
+        ],
+    );
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && e.contains("no submission x-1 in cache"),
+        "{e}"
+    );
+    let out = vfx(&g, &["status", "farm_shot.yaml", "--cache", "cache"]);
+    let text = String::from_utf8_lossy(&out.stdout).into_owned();
+    let first = text.lines().next().unwrap();
+    assert!(
+        first.starts_with(&format!("submission {token} (openjd, 6 job(s), "))
+            && first.ends_with("): --frames 1-4 --set plate.spp=2"),
+        "{text}"
+    );
+}
+
+/// `submit --fuse --dry-run` prints a sh script (job ids in `$job_1`, `$job_2`, …; a fused
+/// job's name holds `+`, which no variable may): `sh -n` accepts it, and `sh` runs it with a
+/// fake `sbatch`, submitting each job after the ones it reads and writing the token and the
+/// record the real submit writes.
+#[test]
+fn a_fused_slurm_dry_run_is_a_script_sh_runs() {
+    let tmp = tempfile::tempdir().unwrap();
+    let g = shot(tmp.path());
+    let out = vfx(
+        &g,
+        &[
+            "submit",
+            "farm_shot.yaml",
+            "--farm",
+            "slurm",
+            "--cache",
+            "cache",
+            "--chunk",
+            "3",
+            "--fuse",
+            "--dry-run",
+        ],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let cache = g.parent().unwrap().join("cache");
+    // (The plan opens the cache; the dry run submits and writes nothing.)
+    for d in ["farm", "farm-tokens"] {
+        assert!(!cache.join(d).exists(), "a dry run wrote {d}");
+    }
+    let script = tmp.path().join("submit.sh");
+    fs::write(&script, &out.stdout).unwrap();
+    let text = String::from_utf8_lossy(&out.stdout).into_owned();
+    let syntax = Command::new("sh").arg("-n").arg(&script).output().unwrap();
+    assert!(
+        syntax.status.success(),
+        "sh -n: {}\n{text}",
+        String::from_utf8_lossy(&syntax.stderr)
+    );
+    // A fake sbatch: logs its arguments, prints ids from 101 with a cluster name (as
+    // `--parsable` does on a federation).
+    let bin = tmp.path().join("bin");
+    fs::create_dir_all(&bin).unwrap();
+    let fake = bin.join("sbatch");
+    fs::write(
+        &fake,
+        "#!/bin/sh\nd=\"$FAKE_SBATCH_DIR\"\nn=$(cat \"$d/n\" 2>/dev/null || echo 100)\n\
+         n=$((n + 1))\necho \"$n\" > \"$d/n\"\necho \"$n $*\" >> \"$d/calls\"\necho \"$n;vfx\"\n",
+    )
+    .unwrap();
+    use std::os::unix::fs::PermissionsExt;
+    fs::set_permissions(&fake, fs::Permissions::from_mode(0o755)).unwrap();
+    let run = Command::new("sh")
+        .arg(&script)
+        .env(
+            "PATH",
+            format!(
+                "{}:{}",
+                bin.display(),
+                std::env::var("PATH").unwrap_or_default()
+            ),
+        )
+        .env("FAKE_SBATCH_DIR", tmp.path())
+        .current_dir(tmp.path())
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "sh: {}\n{text}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    // Each job once, after the jobs it reads: (id, dependency, job name of its script).
+    let calls: Vec<(String, String, String)> = fs::read_to_string(tmp.path().join("calls"))
+        .unwrap()
+        .lines()
+        .map(|l| {
+            let w: Vec<&str> = l.split(' ').collect();
+            let dep = w
+                .iter()
+                .find_map(|a| a.strip_prefix("--dependency="))
+                .unwrap_or("")
+                .to_string();
+            let body = fs::read_to_string(w.last().unwrap()).unwrap();
+            let name = body
+                .lines()
+                .find_map(|l| l.strip_prefix("#SBATCH --job-name="))
+                .unwrap()
+                .to_string();
+            (w[0].to_string(), dep, name)
+        })
+        .collect();
+    let expect: Vec<(String, String, String)> = [
+        ("101", "", "farm_shot/path+plate_scene/once"),
+        ("102", "afterok:101", "farm_shot/plate+graded+exr/1-8"),
+        ("103", "afterok:102", "farm_shot/movie/once"),
+    ]
+    .iter()
+    .map(|(a, b, c)| (a.to_string(), b.to_string(), c.to_string()))
+    .collect();
+    assert_eq!(calls, expect, "{text}");
+    // The token the tasks check, and the record with the ids sbatch printed, which `status`
+    // reads.
+    let dirs: Vec<PathBuf> = fs::read_dir(cache.join("farm"))
+        .unwrap()
+        .map(|d| d.unwrap().path())
+        .collect();
+    assert_eq!(dirs.len(), 1, "{dirs:?}");
+    let rec: Json =
+        serde_json::from_str(&fs::read_to_string(dirs[0].join("submission.json")).unwrap())
+            .unwrap();
+    assert_eq!(job_ids(&rec), ["101", "102", "103"], "{rec}");
+    assert_eq!(rec["jobs"][2]["dependency"], "afterok:102", "{rec}");
+    let token = rec["token"].as_str().unwrap();
+    assert!(cache.join("farm-tokens").join(token).is_file());
+    let now = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_secs_f64();
+    let at = rec["submitted"].as_f64().unwrap();
+    assert!((now - at).abs() < 60.0, "submitted {at}, now {now}");
+    let st = status_all(&g, &[]);
+    assert_eq!(
+        (&st["submission"]["token"], &st["submission"]["jobs"]),
+        (
+            &Json::from(token),
+            &serde_json::json!(["101", "102", "103"])
+        ),
+        "{st}"
+    );
 }

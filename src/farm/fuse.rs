@@ -23,6 +23,9 @@
 //! member waits for the fused task of its chunk (or the whole fused job). A fused job asks
 //! for the most any member needs (every core if one uses them all, the largest memory hint
 //! of those that have one) — like Meshroom's node chunks or a Snakemake group job.
+//!
+//! A job that waits for queued tasks of an earlier submission ([`Job::after`]) joins no
+//! prologue, and joins a chain only when its host already waits for those tasks.
 
 use vfxgraph_engine::Threads;
 
@@ -43,7 +46,8 @@ fn prologue(plan: FarmPlan) -> FarmPlan {
     let mut job_of: Vec<usize> = Vec::with_capacity(plan.jobs.len());
     let mut in_prologue: Vec<bool> = Vec::with_capacity(plan.jobs.len());
     for mut job in plan.jobs {
-        let member = !job.per_frame && job.deps.iter().all(|(p, _)| in_prologue[*p]);
+        let member =
+            !job.per_frame && job.after.is_empty() && job.deps.iter().all(|(p, _)| in_prologue[*p]);
         in_prologue.push(member);
         match first.filter(|_| member) {
             Some(h) => {
@@ -64,7 +68,10 @@ fn prologue(plan: FarmPlan) -> FarmPlan {
             }
         }
     }
-    FarmPlan { jobs: out }
+    FarmPlan {
+        jobs: out,
+        skipped: plan.skipped,
+    }
 }
 
 /// `plan` with each fusable per-frame job merged into its producer's job.
@@ -89,7 +96,10 @@ fn chains(plan: FarmPlan) -> FarmPlan {
             }
         }
     }
-    FarmPlan { jobs: out }
+    FarmPlan {
+        jobs: out,
+        skipped: plan.skipped,
+    }
 }
 
 /// Adds a wait on job `p`, keeping the strongest of two waits on the same job.
@@ -120,7 +130,8 @@ fn host(job: &Job, deps: &[(usize, Wait)], out: &[Job]) -> Option<usize> {
         .chunks
         .iter()
         .all(|c| host.chunks.iter().any(|hc| hc.index == c.index));
-    (host.per_frame && waits_already && same_chunks).then_some(h)
+    let after_already = job.after.iter().all(|t| host.after.contains(t));
+    (host.per_frame && waits_already && after_already && same_chunks).then_some(h)
 }
 
 /// Merges `job` into `host`: its nodes, the union of its frames per chunk, the larger
@@ -139,6 +150,9 @@ fn absorb(host: &mut Job, job: Job) {
         host.threads = Threads::All;
     }
     host.memory_mib = host.memory_mib.max(job.memory_mib);
+    host.after.extend(job.after);
+    host.after.sort_unstable();
+    host.after.dedup();
 }
 
 #[cfg(test)]
@@ -159,6 +173,7 @@ mod tests {
                 })
                 .collect(),
             deps: deps.to_vec(),
+            after: vec![],
             threads: Threads::One,
             memory_mib: None,
         }
@@ -201,6 +216,7 @@ mod tests {
                 job("movie", false, once, &[(4, Whole)]),
                 job("frames_json", true, two, &[(5, Whole)]),
             ],
+            ..Default::default()
         };
         let f = fuse(plan);
         assert_eq!(
@@ -241,6 +257,7 @@ mod tests {
                 // Only chunk 1 of the render's two chunks: joins it (a subset of its chunks).
                 job("late", true, &[(1, &[4][..])], &[(1, PerChunk)]),
             ],
+            ..Default::default()
         };
         let f = fuse(plan);
         assert_eq!(
@@ -254,5 +271,42 @@ mod tests {
                 ("comp", vec![(1, PerChunk), (4, PerChunk)]),
             ]
         );
+    }
+
+    #[test]
+    fn a_job_waiting_for_queued_tasks_joins_only_a_host_that_waits_for_them() {
+        use Wait::*;
+        let once = &[(0, &[][..])][..];
+        let two = &[(0, &[1, 2][..]), (1, &[3, 4][..])][..];
+        let mut scene = job("scene", false, once, &[]);
+        scene.after = vec!["7".into()];
+        let mut grade = job("grade", true, two, &[(2, PerChunk)]);
+        grade.after = vec!["8_0".into()];
+        let mut write = job("write", true, two, &[(3, PerChunk)]);
+        write.after = vec!["8_0".into()];
+        let plan = FarmPlan {
+            jobs: vec![
+                job("path", false, once, &[]),
+                scene,
+                job("render", true, two, &[(0, Whole), (1, Whole)]),
+                grade,
+                write,
+            ],
+            ..Default::default()
+        };
+        let f = fuse(plan);
+        // The scene waits for a queued task: no prologue member; the grade waits for one the
+        // render does not: a job of its own, which the write (waiting for the same) joins.
+        assert_eq!(
+            names(&f),
+            vec![
+                ("path", vec![]),
+                ("scene", vec![]),
+                ("render", vec![(0, Whole), (1, Whole)]),
+                ("grade+write", vec![(2, PerChunk)]),
+            ]
+        );
+        assert_eq!(f.jobs[1].after, ["7"]);
+        assert_eq!(f.jobs[3].after, ["8_0"]);
     }
 }

@@ -11,13 +11,17 @@
 //! - [`slurm`]: `sbatch` scripts and submission.
 //! - [`openjd`]: an Open Job Description job template.
 //! - [`status`]: per-node progress from the cache (and `squeue`).
+//! - [`record`]: what a submission selected and created (`submission.json` beside its
+//!   scripts), which `status` and the next `submit` read.
 
 pub mod commands;
 pub mod fuse;
 pub mod openjd;
+pub mod record;
 pub mod slurm;
 pub mod status;
 
+use std::collections::{BTreeSet, HashMap, HashSet};
 use std::path::{Path, PathBuf};
 
 use vfxgraph_engine::exec::{PlanReport, PlanStatus};
@@ -34,7 +38,7 @@ pub enum Wait {
 
 /// One chunk of a job: an array index (the chunk's position in the graph's frames) and the
 /// frames of it that must run.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Chunk {
     /// Position of the chunk among the graph's chunks.
     pub index: usize,
@@ -56,6 +60,9 @@ pub struct Job {
     pub chunks: Vec<Chunk>,
     /// Producers (indices into [`FarmPlan::jobs`]) and how to wait for each.
     pub deps: Vec<(usize, Wait)>,
+    /// Tasks of earlier submissions, still in the farm's queue, that compute instances this
+    /// job reads (Slurm `afterok`: a job id, or `job_index` for one array task), sorted.
+    pub after: Vec<String>,
     /// The node type's resource hint.
     pub threads: Threads,
     /// The node type's memory hint for this node's params, MiB (`None`: no hint).
@@ -127,28 +134,121 @@ impl TaskContext {
     }
 }
 
+/// The instances that tasks of earlier submissions, still in the farm's queue, will compute:
+/// (node id, frame) → the task (a Slurm job id, or `job_index` for an array task).
+#[derive(Clone, Debug, Default)]
+pub struct InFlight {
+    /// The task of each instance.
+    pub tasks: HashMap<(String, Option<i64>), String>,
+    /// The submission (token) of each Slurm job id in `tasks`.
+    pub tokens: HashMap<String, String>,
+    /// The Slurm arrays all of whose tasks are in the queue: job id → its tasks.
+    pub whole: HashMap<String, BTreeSet<String>>,
+}
+
+impl InFlight {
+    /// The Slurm job id of a task (`123` of `123_4`).
+    pub fn job_of(task: &str) -> &str {
+        task.split('_').next().unwrap_or(task)
+    }
+
+    /// `tasks` with every task of an array all of whose tasks are queued and in `tasks`
+    /// replaced by the array's job id (`afterok:123` waits for the same tasks as
+    /// `afterok:123_0,afterok:123_1,…`), sorted.
+    pub fn compact(&self, mut tasks: BTreeSet<String>) -> Vec<String> {
+        for (job, all) in &self.whole {
+            if all.len() > 1 && all.is_subset(&tasks) {
+                tasks.retain(|t| !all.contains(t));
+                tasks.insert(job.clone());
+            }
+        }
+        tasks.into_iter().collect()
+    }
+}
+
+/// An instance a submission leaves to a queued task of an earlier one.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Skipped {
+    /// Node id.
+    pub node: String,
+    /// Frame (`None`: a node that runs once).
+    pub frame: Option<i64>,
+    /// The queued task that computes it.
+    pub task: String,
+}
+
 /// The jobs of a submission, in graph (topological) order.
 #[derive(Clone, Debug, Default)]
 pub struct FarmPlan {
     /// Jobs; a job's producers come before it.
     pub jobs: Vec<Job>,
+    /// Uncached instances left out because a queued task of an earlier submission computes
+    /// them, in graph order.
+    pub skipped: Vec<Skipped>,
 }
 
 impl FarmPlan {
     /// The jobs for every instance the plan does not find cached, frames cut into chunks of
-    /// `chunk` consecutive frames of the graph's range.
-    pub fn new(graph: &Graph, plan: &PlanReport, chunk: usize) -> FarmPlan {
+    /// `chunk` consecutive frames of the graph's range, without the instances `queued` (tasks
+    /// of earlier submissions still in the farm's queue) will compute: a job that reads one of
+    /// those waits for its task ([`Job::after`]). A queued instance counts only while every
+    /// instance it reads is cached or queued too (an earlier task whose producer failed is
+    /// about to be cancelled: its instance is submitted again).
+    pub fn new(graph: &Graph, plan: &PlanReport, chunk: usize, queued: &InFlight) -> FarmPlan {
         let chunk = chunk.max(1);
         let all = graph.frames.frames();
         let mut job_of: Vec<Option<usize>> = vec![None; graph.nodes.len()];
         let mut jobs: Vec<Job> = Vec::new();
+        let mut skipped: Vec<Skipped> = Vec::new();
+        // Per node: its uncached instances, and those of them a queued task computes.
+        let mut uncached: Vec<HashSet<Option<i64>>> = vec![HashSet::new(); graph.nodes.len()];
+        for l in plan.nodes.iter().filter(|l| l.status != PlanStatus::Cached) {
+            if let Some(n) = graph.index_of(&l.id) {
+                uncached[n].insert(l.frame);
+            }
+        }
+        let mut in_queue: Vec<HashMap<Option<i64>, String>> =
+            vec![HashMap::new(); graph.nodes.len()];
         for (n, node) in graph.nodes.iter().enumerate() {
-            let todo: Vec<Option<i64>> = plan
+            // Per input: whether all it reads at once (a producer that runs once, a whole
+            // sequence) is cached or queued.
+            let ready_whole: Vec<bool> = node
+                .inputs
+                .iter()
+                .map(|e| {
+                    uncached[e.from]
+                        .iter()
+                        .all(|f| in_queue[e.from].contains_key(f))
+                })
+                .collect();
+            let mut todo: Vec<Option<i64>> = Vec::new();
+            for l in plan
                 .nodes
                 .iter()
                 .filter(|l| l.id == node.id && l.status != PlanStatus::Cached)
-                .map(|l| l.frame)
-                .collect();
+            {
+                let task = queued.tasks.get(&(node.id.clone(), l.frame)).filter(|_| {
+                    node.inputs.iter().zip(&ready_whole).all(|(e, &whole)| {
+                        match one_frame(graph, e, l.frame) {
+                            Some(f) => {
+                                !uncached[e.from].contains(&f) || in_queue[e.from].contains_key(&f)
+                            }
+                            None => whole,
+                        }
+                    })
+                });
+                match task {
+                    Some(t) => {
+                        in_queue[n].insert(l.frame, t.clone());
+                        skipped.push(Skipped {
+                            node: node.id.clone(),
+                            frame: l.frame,
+                            task: t.clone(),
+                        });
+                    }
+                    None => todo.push(l.frame),
+                }
+            }
             if todo.is_empty() {
                 continue;
             }
@@ -166,20 +266,107 @@ impl FarmPlan {
                 per_frame: node.per_frame,
                 chunks,
                 deps: Vec::new(),
+                after: Vec::new(),
                 threads: node.spec().threads,
                 memory_mib: node.spec().memory.mib(&node.params),
             };
             job.deps = dependencies(graph, n, &job, &jobs, &job_of);
+            // The queued tasks of earlier submissions that compute what this job reads.
+            let mut after: BTreeSet<String> = BTreeSet::new();
+            for e in &node.inputs {
+                let q = &in_queue[e.from];
+                if q.is_empty() {
+                    continue;
+                }
+                if todo.iter().any(|&f| one_frame(graph, e, f).is_none()) {
+                    after.extend(q.values().cloned());
+                } else {
+                    let frames = todo.iter().filter_map(|&f| one_frame(graph, e, f));
+                    after.extend(frames.filter_map(|f| q.get(&f).cloned()));
+                }
+            }
+            job.after = queued.compact(after);
             job_of[n] = Some(jobs.len());
             jobs.push(job);
         }
-        FarmPlan { jobs }
+        FarmPlan { jobs, skipped }
     }
 
     /// Number of tasks over all jobs.
     pub fn task_count(&self) -> usize {
         self.jobs.iter().map(|j| j.chunks.len()).sum()
     }
+}
+
+/// The one instance of its producer that input `e` of an instance at `frame` reads (the
+/// producer's frame, or `Some(None)` for a producer that runs once), or `None` when it reads
+/// them all (a whole sequence, or a node that runs once reading a per-frame producer).
+fn one_frame(
+    graph: &Graph,
+    e: &vfxgraph_engine::graph::Edge,
+    frame: Option<i64>,
+) -> Option<Option<i64>> {
+    if !graph.nodes[e.from].per_frame {
+        Some(None)
+    } else if e.whole_sequence {
+        None
+    } else {
+        frame.map(Some)
+    }
+}
+
+/// What each node computes, as far as a farm task is concerned: a digest of the graph's
+/// folder (relative paths resolve against it), the node's id, type, version and
+/// output-affecting params, the graph's seed for a seeded node, its inputs and, recursively,
+/// what its producers compute, and the graph's frames when it reads a whole sequence. Two
+/// submissions whose recipes of a node match compute the same instances of it (what their
+/// `--set` and `--frames` leave unchanged), in graph order.
+pub fn recipes(graph: &Graph) -> Vec<String> {
+    let dir = std::fs::canonicalize(&graph.dir).unwrap_or_else(|_| graph.dir.clone());
+    let mut out: Vec<String> = Vec::with_capacity(graph.nodes.len());
+    let mut buf = Vec::new();
+    for node in &graph.nodes {
+        let spec = node.spec();
+        let mut h = blake3::Hasher::new();
+        h.update(b"vfxgraph-recipe-v1\0");
+        h.update(dir.as_os_str().as_encoded_bytes());
+        for part in [node.id.as_bytes(), spec.name.as_bytes()] {
+            h.update(&[0]);
+            h.update(part);
+        }
+        h.update(&spec.version.to_le_bytes());
+        h.update(&[u8::from(node.per_frame)]);
+        for p in spec.params.iter().filter(|p| p.affects_output) {
+            if let Some(v) = node.params.get(p.name) {
+                buf.clear();
+                v.canonical(&mut buf);
+                h.update(p.name.as_bytes());
+                h.update(&[0]);
+                h.update(&buf);
+            }
+        }
+        if spec.seeded {
+            h.update(b"seed\0");
+            h.update(&graph.seed.to_le_bytes());
+        }
+        for e in &node.inputs {
+            h.update(b"in\0");
+            for part in [
+                e.port.as_bytes(),
+                e.from_port.as_bytes(),
+                out[e.from].as_bytes(),
+            ] {
+                h.update(part);
+                h.update(&[0]);
+            }
+            if e.whole_sequence {
+                h.update(b"frames\0");
+                h.update(graph.frames.to_string().as_bytes());
+            }
+        }
+        out.push(h.finalize().to_hex().to_string());
+    }
+    out
 }
 
 /// The chunks (of `size` consecutive frames of `all`) holding any of the frames `todo`.
@@ -378,6 +565,22 @@ mod tests {
                 }
             ]
         );
+    }
+
+    #[test]
+    fn an_array_all_of_whose_queued_tasks_are_waited_for_is_named_once() {
+        let set = |v: &[&str]| {
+            v.iter()
+                .map(|t| t.to_string())
+                .collect::<BTreeSet<String>>()
+        };
+        let q = InFlight {
+            whole: HashMap::from([("54".to_string(), set(&["54_0", "54_1"]))]),
+            ..Default::default()
+        };
+        assert_eq!(q.compact(set(&["54_0", "54_1", "60"])), ["54", "60"]);
+        assert_eq!(q.compact(set(&["54_1", "60"])), ["54_1", "60"]);
+        assert_eq!(InFlight::job_of("54_1"), "54");
     }
 
     #[test]

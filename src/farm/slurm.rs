@@ -7,6 +7,9 @@
 //! so tasks share a host), `--mem` from its memory hint (`Memory`: a fixed amount for a
 //! reader, an image-sized one for a renderer from its width × height). A task's worker threads
 //! are its allocation's CPUs (`exec --jobs`).
+//!
+//! A job that reads instances a queued task of an earlier submission computes waits for that
+//! task (`afterok:<job>_<index>`) instead of computing them again ([`super::InFlight`]).
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -117,7 +120,8 @@ pub fn script(ctx: &TaskContext, job: &Job, logs: &Path) -> String {
     s
 }
 
-/// The `--dependency` value of job `i` given its producers' Slurm ids (empty: none).
+/// The `--dependency` value of job `i` given its producers' Slurm ids (empty: none), and the
+/// queued tasks of earlier submissions it reads.
 pub fn dependency(job: &Job, ids: &[String]) -> String {
     job.deps
         .iter()
@@ -125,32 +129,87 @@ pub fn dependency(job: &Job, ids: &[String]) -> String {
             Wait::PerChunk => format!("aftercorr:{}", ids[*p]),
             Wait::Whole => format!("afterok:{}", ids[*p]),
         })
+        .chain(job.after.iter().map(|t| format!("afterok:{t}")))
         .collect::<Vec<_>>()
         .join(",")
 }
 
-/// Prints what [`submit`] would run: each job's `sbatch` line and script.
-pub fn dry_run(ctx: &TaskContext, plan: &FarmPlan, dir: &Path) -> String {
-    let ids: Vec<String> = plan.jobs.iter().map(|j| format!("${}", j.node)).collect();
-    let mut out = String::new();
-    for job in &plan.jobs {
+/// The shell variable holding the Slurm id of job `i` in a [`dry_run`] script.
+pub fn job_var(i: usize) -> String {
+    format!("job_{}", i + 1)
+}
+
+/// The end of each here-document in a [`dry_run`] script.
+const HEREDOC_END: &str = "VFXGRAPH_EOF";
+
+/// What [`submit`] would do, as a POSIX sh script that does it: it writes the token into the
+/// cache, each job's batch script into `dir` (a quoted here-document), submits it with
+/// `sbatch --parsable` (its id in `$job_1`, `$job_2`, … for the dependencies of the jobs
+/// after it), and writes the submission's record (`record`, its job ids `@job_N@`, filled in
+/// by `sed`).
+pub fn dry_run(ctx: &TaskContext, plan: &FarmPlan, dir: &Path, record: &str) -> String {
+    let mut out = String::from("#!/bin/sh\n");
+    if plan.jobs.is_empty() {
+        out.push_str("# nothing to submit\n");
+        return out;
+    }
+    let _ = writeln!(
+        out,
+        "# {}: {} job(s), {} task(s) on Slurm; `sh` this file to submit them.\nset -eu",
+        ctx.graph_name,
+        plan.jobs.len(),
+        plan.task_count()
+    );
+    let _ = writeln!(out, "dir={}", sh_quote(&dir.display().to_string()));
+    out.push_str("mkdir -p \"$dir/logs\"\n");
+    let token = super::token_path(&ctx.cache, &ctx.token);
+    let tokens = token.parent().unwrap_or(&ctx.cache);
+    let _ = writeln!(
+        out,
+        "# The token every task checks its cache holds.\nmkdir -p {}\nprintf '%s\\n' {} > {}",
+        sh_quote(&tokens.display().to_string()),
+        sh_quote(&ctx.token),
+        sh_quote(&token.display().to_string())
+    );
+    let ids: Vec<String> = (0..plan.jobs.len())
+        .map(|i| format!("${}", job_var(i)))
+        .collect();
+    for (i, job) in plan.jobs.iter().enumerate() {
         let dep = dependency(job, &ids);
         let dep = if dep.is_empty() {
             String::new()
         } else {
             format!(" --dependency={dep}")
         };
+        let file = format!("\"$dir\"/{}", sh_quote(&format!("{}.sh", job.node)));
+        let var = job_var(i);
+        let name = job_name(ctx, job);
         let _ = writeln!(
             out,
-            "# {} ({} task(s))\n{}=$(sbatch --parsable{dep} {})",
-            job_name(ctx, job),
-            job.chunks.len(),
-            job.node,
-            dir.join(format!("{}.sh", job.node)).display()
+            "# {name} ({} task(s))\ncat > {file} <<'{HEREDOC_END}'",
+            job.chunks.len()
         );
         out.push_str(&script(ctx, job, &dir.join("logs")));
-        out.push('\n');
+        let _ = writeln!(
+            out,
+            "{HEREDOC_END}\n{var}=$(sbatch --parsable{dep} {file})\n{var}=${{{var}%%;*}}\n\
+             echo \"${var}  {}  {} task(s)\"",
+            name.replace(['"', '$', '`', '\\'], "_"),
+            job.chunks.len()
+        );
     }
+    // The job ids, and the time it is submitted (not printed).
+    let fill: Vec<String> = (0..plan.jobs.len())
+        .map(|i| format!("-e \"s/@{v}@/${v}/g\"", v = job_var(i)))
+        .chain([r#"-e "s/^  \"submitted\": [0-9.]*,/  \"submitted\": $(date +%s),/""#.into()])
+        .collect();
+    let _ = writeln!(
+        out,
+        "# The submission's record (what `vfxgraph status` and the next submit read).\n\
+         sed {} > \"$dir/.vfxgraph-tmp-submission.json\" <<'{HEREDOC_END}'\n{record}\n{HEREDOC_END}\n\
+         mv \"$dir/.vfxgraph-tmp-submission.json\" \"$dir/submission.json\"",
+        fill.join(" ")
+    );
     out
 }
 
@@ -226,6 +285,66 @@ fn cancel(done: &[Submitted]) {
     let _ = Command::new("scancel")
         .args(done.iter().map(|s| s.job_id.as_str()))
         .status();
+}
+
+/// A task in Slurm's queue that has yet to finish: running, or waiting to (not one whose
+/// dependency can never be met, which Slurm is about to cancel).
+#[derive(Clone, Debug, PartialEq)]
+pub struct QueuedTask {
+    /// Its job id (an array's).
+    pub job_id: String,
+    /// Its array index (`None`: not an array task).
+    pub index: Option<usize>,
+    /// Its batch script.
+    pub script: PathBuf,
+}
+
+impl QueuedTask {
+    /// How a dependency names it: `job` or `job_index`.
+    pub fn name(&self) -> String {
+        match self.index {
+            Some(k) => format!("{}_{k}", self.job_id),
+            None => self.job_id.clone(),
+        }
+    }
+}
+
+/// Every task in Slurm's queue that has yet to finish (`squeue -r`: one line per array task).
+pub fn queue() -> Result<Vec<QueuedTask>, String> {
+    let out = Command::new("squeue")
+        .args(["-h", "-r", "-o", "%F|%K|%T|%r|%o"])
+        .output()
+        .map_err(|e| format!("cannot run squeue: {e}"))?;
+    if !out.status.success() {
+        return Err(format!(
+            "squeue failed: {}",
+            String::from_utf8_lossy(&out.stderr).trim()
+        ));
+    }
+    Ok(parse_queue(&String::from_utf8_lossy(&out.stdout)))
+}
+
+/// [`queue`]'s lines: `job|index|state|reason|script`.
+fn parse_queue(text: &str) -> Vec<QueuedTask> {
+    text.lines()
+        .filter_map(|line| {
+            let f: Vec<&str> = line.splitn(5, '|').collect();
+            let [job, index, state, reason, script] = f[..] else {
+                return None;
+            };
+            let waiting = matches!(
+                state,
+                "PENDING" | "CONFIGURING" | "REQUEUED" | "REQUEUE_HOLD" | "REQUEUE_FED"
+            ) && reason != "DependencyNeverSatisfied";
+            // A completing task has ended: its instances are cached, or it failed.
+            let running = matches!(state, "RUNNING" | "SUSPENDED" | "RESIZING" | "SIGNALING");
+            (waiting || running).then(|| QueuedTask {
+                job_id: job.to_string(),
+                index: index.parse().ok(),
+                script: PathBuf::from(script),
+            })
+        })
+        .collect()
 }
 
 /// The graph's instances in the farm's queue, per node.
@@ -320,5 +439,19 @@ mod tests {
             vec![(0, vec![1, 2, 3, 4]), (2, vec![9, 11])]
         );
         assert!(script_chunks("exec x\n").is_empty());
+    }
+
+    #[test]
+    fn the_queue_keeps_tasks_that_will_run() {
+        let q = parse_queue(
+            "54|0|RUNNING|None|/c/farm/g-t/plate.sh\n\
+             54|1|PENDING|Dependency|/c/farm/g-t/plate.sh\n\
+             55|N/A|PENDING|DependencyNeverSatisfied|/c/farm/g-t/movie.sh\n\
+             56|N/A|COMPLETING|None|/c/farm/g-t/path.sh\n\
+             57|N/A|PENDING|JobHeldUser|/c/farm/g-t/a|b.sh\n",
+        );
+        let names: Vec<String> = q.iter().map(QueuedTask::name).collect();
+        assert_eq!(names, ["54_0", "54_1", "57"]);
+        assert_eq!(q[2].script, Path::new("/c/farm/g-t/a|b.sh"));
     }
 }
