@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# A one-node Slurm cluster on this machine, for the farm tests (tests/farm.rs) and benchmarks:
+# A one-node Slurm cluster on this host, for the farm tests (tests/farm.rs) and benchmarks:
 #   scripts/ci/slurm-local.sh start   # munged (if not running), slurmctld, slurmd; waits idle,
 #                                     # then checks both daemons stay up (exit 1 and their
 #                                     # logs' tails if not, e.g. another Slurm holds the ports)
