@@ -1441,7 +1441,7 @@ fn status_uses_the_latest_submissions_selection() {
     let text = String::from_utf8_lossy(&out.stdout).into_owned();
     let first = text.lines().next().unwrap();
     assert!(
-        first.starts_with(&format!("submission {token} (openjd, 6 job(s), "))
+        first.starts_with(&format!("submission {token} (openjd, 6 step(s), "))
             && first.ends_with("): --frames 1-4 --set plate.spp=2"),
         "{text}"
     );

@@ -659,10 +659,15 @@ pub fn status_command(a: StatusArgs, registry: &Registry) -> Result<u8, String> 
             .map(|(_, f)| *f)
             .collect();
             println!(
-                "submission {} ({}, {} job(s), {} ago): {}{}",
+                "submission {} ({}, {} {}, {} ago): {}{}",
                 s.token,
                 s.farm,
                 s.jobs.len(),
+                if s.farm == "openjd" {
+                    "step(s)"
+                } else {
+                    "job(s)"
+                },
                 human_age(age),
                 s.flags(),
                 if given.is_empty() {
