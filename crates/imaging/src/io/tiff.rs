@@ -57,6 +57,29 @@ fn decode_inner(bytes: &[u8]) -> Result<Image, ImageError> {
         }
     };
     sample_count(w, h, out_channels).map_err(|e| err(e.to_string()))?;
+    // Bytes enough to code that many samples at the compression's best ratio, before the
+    // decoder sizes its buffer (a 2 KB file declared 4 GB of pixels).
+    let bits: u128 = d
+        .find_tag(tiff::tags::Tag::BitsPerSample)
+        .ok()
+        .flatten()
+        .and_then(|v| v.into_u16_vec().ok())
+        .map_or(8, |v| v.iter().map(|&b| b as u128).max().unwrap_or(8));
+    let compression = d
+        .find_tag(tiff::tags::Tag::Compression)
+        .ok()
+        .flatten()
+        .and_then(|v| v.into_u16().ok())
+        .unwrap_or(1);
+    let raw = (w as u128 * h as u128 * stored as u128 * bits).div_ceil(8);
+    let ratio = max_expansion(compression);
+    if raw > ratio * bytes.len() as u128 + (1 << 16) {
+        return Err(err(format!(
+            "{w}×{h} pixels of {stored} {bits}-bit samples are {raw} bytes: more than a \
+             {}-byte file holds (compression {compression}, {ratio}:1 at most)",
+            bytes.len()
+        )));
+    }
     // Integer samples are display-referred codes, floats linear light.
     let (samples, float): (Vec<f32>, bool) = match d.read_image().map_err(tiff_err)? {
         DecodingResult::U8(v) => (v.iter().map(|&c| c as f32 / 255.0).collect(), false),
@@ -98,6 +121,17 @@ fn decode_inner(bytes: &[u8]) -> Result<Image, ImageError> {
         }
     }
     Ok(img)
+}
+
+/// The most a TIFF compression method can expand: none 1:1, PackBits 128:1, LZW (12-bit codes
+/// for strings growing by one byte, the table reset at 4096) under 1400:1, Deflate 1032:1.
+fn max_expansion(compression: u16) -> u128 {
+    match compression {
+        1 => 1,
+        32773 => 128,
+        5 => 1400,
+        _ => 1032,
+    }
 }
 
 /// The samples [`encode`] writes.
@@ -267,5 +301,17 @@ mod tests {
             assert!(decode(&bytes[..n]).is_err(), "{n} bytes");
         }
         assert!(decode(b"II*\0\xff\xff\xff\x7f").is_err());
+        // A small file declaring a huge image is refused before decoding.
+        let w = 11u32.to_le_bytes();
+        let at = bytes
+            .windows(12)
+            .position(|x| x[..2] == [0, 1] && x[8..12] == w)
+            .expect("the ImageWidth entry");
+        let mut big = bytes.clone();
+        // A LONG width of 60000 (the entry's type set to LONG, 4).
+        big[at + 2..at + 4].copy_from_slice(&4u16.to_le_bytes());
+        big[at + 8..at + 12].copy_from_slice(&60000u32.to_le_bytes());
+        let e = decode(&big).unwrap_err().to_string();
+        assert!(e.contains("more than a"), "{e}");
     }
 }
