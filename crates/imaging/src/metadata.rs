@@ -15,7 +15,9 @@
 
 use std::io::Cursor;
 
-use ::exif::{In, Tag, Value};
+use ::exif::{In, Tag};
+
+use crate::hdr::exif::number;
 
 /// The diagonal of a 36 × 24 mm frame.
 const FULL_FRAME_DIAGONAL_MM: f64 = 43.266_615_305_567_87;
@@ -39,19 +41,6 @@ pub struct CameraFocal {
     pub millimetres: Option<f64>,
     /// The route taken.
     pub source: FocalSource,
-}
-
-fn number(field: Option<&::exif::Field>) -> Option<f64> {
-    let v = match &field?.value {
-        Value::Rational(r) => r.first().map(|r| r.to_f64()),
-        Value::SRational(r) => r.first().map(|r| r.to_f64()),
-        Value::Short(v) => v.first().map(|&x| x as f64),
-        Value::Long(v) => v.first().map(|&x| x as f64),
-        Value::Float(v) => v.first().map(|&x| x as f64),
-        Value::Double(v) => v.first().copied(),
-        _ => None,
-    }?;
-    (v.is_finite() && v > 0.0).then_some(v)
 }
 
 /// The focal length, in pixels of a `width` × `height` image, that the EXIF metadata of a file
@@ -103,7 +92,7 @@ pub fn camera_focal(bytes: &[u8], width: usize, height: usize) -> Result<CameraF
 mod tests {
     use super::*;
     use ::exif::experimental::Writer;
-    use ::exif::{Field, Rational};
+    use ::exif::{Field, Rational, Value};
 
     /// A JPEG (SOI, an APP1 Exif segment holding `fields`, EOI): what the reader needs.
     fn jpeg_with(fields: &[Field]) -> Vec<u8> {

@@ -25,7 +25,8 @@ pub struct ExposureSettings {
     pub iso: Option<f64>,
 }
 
-fn number(field: Option<&::exif::Field>) -> Option<f64> {
+/// A field's first value as a finite, positive number (any numeric EXIF type).
+pub(crate) fn number(field: Option<&::exif::Field>) -> Option<f64> {
     let v = match &field?.value {
         Value::Rational(r) => r.first().map(|r| r.to_f64()),
         Value::SRational(r) => r.first().map(|r| r.to_f64()),
