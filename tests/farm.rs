@@ -1580,3 +1580,56 @@ fn a_fused_slurm_dry_run_is_a_script_sh_runs() {
         "{st}"
     );
 }
+
+/// `slurm-local.sh start` for a second cluster while the running one holds the ports: its
+/// daemons die ("Address already in use") while the other cluster answers `sinfo`, and the
+/// script must say so and exit 1, not print "idle" and succeed. The running cluster still
+/// answers afterwards.
+#[test]
+fn a_second_local_cluster_on_taken_ports_fails_loudly() {
+    if !slurm_up() {
+        return;
+    }
+    let _lock = CLUSTER.lock().unwrap_or_else(|e| e.into_inner());
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("second");
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/ci/slurm-local.sh");
+    let out = Command::new("bash")
+        .arg(&script)
+        .arg("start")
+        .env("VFXGRAPH_SLURM_DIR", &dir)
+        .env_remove("SLURM_CONF")
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(
+        out.status.code(),
+        Some(1),
+        "stdout:\n{stdout}\nstderr:\n{stderr}"
+    );
+    assert!(!stdout.contains("idle"), "{stdout}");
+    assert!(stderr.contains("slurm-local: "), "{stderr}");
+    // The daemons' own words are shown (their logs' tails) …
+    assert!(
+        stderr.contains(&format!("{}/log/slurmctld.log", dir.display())),
+        "{stderr}"
+    );
+    assert!(stderr.contains("Address already in use"), "{stderr}");
+    // … none of the second cluster's daemons is left running …
+    for d in ["slurmctld", "slurmd"] {
+        let pid = fs::read_to_string(dir.join(format!("{d}.pid"))).unwrap_or_default();
+        let pid = pid.trim();
+        assert!(
+            pid.is_empty() || !Path::new(&format!("/proc/{pid}")).exists(),
+            "{d} {pid} still runs"
+        );
+    }
+    // … and the running cluster still answers with its node.
+    let o = slurm(&["-h", "-N", "-o", "%t"], "sinfo");
+    let state = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        o.status.success() && ["idle", "mix", "alloc"].iter().any(|s| state.contains(s)),
+        "{state}"
+    );
+}
