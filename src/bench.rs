@@ -288,7 +288,7 @@ fn bench_matchmove(tracks: &Path, intrinsics: &Path, json: bool) -> Result<u8, S
     show("score, matchmove", &solve.report.score);
     show("score, relaxed", &relaxed.report.score);
     println!(
-        "vs the book      calib > {BOOK_CALIB_CPU_S:.0} CPU-s → ≥ {:.0}× less CPU; relax {BOOK_RELAX_CPU_S:.0} CPU-s → {:.0}× less CPU (the book's programs, measured on this machine)",
+        "vs the book      calib > {BOOK_CALIB_CPU_S:.0} CPU-s → ≥ {:.0}× less CPU; relax {BOOK_RELAX_CPU_S:.0} CPU-s → {:.0}× less CPU (the book's programs, measured on a 2-core x86-64 VM)",
         BOOK_CALIB_CPU_S / mm_cpu,
         BOOK_RELAX_CPU_S / relax_cpu
     );

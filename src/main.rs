@@ -6,6 +6,7 @@ mod bench_shot;
 mod farm;
 mod interrupt;
 mod progress;
+mod reference;
 mod report;
 
 use std::path::{Path, PathBuf};
@@ -77,8 +78,12 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
-    /// List the node types.
-    Nodes,
+    /// List the node types (`--markdown`: the whole node reference, docs/reference/nodes.md).
+    Nodes {
+        /// Print the node reference as Markdown: every node's ports, params and defaults.
+        #[arg(long)]
+        markdown: bool,
+    },
     /// Describe a node type: ports, params, defaults, ranges.
     Describe {
         /// The node type.
@@ -259,7 +264,7 @@ fn prints_listings(c: &Command) -> bool {
     matches!(
         c,
         Command::Plan { .. }
-            | Command::Nodes
+            | Command::Nodes { .. }
             | Command::Describe { .. }
             | Command::Dot { .. }
             | Command::Cache { .. }
@@ -427,8 +432,12 @@ fn dispatch(cli: Cli, registry: &Registry) -> Result<u8, String> {
             }
             Ok(0)
         }
-        Command::Nodes => {
-            report::print_nodes(registry);
+        Command::Nodes { markdown } => {
+            if markdown {
+                print!("{}", reference::nodes_markdown(registry));
+            } else {
+                report::print_nodes(registry);
+            }
             Ok(0)
         }
         Command::Describe { node_type } => match registry.node(&node_type) {

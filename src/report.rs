@@ -192,7 +192,7 @@ pub fn print_nodes(registry: &Registry) {
 }
 
 /// The first sentence: up to a ". " followed by a capital letter (so "ch. 6" does not end it).
-fn first_sentence(doc: &str) -> &str {
+pub fn first_sentence(doc: &str) -> &str {
     let b = doc.as_bytes();
     for i in 0..b.len().saturating_sub(2) {
         if b[i] == b'.' && b[i + 1] == b' ' && b[i + 2].is_ascii_uppercase() {

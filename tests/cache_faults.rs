@@ -1,4 +1,4 @@
-//! Faults on the cache, with real kernel failures (issue 20, point 7): a full disk during a
+//! Faults on the cache, with real kernel failures: a full disk during a
 //! run's writes, and several runs of one graph on one cache at once.
 //!
 //! The full disk is a small tmpfs mounted for the test (root only: CI runs as root; under

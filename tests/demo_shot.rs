@@ -1,4 +1,4 @@
-//! The README's first command (issue 20): `graphs/demo_shot.yaml` on the plate embedded in the
+//! The README's first command: `graphs/demo_shot.yaml` on the plate embedded in the
 //! repo (`graphs/data/demo/`, made by `graphs/make_demo_plate.yaml` with known cameras). Run as
 //! the README runs it, from an empty cache, then checked against the truth the plate was made
 //! with: every frame solved, cameras and the clicked ground points against the true ones (after

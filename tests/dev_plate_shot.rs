@@ -1,4 +1,4 @@
-//! Partial reruns of the local-scene shot on the Blender dev plate (issue 17):
+//! Partial reruns of the local-scene shot on the Blender dev plate:
 //! `graphs/dev_plate_shot.yaml` (tracking, the solve, the measured marks and box corners, the
 //! catcher fit, two box proxies, the catcher texture, the insert added last, the renders)
 //! through the engine with a cache folder, at low settings (the texture from 3 frames at 32

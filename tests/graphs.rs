@@ -1,4 +1,4 @@
-//! The graphs users read (`graphs/*.yaml`), run in CI (issue 20, point 5): every graph
+//! The graphs users read (`graphs/*.yaml`), run in CI: every graph
 //! `check`s, enumerated from the folder so a new graph is covered without editing this file;
 //! and the book's scene and shot graphs run end to end on a few frames at low resolution, in a
 //! scratch copy (the repository is left untouched), with their outputs checked against what

@@ -1,4 +1,4 @@
-//! The images of an exposure stack are part of `read_exposure_stack`'s cache key (issue 8):
+//! The images of an exposure stack are part of `read_exposure_stack`'s cache key:
 //! editing one listed image in place — the list file untouched — reruns the reader and its
 //! dependants, for the `list` form (images declared at run time) and the `paths` form (a
 //! path-list param). Through the `vfxgraph` binary.

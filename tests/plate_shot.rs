@@ -1,4 +1,4 @@
-//! The plate test (issue 9, point 6): `graphs/plate_shot.yaml` renders a synthetic plate with
+//! The plate test: `graphs/plate_shot.yaml` renders a synthetic plate with
 //! our path tracer along a known camera path, tracks it with our KLT, solves it with our
 //! matchmove (K known) and measures the uniform patch's corners from simulated clicks. Checked
 //! against the truth after the similarity that best aligns the solved cameras with the true
@@ -78,7 +78,7 @@ fn plate_shot_solves_the_true_cameras_and_measures_the_patch() {
             "channel {k}: {got} vs {want}"
         );
     }
-    // The catcher's texture (issue 17): the patch is one colour C, so every texel seen in ≥ 3
+    // The catcher's texture: the patch is one colour C, so every texel seen in ≥ 3
     // frames should be C; the median relative error per texel and channel, and the median
     // texel's signed error per channel.
     let albedo = vfxgraph_imaging::read_image(&o.join("catcher_albedo.exr")).unwrap();

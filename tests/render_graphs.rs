@@ -111,7 +111,7 @@ fn sigint_cancels_a_long_render_cleanly() {
     assert_eq!(status(&p, "render").as_deref(), Some("run"), "{p}");
 }
 
-/// A YAML scene without `camera:` (issue 20, point 8b) reads and places; rendered with nothing
+/// A YAML scene without `camera:` reads and places; rendered with nothing
 /// that supplies a camera, the run fails at the node that needs one, naming it and the cause.
 #[test]
 fn a_scene_without_a_camera_fails_only_where_a_camera_is_needed() {

@@ -1,4 +1,4 @@
-// Ceres reference for `scripts/bench/ba_vs_ceres.py` (issue #5): solves a BAL file the way
+// Ceres reference for `scripts/bench/ba_vs_ceres.py`: solves a BAL file the way
 // Ceres' own examples/bundle_adjuster.cc does (SnavelyReprojectionError with automatic
 // differentiation, every camera and point free, default tolerances, no normalisation or
 // perturbation so both solvers see the very same problem) and prints one JSON line.

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Bundle adjustment: vfxgraph vs Ceres on the same BAL problems, in one run (issue #5).
+"""Bundle adjustment: vfxgraph vs Ceres on the same BAL problems, in one run.
 
 Builds our `bench_ba` example (release) and a C++ Ceres harness (scripts/bench/ba_ceres.cc,
 SnavelyReprojectionError with autodiff as Ceres' bundle_adjuster example, compiled with g++ into a

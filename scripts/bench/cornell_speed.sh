@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Speed of our path tracer on the book's Cornell box against the book's `ptrace`
-# (chapter 9: 640x480, 3 bounces; 162.5 CPU-seconds for 20 spp on this machine = 37 809 paths per
+# (chapter 9: 640x480, 3 bounces; 162.5 CPU-seconds for 20 spp on a 2-core x86-64 VM = 37 809 paths per
 # CPU-second). Same scene, resolution, spp and depth; CPU seconds from /proc (utime + stime), so a
 # busy machine inflates wall time but not the figure much. Best of N runs (timings are noisy).
 #   scripts/bench/cornell_speed.sh [SPP=20] [RUNS=3] [THREADS=2]

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Side-by-side crops around the mirror sphere on the Blender dev plate (issue 17's picture).
+"""Side-by-side crops around the mirror sphere on the Blender dev plate .
 
     ~/.cache/vfxgraph/pyenv-export/bin/python scripts/bench/dev_plate_crops.py FRAME OUT.png \
         truth.exr uniform.exr textured.exr ...

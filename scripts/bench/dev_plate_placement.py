@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Where the placement puts the CG spheres of the Blender dev plate, in pixels (issue 21).
+"""Where the placement puts the CG spheres of the Blender dev plate, in pixels.
 
     ~/.cache/vfxgraph/pyenv-export/bin/python scripts/bench/dev_plate_placement.py \
         VARIANT CORNERS.json [CAMERAS.json] [frames…]

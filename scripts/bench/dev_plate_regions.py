@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Error of a composite on the Blender dev plate against its truth frames, per region (issue 17).
+"""Error of a composite on the Blender dev plate against its truth frames, per region.
 
     ~/.cache/vfxgraph/pyenv-export/bin/python scripts/bench/dev_plate_regions.py \
         'graphs/out/dev_plate_shot/composite.%04d.exr' 0 24 47 [--json out.json] \

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Render-farm scaling (issue 16; a benchmark, not a test): a graph through the local Slurm
+# Render-farm scaling (a benchmark, not a test): a graph through the local Slurm
 # cluster (scripts/ci/slurm-local.sh) with 1 and with 2 task slots (the node's CPUs), each on a
 # fresh cache. Prints per run: wall time (submit → last task ended), tasks, the mean
 # submit-to-start delay of tasks whose dependencies were met (Slurm's EligibleTime → StartTime,
@@ -32,8 +32,8 @@ bin="${VFXGRAPH_BIN:-$PWD/target/release/vfxgraph}"
 name="$(basename "$graph" .yaml)"
 work="$(mktemp -d /tmp/vfxgraph-farm-bench.XXXXXX)"
 slurm_dir="${VFXGRAPH_SLURM_DIR:-/tmp/vfxgraph-slurm}"
-# Slurm starts every job in a new session, and with the kernel's autogroup scheduling each
-# session is one group with an equal share of the CPUs whatever its processes' nice values:
+# Slurm starts every job under setsid, and with the kernel's autogroup scheduling each
+# such process group is one group with an equal share of the CPUs whatever its processes' nice values:
 # builds others run at `nice -n 19` would take as much CPU as the benchmark's tasks. For the
 # run, autogroup is turned off (as root) so nice values rank processes, and turned back on.
 ag=/proc/sys/kernel/sched_autogroup_enabled

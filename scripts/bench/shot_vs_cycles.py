@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Our differential render of the dev plate's insert against Blender Cycles' shadow catcher (issue 17).
+"""Our differential render of the dev plate's insert against Blender Cycles' shadow catcher.
 
     ~/.cache/vfxgraph/pyenv-export/bin/python scripts/bench/shot_vs_cycles.py \
         --frames 24 [--samples 16,64,256] [--default] [--camera true|solved] [--ours-spp 256] \

@@ -109,6 +109,12 @@ impl Registry {
         self.unavailable.get(name).copied()
     }
 
+    /// The node types this build lacks, by name, with why (see
+    /// [`Registry::register_unavailable`]).
+    pub fn unavailable_nodes(&self) -> impl Iterator<Item = (&'static str, &'static str)> + '_ {
+        self.unavailable.iter().map(|(k, v)| (*k, *v))
+    }
+
     /// A node type by name.
     pub fn node(&self, name: &str) -> Option<&Arc<dyn Node>> {
         self.nodes.get(name)

@@ -1,6 +1,6 @@
 //! The Memorial stack (`../shared/data/debevec_memorial`, Debevec & Malik 1997): the recovered
 //! curves are monotonic and smooth and explain the stack at least as well as OpenCV's
-//! CalibrateDebevec (issue 8; the OpenCV figure, 0.0401, is measured by
+//! CalibrateDebevec (the OpenCV figure, 0.0401, is measured by
 //! `scripts/bench/hdr_vs_opencv.py` on the same images). Absent data: a notice, or a failure
 //! under CI=true.
 

@@ -1,4 +1,4 @@
-//! The camera exports loaded in the real programs (issue 10): pycolmap, Blender's `bpy` and
+//! The camera exports loaded in the real programs: pycolmap, Blender's `bpy` and
 //! usd-core run the checkers of `scripts/check/` on our exports of shots with known truth, and
 //! compare their projections with ours (COLMAP within 1e-6 px, Blender and USD within 0.01 px).
 //! Shots through a lens (Brown–Conrady, division) check the distortion in each client: pycolmap's

@@ -1,4 +1,4 @@
-//! The textured catcher against the exact albedo Cycles used (issue 17): the ground of the
+//! The textured catcher against the exact albedo Cycles used: the ground of the
 //! Blender dev plate (`blender_plate_dev`, a photo mosaic under the `empty_warehouse_01` dome)
 //! estimated by [`catcher_texture`] from its 48 JPEG plate frames (sRGB decoded to linear) with
 //! the exact cameras, against `ground_albedo.exr` area-averaged to the

@@ -1,4 +1,4 @@
-//! Renders through a lens (issue 21): a camera carrying a Brown–Conrady distortion traces each
+//! Renders through a lens: a camera carrying a Brown–Conrady distortion traces each
 //! pixel's ray through the undistorted point of that pixel, so its render is the pinhole render
 //! of the same scene resampled through the lens — checked here against the renderer's own noise
 //! estimate — and a camera without a lens renders as before.

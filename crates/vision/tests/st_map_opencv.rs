@@ -1,4 +1,4 @@
-//! Our ST-maps in another program (issue 21): OpenCV's `remap` applies the undistort ST-map to a
+//! Our ST-maps in another program: OpenCV's `remap` applies the undistort ST-map to a
 //! frame of `blender_plate_dev/distorted` (Cycles' render seen through its Brown–Conrady lens)
 //! and must reproduce our `undistort` of it within 0.5 % of the image's range (the issue; the test
 //! holds it to 0.01 %)
