@@ -48,6 +48,11 @@ pub enum ImageError {
     #[error("invalid image dimensions: {0}")]
     InvalidDimensions(String),
 
+    /// A colour management failure: an OpenColorIO config that does not load, or a colour
+    /// space, display or view it does not name (the message names the config and the name).
+    #[error("{0}")]
+    Colour(String),
+
     /// An error while reading or writing the file at `path`.
     #[error("{}: {source}", path.display())]
     File {

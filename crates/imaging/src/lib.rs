@@ -10,6 +10,9 @@
 //!   crate), PFM and Radiance RGBE `.hdr` (hand-written). sRGB is decoded to linear on read and
 //!   encoded on write; float formats are stored as they are.
 //! - [`color`]: the IEC 61966-2-1 sRGB transfer functions and Rec. 709 luminance.
+//! - [`colour`]: colour management through OpenColorIO configs (the built-in ACES studio
+//!   config, or a studio's): file colour spaces to and from the scene-linear working space,
+//!   display/view transforms for previews.
 //! - [`draw`]: plots and overlays drawn into images (the response curve figure; lines, crosses,
 //!   squares and colours by id for track overlays).
 //! - [`blur`]: a Gaussian and a motion streak, as a lens and a moving camera blur.
@@ -38,6 +41,7 @@
 
 pub mod blur;
 pub mod color;
+pub mod colour;
 pub mod draw;
 mod error;
 pub mod hdr;
