@@ -64,7 +64,7 @@ pub enum BenchCommand {
     /// The noise of the shot's own frames: multi-layer EXRs written by `graphs/book_shot.yaml`
     /// (ours), by the same graph at a high fixed spp with two seeds (the references) and with
     /// `strategy: brdf_only` at `--book-spp` (the book's estimator, scaled to 1000 spp) — see
-    /// README, "The shot".
+    /// docs/validation/book-shot.md.
     Noise {
         /// Our renders (`%04d` = frame).
         #[arg(long, default_value = "graphs/out/book_shot/shot.%04d.exr")]

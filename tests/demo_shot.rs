@@ -161,7 +161,7 @@ fn demo_shot_inserts_the_objects_into_the_embedded_plate() {
     );
 }
 
-// The bounds are about 2× the figures measured (README "The two commands"): rotation max
+// The bounds are about 2× the figures measured (docs/validation/book-shot.md, "The demo shot"): rotation max
 // 0.053°, centre max 0.055 % of the path, ground points within 0.028 of a 3-unit patch (0.012
 // with the true cameras: the clicks are whole pixels), MP4 within 0.91 of 255 codes of its PNG
 // frames (quality 18).

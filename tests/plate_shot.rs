@@ -2,12 +2,12 @@
 //! our path tracer along a known camera path, tracks it with our KLT, solves it with our
 //! matchmove (K known) and measures the uniform patch's corners from simulated clicks. Checked
 //! against the truth after the similarity that best aligns the solved cameras with the true
-//! ones (a solve is defined up to a similarity). The bounds are within 2× of the README's
-//! figures: every camera's rotation error < 0.1° (README 0.068°), every measured corner within
-//! 5 cm of the true one (README 2.7 cm of the 3 m patch side), the fitted catcher colour within
-//! 0.4 % (README 0.2 %), the catcher's texture (`catcher_texture`, 48² texels from every plate
-//! frame) within 3 % of C per texel at the median (README 1.5 %), and the composite's error against the truth frames within 2× the truth
-//! render's Monte Carlo noise (README 1.5–1.8×) over the pixels where the composite or the truth
+//! ones (a solve is defined up to a similarity). The bounds are within 2× of the figures of
+//! docs/validation/book-shot.md: every camera's rotation error < 0.1° (measured 0.068°), every measured corner within
+//! 5 cm of the true one (measured 2.7 cm of the 3 m patch side), the fitted catcher colour within
+//! 0.4 % (measured 0.2 %), the catcher's texture (`catcher_texture`, 48² texels from every plate
+//! frame) within 3 % of C per texel at the median (measured 1.5 %), and the composite's error against the truth frames within 2× the truth
+//! render's Monte Carlo noise (measured 1.5–1.8×) over the pixels where the composite or the truth
 //! differs from the plate — the union, so a shadow or object the composite misses counts.
 //!
 //! Needs nothing from ../shared/data: the dome is the embedded graphs/data HDR.

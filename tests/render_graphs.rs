@@ -51,7 +51,7 @@ fn spheres_dome_graph_renders_then_is_cached() {
     assert_eq!(scene["status"], "ran", "{nodes:?}");
 }
 
-/// Ctrl-C (SIGINT) during a long render: the run stops within a second (README) with exit
+/// Ctrl-C (SIGINT) during a long render: the run stops within a second (docs/guide/command-line.md) with exit
 /// code 130, the render is not cached under its own key (a plan of the same run says it must
 /// run, while the scene it read is cached), and no output exists under its name.
 #[test]

@@ -16,7 +16,7 @@
 # run's serial fraction.
 #   scripts/bench/farm_scaling.sh [GRAPH] [extra submit args…]
 # Default: graphs/book_shot.yaml, --chunk 10 (the book shot; at its full settings hours on 2
-# cores). The figures in README.md ("Render-farm scaling"):
+# cores). The figures in docs/validation/benchmarks.md ("Render-farm scaling"):
 #   scripts/bench/farm_scaling.sh graphs/book_shot.yaml --frames 0..240 --chunk 10 \
 #     --set shot.width=320 --set shot.height=180 --set shot.spp=64 --fuse --task-cpus 1
 # Needs a release build (cargo build --release; or VFXGRAPH_BIN=…) and root (it restarts the

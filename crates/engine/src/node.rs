@@ -2,7 +2,7 @@
 //!
 //! A node never computes its own cache key: it declares its inputs, parameters (with
 //! `affects_output`), version and whether it is seeded, and the engine derives the key
-//! (Gaffer's pattern: a hash of exactly what the computation reads; ARCHITECTURE.md, "Cache
+//! (Gaffer's pattern: a hash of exactly what the computation reads; docs/design/cache.md, "Cache
 //! keys").
 
 use std::collections::BTreeMap;

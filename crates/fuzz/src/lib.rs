@@ -1,4 +1,4 @@
-//! Fuzzing of every reader of a user file on the stable toolchain (ARCHITECTURE.md, "Fuzzing").
+//! Fuzzing of every reader of a user file on the stable toolchain (docs/design/fuzzing.md).
 //!
 //! `cargo fuzz` (libFuzzer) needs a nightly compiler, which cannot be installed here; `afl`
 //! needs its own compiler wrapper and a fork server outside `cargo test`; `bolero` on stable

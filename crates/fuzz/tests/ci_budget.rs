@@ -10,7 +10,7 @@ use std::time::Duration;
 use vfxgraph_fuzz::run::{campaign, findings_report, table, Options, MAX_ALLOC};
 use vfxgraph_fuzz::targets::{all, SeedDirs};
 
-/// Mutated inputs per target in CI (the dev profile; see the README for the measured cost).
+/// Mutated inputs per target in CI (the dev profile; docs/validation/fuzzing.md has the measured cost).
 fn budget(target: &str) -> u64 {
     match target {
         // The slowest per input in the dev profile (a few hundred µs to ~1 ms).

@@ -58,7 +58,7 @@ pub fn registry() -> Registry {
     r.register_unavailable(
         "klt_track_opencv",
         "it needs the `opencv` cargo feature, and this vfxgraph was built without opencv \
-         (README, \"Optional: OpenCV\": cargo build --features opencv)",
+         (docs/guide/opencv.md: cargo build --features opencv)",
     );
     r
 }

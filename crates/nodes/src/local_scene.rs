@@ -1,4 +1,4 @@
-//! The local scene from the plate (README, "The local scene from the plate"; Debevec 1998 §4,
+//! The local scene from the plate (docs/validation/book-shot.md, "The local scene from the plate"; Debevec 1998 §4,
 //! book §10.10.1): `catcher_texture` estimates a shadow catcher's diffuse albedo per texel from
 //! clean plate frames (the algorithm: [`vfxgraph_render::catcher_texture`]); `proxy_from_points`
 //! adds boxes and plane patches of the real set, built from measured points, as catchers

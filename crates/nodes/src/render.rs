@@ -99,8 +99,8 @@ pub fn register(r: &mut Registry) {
              the render crate's `yaml_scene` docs). Errors name file:line:column. Loads the \
              dome image the scene names (relative to the scene file). Polylight colours of \
              `.scn` are multiplied by π and kd·d_col is the diffuse albedo, so direct light \
-             matches the book's images. Only the scene file is hashed for the cache: after \
-             editing an OBJ or dome image in place, use --force (see README, known gaps).",
+             matches the book's images. The files the scene names (OBJ meshes, the dome image) are part of the cache \
+             key: editing one in place reruns the node.",
         )
         .threads(Threads::One)
         .mode(Mode::Once)

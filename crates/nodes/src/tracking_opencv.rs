@@ -267,7 +267,7 @@ mod tests {
         // The detectors agree on most corners (same score, same selection rule).
         assert!(shared as f64 >= 0.8 * ec.len() as f64, "{shared} shared");
         // OpenCV is as accurate as the KLT test asks of ours, and the two agree.
-        // README: 0.0467 / 0.0472 px; the bound within 2× of them.
+        // docs/validation/benchmarks.md: 0.0467 / 0.0472 px; the bound within 2× of them.
         assert!(
             mc <= 0.09 && mo <= 0.09,
             "median EPE ours {mo}, OpenCV {mc}"

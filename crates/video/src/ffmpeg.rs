@@ -2,7 +2,7 @@
 //! processes, FFmpeg decoding and this crate converting. FFmpeg reads what users bring — H.264
 //! of every profile with B-frames, HEVC (Main, Main 10), ProRes, DNxHR, VP9, AV1, MJPEG — in
 //! MP4, MOV, MKV, MXF. Reaching it as an executable keeps the default build free of system
-//! libraries (ARCHITECTURE.md, *Video*).
+//! libraries (docs/design/algorithms.md, *Video*).
 //!
 //! - **Frames in presentation order**: `ffprobe` lists the stream's packets (no decoding);
 //!   their presentation times, sorted, number the frames, so frame `i` is the `i`-th picture

@@ -269,7 +269,7 @@ fn rubberwhale_ground_truth_flow() {
     );
     // OpenCV 5.0 on the same frames and corner settings: see scripts/bench/klt_vs_opencv.py.
     assert!(n as f32 >= 0.95 * pts.len() as f32);
-    // README: 0.0467 px (OpenCV the same); the bound within 2× of it.
+    // docs/validation/benchmarks.md: 0.0467 px (OpenCV the same); the bound within 2× of it.
     assert!(med <= 0.09, "median EPE {med}");
 }
 
@@ -560,7 +560,7 @@ fn noisy_sequence(
 #[test]
 fn drift_correction_keeps_long_tracks_on_their_points() {
     let (plain, corrected) = drift_sequence_errors(2.02);
-    // README: 0.99 px without the correction, 0.047 px with it (bounds within 2× of each).
+    // docs/design/algorithms.md (KLT): 0.99 px without the correction, 0.047 px with it (bounds within 2× of each).
     assert!(corrected < 0.09, "{corrected}");
     assert!(plain > 0.5, "frame-to-frame tracks drift: {plain}");
 }
