@@ -332,6 +332,194 @@ impl ColourTransform {
     }
 }
 
+/// The colour management of a file reader: the file's colour space, the working space and the
+/// config naming them (the readers' params).
+#[derive(Clone, Debug, Default, PartialEq, vfxgraph_params::Options)]
+pub struct ReadColour {
+    /// the file's colour space, as the OpenColorIO config names it (e.g. `ARRI LogC3 (EI800)`,
+    /// `ACEScct`, `sRGB Encoded Rec.709 (sRGB)`); its code values are converted to the working
+    /// space. Empty: the format's own meaning — sRGB for 8/16-bit PNG, JPEG and TIFF, the DPX
+    /// header's transfer, float formats linear Rec. 709
+    pub colour_space: String,
+    /// the graph's scene-linear working space: linear_rec709 (Rec. 709 / sRGB primaries) |
+    /// acescg (ACES AP1)
+    pub working_space: WorkingSpace,
+    /// an OpenColorIO config (.ocio or .ocioz) naming the colour spaces; empty: the file $OCIO
+    /// names, else the ACES studio config built into OpenColorIO
+    #[param(path = "input")]
+    pub ocio_config: String,
+}
+
+/// The colour management of a file writer (the writers' params).
+#[derive(Clone, Debug, Default, PartialEq, vfxgraph_params::Options)]
+pub struct WriteColour {
+    /// the file's colour space, as the OpenColorIO config names it: the working space's values
+    /// are converted to it and written as code values. Empty: the format's own meaning (sRGB for
+    /// 8/16-bit PNG, JPEG and TIFF, DPX 10-bit Cineon log, float formats linear Rec. 709)
+    pub colour_space: String,
+    /// a preview's view (e.g. `ACES 2.0 - SDR 100 nits (Rec.709)`, `Un-tone-mapped`): the
+    /// display/view transform of `display` is applied and its display code values written;
+    /// excludes `colour_space`. Empty: none
+    pub view: String,
+    /// the display of `view` (e.g. `sRGB - Display`, `Rec.2100-PQ - Display`); empty: the
+    /// config's default display
+    pub display: String,
+    /// the graph's scene-linear working space: linear_rec709 | acescg
+    pub working_space: WorkingSpace,
+    /// an OpenColorIO config (.ocio or .ocioz); empty: the file $OCIO names, else the built-in
+    /// ACES studio config
+    #[param(path = "input")]
+    pub ocio_config: String,
+}
+
+impl ReadColour {
+    /// Reads the image file `path` into the working space. `config` is the config file as the
+    /// caller resolved `ocio_config` (None when empty). With no colour space and the default
+    /// working space this is [`crate::read_image`], bit for bit.
+    pub fn read(&self, path: &Path, config: Option<&Path>) -> Result<Image, ImageError> {
+        let at = |e: ImageError| e.at_path(path);
+        if self.colour_space.is_empty() {
+            let mut img = crate::io::read_image(path)?;
+            if self.working_space != WorkingSpace::LinearRec709 {
+                let c = ColourConfig::resolve(config).map_err(at)?;
+                c.transform(LINEAR_REC709, self.working_space.name())
+                    .map_err(at)?
+                    .apply(&mut img);
+            }
+            return Ok(img);
+        }
+        let c = ColourConfig::resolve(config).map_err(at)?;
+        let t = c
+            .transform(&self.colour_space, self.working_space.name())
+            .map_err(at)?;
+        let mut img = crate::io::read_image_as(path, crate::io::Values::Codes)?;
+        t.apply(&mut img);
+        Ok(img)
+    }
+
+    /// The conversion of an image the format's decoder made linear Rec. 709 (sRGB-decoded
+    /// video frames, say) into the working space: from `colour_space` when one is named (the
+    /// decoder's sRGB curve undone first, as the frames' code values), else from linear
+    /// Rec. 709. `what` names the source in errors.
+    pub fn convert_decoded(
+        &self,
+        img: &mut Image,
+        config: Option<&Path>,
+        what: &str,
+    ) -> Result<(), ImageError> {
+        let named = |e: ImageError| colour_err(format!("{what}: {e}"));
+        if self.colour_space.is_empty() && self.working_space == WorkingSpace::LinearRec709 {
+            return Ok(());
+        }
+        let c = ColourConfig::resolve(config).map_err(named)?;
+        if self.colour_space.is_empty() {
+            c.transform(LINEAR_REC709, self.working_space.name())
+                .map_err(named)?
+                .apply(img);
+            return Ok(());
+        }
+        let t = c
+            .transform(&self.colour_space, self.working_space.name())
+            .map_err(named)?;
+        for_colour(img, crate::color::linear_to_srgb);
+        t.apply(img);
+        Ok(())
+    }
+}
+
+impl WriteColour {
+    /// The transform to the file's values and whether they are code values: `None` and
+    /// [`Values::Linear`](crate::io::Values::Linear) when the format's own encoding of linear
+    /// Rec. 709 is wanted from a linear Rec. 709 working space (nothing to convert).
+    pub fn transform(
+        &self,
+        config: Option<&Path>,
+    ) -> Result<(Option<ColourTransform>, crate::io::Values), ImageError> {
+        use crate::io::Values;
+        let work = self.working_space.name();
+        if !self.view.is_empty() {
+            if !self.colour_space.is_empty() {
+                return Err(colour_err(format!(
+                    "`colour_space` (`{}`) and `view` (`{}`) both given: a file is written in                      one or through the other",
+                    self.colour_space, self.view
+                )));
+            }
+            let c = ColourConfig::resolve(config)?;
+            let display = if self.display.is_empty() {
+                c.config.default_display()
+            } else {
+                self.display.clone()
+            };
+            let t = c.display_view(work, &display, &self.view)?;
+            return Ok((Some(t), Values::Codes));
+        }
+        if !self.display.is_empty() {
+            return Err(colour_err(format!(
+                "`display` (`{}`) given without a `view`",
+                self.display
+            )));
+        }
+        if self.colour_space.is_empty() {
+            if self.working_space == WorkingSpace::LinearRec709 {
+                return Ok((None, Values::Linear));
+            }
+            let c = ColourConfig::resolve(config)?;
+            return Ok((Some(c.transform(work, LINEAR_REC709)?), Values::Linear));
+        }
+        let c = ColourConfig::resolve(config)?;
+        Ok((Some(c.transform(work, &self.colour_space)?), Values::Codes))
+    }
+
+    /// Writes `img` (in the working space) to `path` in the file's colour space, view or the
+    /// format's own encoding ([`Self::transform`]). With none of them and the default working
+    /// space this is [`crate::write_image`], bit for bit.
+    pub fn write(&self, path: &Path, img: &Image, config: Option<&Path>) -> Result<(), ImageError> {
+        let (t, values) = self.transform(config).map_err(|e| e.at_path(path))?;
+        match t {
+            None => crate::io::write_image_as(path, img, values),
+            Some(t) => {
+                let mut out = img.clone();
+                t.apply(&mut out);
+                crate::io::write_image_as(path, &out, values)
+            }
+        }
+    }
+
+    /// The frames of a writer whose encoder takes linear Rec. 709 and applies the sRGB curve
+    /// (video): converted, and for code values ([`Self::transform`]) the sRGB curve undone so
+    /// that the encoder's curve gives the codes back. `what` names the file in errors.
+    pub fn convert_for_srgb_encoder(
+        &self,
+        frames: &mut [Image],
+        config: Option<&Path>,
+        what: &str,
+    ) -> Result<(), ImageError> {
+        let (t, values) = self
+            .transform(config)
+            .map_err(|e| colour_err(format!("{what}: {e}")))?;
+        for img in frames {
+            if let Some(t) = &t {
+                t.apply(img);
+            }
+            if values == crate::io::Values::Codes {
+                for_colour(img, |v| crate::color::srgb_to_linear(v.clamp(0.0, 1.0)));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Applies `f` to the colour samples of `img` (not alpha).
+fn for_colour(img: &mut Image, f: impl Fn(f32) -> f32 + Sync) {
+    let c = img.channels;
+    let alpha = c == 2 || c == 4;
+    img.data.par_iter_mut().enumerate().for_each(|(i, v)| {
+        if !(alpha && i % c == c - 1) {
+            *v = f(*v);
+        }
+    });
+}
+
 fn colour_err(message: String) -> ImageError {
     ImageError::Colour(message)
 }

@@ -53,5 +53,8 @@ pub mod tonemap;
 pub use crate::blur::{blur, BlurOptions};
 pub use crate::error::ImageError;
 pub use crate::image::{constant, ConstantOptions, Image};
-pub use crate::io::{decode, encode, read_image, write_image, Format};
+pub use crate::io::{
+    decode, decode_as, encode, encode_as, read_image, read_image_as, write_image, write_image_as,
+    Format, Values,
+};
 pub use crate::tonemap::{exposure, tonemap, ExposureOptions, Operator, TonemapOptions};

@@ -1,10 +1,13 @@
 //! Image file nodes: `read_image`, `write_image`, `read_image_sequence`,
-//! `write_image_sequence`. Formats: PNG, JPEG (sRGB, decoded to linear), OpenEXR, PFM and
-//! Radiance .hdr (linear), chosen by the file extension.
+//! `write_image_sequence`. Formats: PNG, JPEG, TIFF (sRGB, decoded to linear), DPX (its
+//! header's transfer), OpenEXR, PFM and Radiance .hdr (linear), chosen by the file extension.
+//! Colour management ([`vfxgraph_imaging::colour`]): a reader takes the file's colour space and
+//! a writer the file's colour space or a display/view, by their OpenColorIO names, converting
+//! from and to the graph's scene-linear working space.
 
 use vfxgraph_engine::node::has_frame_pattern;
 use vfxgraph_engine::{Context, Mode, NodeError, NodeSpec, Registry, Threads};
-use vfxgraph_imaging::{read_image, write_image};
+use vfxgraph_imaging::colour::{ReadColour, WriteColour};
 
 use crate::artifacts::ImageArt;
 
@@ -16,12 +19,15 @@ pub fn register(r: &mut Registry) {
         NodeSpec::new(
             "read_image",
             "Reads one image file (PNG, JPEG, OpenEXR, PFM, Radiance HDR) into linear f32. \
-             sRGB files are decoded to linear light; float formats are read as they are.",
+             sRGB files are decoded to linear light; float formats are read as they are. With \
+             `colour_space` (an OpenColorIO name), the file's code values are converted from \
+             it to the working space.",
         )
         .mode(Mode::Once)
         .threads(vfxgraph_engine::Threads::One)
         .uncached()
         .input_file_param("path", "the image file, relative to the graph file")
+        .options::<ReadColour>()
         .output_of::<ImageArt>("image", "the image, linear light"),
         run_read_image,
     );
@@ -29,10 +35,13 @@ pub fn register(r: &mut Registry) {
         NodeSpec::new(
             "write_image",
             "Writes an image file; the format comes from the extension (PNG/JPEG are sRGB \
-             encoded, EXR float ZIP, PFM, HDR RLE). The write is atomic.",
+             encoded, EXR float ZIP, PFM, HDR RLE). With `colour_space` the working space is \
+             converted to it and its code values written; with `view`, a display/view \
+             transform's (a preview). The write is atomic.",
         )
         .threads(vfxgraph_engine::Threads::One)
         .output_file_param("path", FORMATS)
+        .options::<WriteColour>()
         .input_of::<ImageArt>("image", "the image to write"),
         run_write_image,
     );
@@ -45,6 +54,7 @@ pub fn register(r: &mut Registry) {
         .mode(Mode::PerFrame)
         .uncached()
         .input_file_param("path", "file pattern, e.g. plate/frame.%04d.png")
+        .options::<ReadColour>()
         .output_of::<ImageArt>("sequence", "the frame's image"),
         run_read_image,
     );
@@ -56,6 +66,7 @@ pub fn register(r: &mut Registry) {
         .threads(Threads::One)
         .mode(Mode::PerFrame)
         .output_file_param("path", "file pattern, e.g. out/frame.%04d.exr")
+        .options::<WriteColour>()
         .input_of::<ImageArt>("sequence", "the frame's image"),
         run_write_image,
     );
@@ -72,19 +83,27 @@ pub(crate) fn check_pattern(ctx: &Context<'_>) -> Result<(), NodeError> {
     Ok(())
 }
 
+/// The OpenColorIO config file param `ocio_config`, resolved (None when empty).
+pub(crate) fn ocio_config(ctx: &Context<'_>) -> Option<std::path::PathBuf> {
+    (!ctx.params().str("ocio_config").is_empty()).then(|| ctx.path("ocio_config"))
+}
+
 fn run_read_image(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     check_pattern(ctx)?;
-    let img = read_image(&ctx.path("path"))?;
+    let o: ReadColour = ctx.options()?;
+    let img = o.read(&ctx.path("path"), ocio_config(ctx).as_deref())?;
     let port = ctx.output_port(0);
     ctx.output(port, ImageArt(img));
     Ok(())
 }
 
-fn run_write_image(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+pub(crate) fn run_write_image(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     check_pattern(ctx)?;
     let port = ctx.input_port(0);
     let img = &ctx.input::<ImageArt>(port)?.0;
-    Ok(write_image(&crate::output_path(ctx, "path")?, img)?)
+    let o: WriteColour = ctx.options()?;
+    let config = ocio_config(ctx);
+    Ok(o.write(&crate::output_path(ctx, "path")?, img, config.as_deref())?)
 }
 
 #[cfg(test)]
@@ -99,7 +118,26 @@ mod tests {
     }
 
     fn params(path: &str) -> Params {
-        Params::new([("path".to_string(), ParamValue::Str(path.into()))].into())
+        params_with(path, &[])
+    }
+
+    /// The defaults of the readers' and writers' params (one set: they share their names),
+    /// `path` and `set`.
+    fn params_with(path: &str, set: &[(&str, &str)]) -> Params {
+        let mut m: std::collections::BTreeMap<String, ParamValue> =
+            ["colour_space", "view", "display", "ocio_config"]
+                .iter()
+                .map(|k| (k.to_string(), ParamValue::Str(String::new())))
+                .collect();
+        m.insert(
+            "working_space".into(),
+            ParamValue::Str("linear_rec709".into()),
+        );
+        m.insert("path".into(), ParamValue::Str(path.into()));
+        for (k, v) in set {
+            m.insert(k.to_string(), ParamValue::Str(v.to_string()));
+        }
+        Params::new(m)
     }
 
     fn gradient() -> Image {
@@ -168,5 +206,177 @@ mod tests {
             let e = run_read_image(&mut ctx).unwrap_err();
             assert!(e.message.contains(name), "{e}");
         }
+    }
+
+    /// Writes `img` with `set` params to `file`, then reads it with `read` params.
+    fn write_read(
+        dir: &std::path::Path,
+        file: &str,
+        img: &Image,
+        set: &[(&str, &str)],
+        read: &[(&str, &str)],
+    ) -> Result<Image, NodeError> {
+        let (ws, p) = (spec("write_image"), params_with(file, set));
+        let mut ctx = Context::for_test(
+            &ws,
+            &p,
+            dir,
+            None,
+            vec![("image", InputValue::One(Value::new(ImageArt(img.clone()))))],
+        );
+        run_write_image(&mut ctx)?;
+        let (rs, p) = (spec("read_image"), params_with(file, read));
+        let mut ctx = Context::for_test(&rs, &p, dir, None, vec![]);
+        run_read_image(&mut ctx)?;
+        Ok(ctx.take_output::<ImageArt>("image").unwrap().0)
+    }
+
+    /// A LogC3 DPX: written from the working space in ARRI LogC3 (EI 800) code values, read
+    /// back to within the 10-bit quantisation, its codes those of the LogC3 curve (18% grey
+    /// at 0.391 — ARRI's table — is code 400 of 1023).
+    #[test]
+    fn a_logc3_dpx_round_trips_through_its_colour_space() {
+        let dir = tempfile::tempdir().unwrap();
+        let img = Image::from_fn(8, 4, 3, |x, y, c| {
+            0.01 + (x + 8 * y) as f32 * 0.05 + c as f32 * 0.01
+        });
+        let logc = [("colour_space", "ARRI LogC3 (EI800)")];
+        let back = write_read(dir.path(), "p.dpx", &img, &logc, &logc).unwrap();
+        for (p, q) in img.data.chunks(3).zip(back.data.chunks(3)) {
+            // A 10-bit LogC3 step is 0.94% of the value (a stop is 0.0734 of the range), half
+            // a step 0.47%; the gamut matrices spread a channel's rounding into the others, so
+            // the bound is on the pixel's largest channel.
+            let top = p.iter().fold(0.0f32, |m, v| m.max(*v));
+            let worst = (0..3).map(|k| (p[k] - q[k]).abs()).fold(0.0f32, f32::max);
+            assert!(worst <= 0.01 * top, "{p:?} -> {q:?}");
+        }
+        let grey = Image::from_fn(2, 2, 3, |_, _, _| 0.18);
+        let (ws, p) = (spec("write_image"), params_with("g.dpx", &logc));
+        let mut ctx = Context::for_test(
+            &ws,
+            &p,
+            dir.path(),
+            None,
+            vec![("image", InputValue::One(Value::new(ImageArt(grey))))],
+        );
+        run_write_image(&mut ctx).unwrap();
+        let bytes = std::fs::read(dir.path().join("g.dpx")).unwrap();
+        let (codes, info) = vfxgraph_imaging::io::dpx::decode_codes(&bytes).unwrap();
+        assert_eq!(info.transfer, 0, "user defined");
+        assert!(
+            codes.data.iter().all(|&v| (v * 1023.0).round() == 400.0),
+            "{:?}",
+            &codes.data[..3]
+        );
+    }
+
+    /// The defaults read and write as the format always did, bit for bit; naming the sRGB
+    /// colour space explicitly gives the same values within f32 rounding; an ACEScg working
+    /// space converts on read and back on write.
+    #[test]
+    fn default_named_and_acescg_reads_agree() {
+        let dir = tempfile::tempdir().unwrap();
+        let img = gradient();
+        let plain = write_read(dir.path(), "a.png", &img, &[], &[]).unwrap();
+        let mut want = img.clone();
+        for v in &mut want.data {
+            *v = vfxgraph_imaging::color::srgb8_to_linear(
+                vfxgraph_imaging::color::linear_to_srgb8(*v),
+            );
+        }
+        assert_eq!(plain, want);
+        let srgb = [("colour_space", "sRGB Encoded Rec.709 (sRGB)")];
+        let named = write_read(dir.path(), "b.png", &img, &[], &srgb).unwrap();
+        let worst = plain
+            .data
+            .iter()
+            .zip(&named.data)
+            .map(|(a, b)| (a - b).abs() / a.max(1e-3))
+            .fold(0.0f32, f32::max);
+        eprintln!("named sRGB vs the format's sRGB: {worst:e} relative");
+        assert!(worst < 5e-5, "{worst}");
+        let cg = [("working_space", "acescg")];
+        let aces = write_read(dir.path(), "c.exr", &img, &[], &cg).unwrap();
+        let t = vfxgraph_imaging::colour::ColourConfig::builtin()
+            .transform("Linear Rec.709 (sRGB)", "ACEScg")
+            .unwrap();
+        let px = t.apply_rgb([img.data[9], img.data[10], img.data[11]]);
+        assert_eq!(&aces.data[9..12], &px);
+        // Written from ACEScg back to the format's own linear Rec. 709: the original values.
+        let back = write_read(dir.path(), "d.exr", &aces, &cg, &[]).unwrap();
+        for (a, b) in img.data.iter().zip(&back.data) {
+            assert!((a - b).abs() < 1e-6, "{a} vs {b}");
+        }
+    }
+
+    /// A preview through a display/view: the ACES 2.0 SDR view's sRGB display codes.
+    #[test]
+    fn a_preview_writes_the_display_view() {
+        let dir = tempfile::tempdir().unwrap();
+        let img = Image::from_fn(4, 2, 3, |x, _, _| [0.0, 0.18, 1.0, 16.0][x]);
+        let view = [("view", "ACES 2.0 - SDR 100 nits (Rec.709)")];
+        let raw = [("colour_space", "Raw")];
+        let codes = write_read(dir.path(), "v.png", &img, &view, &raw).unwrap();
+        let t = vfxgraph_imaging::colour::ColourConfig::builtin()
+            .display_view(
+                "Linear Rec.709 (sRGB)",
+                "sRGB - Display",
+                "ACES 2.0 - SDR 100 nits (Rec.709)",
+            )
+            .unwrap();
+        for x in 0..4 {
+            let want = t.apply_rgb([img.get(x, 0, 0); 3]);
+            let got = codes.get(x, 0, 0);
+            assert!(
+                (got - want[0]).abs() <= 0.5 / 255.0 + 1e-6,
+                "{x}: {got} vs {want:?}"
+            );
+        }
+        // Tone mapped: 16 is below display white, 0 black.
+        assert!(codes.get(3, 0, 0) < 1.0 && codes.get(0, 0, 0) == 0.0);
+    }
+
+    #[test]
+    fn unknown_colour_names_and_bad_configs_are_errors_naming_file_and_name() {
+        let dir = tempfile::tempdir().unwrap();
+        let img = gradient();
+        let e =
+            write_read(dir.path(), "a.exr", &img, &[("colour_space", "LogC")], &[]).unwrap_err();
+        assert!(
+            e.message.contains("a.exr") && e.message.contains("`LogC`"),
+            "{e}"
+        );
+        write_read(dir.path(), "b.exr", &img, &[], &[]).unwrap();
+        let e = write_read(
+            dir.path(),
+            "c.exr",
+            &img,
+            &[],
+            &[("colour_space", "S-Log9")],
+        )
+        .unwrap_err();
+        assert!(
+            e.message.contains("c.exr") && e.message.contains("S-Log9"),
+            "{e}"
+        );
+        std::fs::write(dir.path().join("studio.ocio"), "ocio_profile_version: [").unwrap();
+        let e = write_read(
+            dir.path(),
+            "d.exr",
+            &img,
+            &[],
+            &[("colour_space", "ACEScg"), ("ocio_config", "studio.ocio")],
+        )
+        .unwrap_err();
+        assert!(e.message.contains("studio.ocio"), "{e}");
+        let e = write_read(
+            dir.path(),
+            "e.png",
+            &img,
+            &[("display", "sRGB - Display")],
+            &[],
+        )
+        .unwrap_err();
+        assert!(e.message.contains("without a `view`"), "{e}");
     }
 }

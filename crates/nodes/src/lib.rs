@@ -96,7 +96,7 @@ pub(crate) fn write_output(ctx: &Context<'_>, param: &str, bytes: &[u8]) -> Resu
 mod tests {
     use crate::testing::check_defaults;
     use vfxgraph_engine::ParamValue;
-    use vfxgraph_imaging::hdr;
+    use vfxgraph_imaging::{colour, hdr};
     use vfxgraph_render as render;
     use vfxgraph_video as video;
     use vfxgraph_vision::{camera_path, klt};
@@ -219,6 +219,17 @@ mod tests {
             check_defaults::<render::local_scene::LocalTextureOptions>,
         ),
         ("catcher_texture", check_defaults::<render::ImageSize>),
+        ("read_image", check_defaults::<colour::ReadColour>),
+        ("read_image_sequence", check_defaults::<colour::ReadColour>),
+        ("write_image", check_defaults::<colour::WriteColour>),
+        (
+            "write_image_sequence",
+            check_defaults::<colour::WriteColour>,
+        ),
+        ("read_video", check_defaults::<colour::ReadColour>),
+        ("write_video", check_defaults::<colour::WriteColour>),
+        ("differential_render", check_defaults::<colour::ReadColour>),
+        ("composite", check_defaults::<colour::ReadColour>),
     ];
 
     /// Walks every node type: those with an options struct declare exactly its defaults; any

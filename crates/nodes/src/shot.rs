@@ -6,8 +6,9 @@ use vfxgraph_engine::artifact::codec::{put_bytes, put_u64, Reader};
 use vfxgraph_engine::{
     ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, Registry,
 };
+use vfxgraph_imaging::colour::ReadColour;
 use vfxgraph_imaging::io::LayersOptions;
-use vfxgraph_imaging::{read_image, Image};
+use vfxgraph_imaging::Image;
 use vfxgraph_render::catcher_fit::{fit_catcher, FitCatcherOptions};
 use vfxgraph_render::differential::{
     composite, differential_render, CompositeOptions, DifferentialLayers, DifferentialOptions,
@@ -113,7 +114,8 @@ pub fn register(r: &mut Registry) {
                 base_mib: 64,
                 bytes_per_pixel: 400,
             })
-            .options::<DifferentialOptions>(),
+            .options::<DifferentialOptions>()
+            .options::<ReadColour>(),
             SHOT_INPUTS,
         )
         .optional_input_of::<ImageArt>("plate", "this frame's plate (linear radiance)")
@@ -146,6 +148,7 @@ pub fn register(r: &mut Registry) {
         .mode(Mode::Either)
         .threads(vfxgraph_engine::Threads::One)
         .options::<CompositeOptions>()
+        .options::<ReadColour>()
         .input_of::<LayersArt>("layers", "from differential_render")
         .optional_input_of::<ImageArt>("plate", "the frame's plate")
         .output_of::<ImageArt>("image", "the composite, linear RGB"),
@@ -225,14 +228,20 @@ fn run_differential_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     Ok(())
 }
 
-/// The plate of this instance: the `plate` input, else the `plate` file pattern, else `None`.
+/// The plate of this instance: the `plate` input (already in the working space), else the
+/// `plate` file pattern read from `colour_space` into the working space, else `None`.
 fn plate_of(ctx: &Context<'_>) -> Result<Option<Image>, NodeError> {
     if let Some(p) = ctx.input_opt::<ImageArt>("plate")? {
         return Ok(Some(p.0.clone()));
     }
+    let colour: ReadColour = ctx.options()?;
+    let config = crate::image_io::ocio_config(ctx);
     let file = (!ctx.params().str("plate").is_empty()).then(|| ctx.path("plate"));
-    let read =
-        |p: std::path::PathBuf| read_image(&p).map_err(|e| NodeError::msg(format!("plate: {e}")));
+    let read = |p: std::path::PathBuf| {
+        colour
+            .read(&p, config.as_deref())
+            .map_err(|e| NodeError::msg(format!("plate: {e}")))
+    };
     file.map(read).transpose()
 }
 
@@ -539,5 +548,147 @@ mod tests {
         l.encode(&mut b);
         assert_eq!(LayersArt::decode(&b).unwrap(), l);
         assert!(LayersArt::decode(&b[..b.len() - 1]).is_err());
+    }
+
+    /// A LogC3 plate made from the demo plate (graphs/data/demo/plate.mp4, frame 0, a 96×72
+    /// crop two stops brighter, so highlights pass 1) and encoded in ARRI LogC3 (EI 800) code
+    /// values, `fmt` the file: `differential_render` reads it into the working space `work`,
+    /// composites a ball and its shadow, and `write_image` writes the composite back in LogC3.
+    /// Returns the plate's and the composite's codes and the mask of pixels the objects reach
+    /// (covered by them, or where the catcher with them differs from without).
+    fn logc3_composite(file: &str, work: &str) -> (Vec<u32>, Vec<u32>, Vec<bool>, u32) {
+        use vfxgraph_imaging::colour::ColourConfig;
+        use vfxgraph_imaging::io::{dpx, Values};
+        let dir = tempfile::tempdir().unwrap();
+        let (w, h) = (96, 72);
+        let demo = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../graphs/data/demo/plate.mp4");
+        let frame = vfxgraph_video::Video::open(&demo)
+            .unwrap()
+            .frame(0)
+            .unwrap();
+        let mut plate = Image::from_fn(w, h, 3, |x, y, c| 4.0 * frame.get(x + 200, y + 120, c));
+        let logc = "ARRI LogC3 (EI800)";
+        ColourConfig::builtin()
+            .transform("Linear Rec.709 (sRGB)", logc)
+            .unwrap()
+            .apply(&mut plate);
+        let plate_file = dir.path().join(file);
+        vfxgraph_imaging::write_image_as(&plate_file, &plate, Values::Codes).unwrap();
+        let scene = {
+            let yaml = format!(
+                "camera:\n  look_at: {{from: [0, -4, 2], at: [0, 0, 0.3], up: [0, 0, 1], fov: 50}}\n  \
+                 size: [{w}, {h}]\nobjects:\n  - sphere: {{center: [0, 0, 0.5], radius: 0.5}}\n    \
+                 material: {{type: lambert, albedo: [0.8, 0.2, 0.2]}}\n  - quad: {{corner: [-3, -3, 0], \
+                 edge1: [6, 0, 0], edge2: [0, 6, 0]}}\n    material: {{type: lambert, albedo: 0.5}}\n    \
+                 catcher: true\ndome: {{color: [1.0, 0.9, 0.7]}}\n"
+            );
+            let s = vfxgraph_render::parse_yaml_scene(&yaml, Path::new(".")).unwrap();
+            SceneArt {
+                scene: s.scene,
+                dome: None,
+            }
+        };
+        let colour = [
+            ("colour_space", ParamValue::Str(logc.into())),
+            ("working_space", ParamValue::Str(work.into())),
+        ];
+        let mut set = vec![
+            ("spp", ParamValue::Int(8)),
+            ("max_depth", ParamValue::Int(2)),
+            ("plate", ParamValue::Str(file.into())),
+        ];
+        set.extend(colour.iter().cloned());
+        let out = run(
+            "differential_render",
+            &set,
+            None,
+            vec![("scene", one(&scene))],
+            dir.path(),
+            run_differential_render,
+        )
+        .unwrap();
+        let comp = out.2.unwrap();
+        let layers = out.3.unwrap().0;
+        let layer = |n: &str| &layers.iter().find(|(l, _)| l == n).unwrap().1;
+        let (beauty, with, without) = (
+            layer("beauty"),
+            layer("catcher_with"),
+            layer("catcher_without"),
+        );
+        let reach: Vec<bool> = (0..w * h)
+            .map(|i| {
+                beauty.data[4 * i + 3] != 0.0
+                    || (0..3).any(|c| {
+                        with.data[4 * i + c].to_bits() != without.data[4 * i + c].to_bits()
+                    })
+            })
+            .collect();
+        let mut wset = vec![("path", ParamValue::Str(format!("out_{file}")))];
+        wset.extend(colour.iter().cloned());
+        let ws = spec("write_image");
+        let ps = params(&ws, &wset);
+        let mut ctx = Context::for_test(&ws, &ps, dir.path(), None, vec![("image", one(&comp))]);
+        crate::image_io::run_write_image(&mut ctx).unwrap();
+        let read = |p: &std::path::Path| {
+            let bytes = std::fs::read(p).unwrap();
+            if file.ends_with(".dpx") {
+                let (img, info) = dpx::decode_codes(&bytes).unwrap();
+                assert_eq!(info.transfer, 0, "user defined");
+                (img, 1023.0)
+            } else {
+                let f = vfxgraph_imaging::Format::Tiff;
+                (
+                    vfxgraph_imaging::decode_as(&bytes, f, Values::Codes).unwrap(),
+                    65535.0,
+                )
+            }
+        };
+        let ((a, max), (b, _)) = (
+            read(&plate_file),
+            read(&dir.path().join(format!("out_{file}"))),
+        );
+        let codes = |img: &Image| img.data.iter().map(|v| (v * max).round() as u32).collect();
+        (codes(&a), codes(&b), reach, max as u32)
+    }
+
+    /// The composite of a LogC3 plate, written back in LogC3, is the plate bit for bit (every
+    /// code value) wherever the inserted objects do not reach, for 10-bit DPX and 16-bit TIFF,
+    /// composited in either working space; where they reach, it changed.
+    #[test]
+    fn a_logc3_plate_composite_is_the_plate_outside_the_objects_reach() {
+        for (file, work) in [
+            ("plate.dpx", "linear_rec709"),
+            ("plate.dpx", "acescg"),
+            ("plate.tif", "linear_rec709"),
+            ("plate.tif", "acescg"),
+        ] {
+            let (plate, comp, reach, max) = logc3_composite(file, work);
+            let untouched = reach.iter().filter(|r| !**r).count();
+            let n = reach.len();
+            assert!(
+                untouched > n / 4 && untouched < n,
+                "{file} {work}: {untouched} of {n} pixels out of reach"
+            );
+            let mut differ = 0;
+            let mut changed = 0;
+            for (i, r) in reach.iter().enumerate() {
+                let same = plate[3 * i..3 * i + 3] == comp[3 * i..3 * i + 3];
+                if !r && !same {
+                    differ += 1;
+                }
+                if *r && !same {
+                    changed += 1;
+                }
+            }
+            eprintln!(
+                "{file} ({max} max code), {work}: {untouched} of {n} pixels out of the objects' \
+                 reach, {differ} of them differ from the plate; {changed} changed in reach"
+            );
+            assert_eq!(differ, 0, "{file} {work}");
+            assert!(changed > n / 20, "{file} {work}: {changed} changed");
+            // The plate's codes span the LogC3 range, past linear 1 (code 0.57).
+            let top = plate.iter().max().unwrap();
+            assert!(*top as f32 > 0.6 * max as f32, "{file}: top code {top}");
+        }
     }
 }

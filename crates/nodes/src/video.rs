@@ -5,6 +5,8 @@
 //! opencv` (a build with the `opencv` cargo feature) any file OpenCV's VideoCapture opens.
 
 use vfxgraph_engine::{Context, Mode, NodeError, NodeSpec, Registry, Threads};
+use vfxgraph_imaging::colour::{ReadColour, WorkingSpace, WriteColour};
+use vfxgraph_imaging::{Image, Operator};
 use vfxgraph_video::{open_shared, write_video, ReadVideoOptions, WriteVideoOptions};
 
 use crate::artifacts::ImageArt;
@@ -18,13 +20,16 @@ pub fn register(r: &mut Registry) {
              picture shown; frames in presentation order) as a linear-light RGB image: Y'CbCr \
              (8–16 bits, 4:2:0, 4:2:2, 4:4:4) converted with the matrix and range the stream \
              declares (BT.709 for HD, BT.601 below, when it does not), decoded with the sRGB \
-             curve as PNG frames are; a phone's rotation applied. H.264 MP4 by the bundled \
+             curve as PNG frames are (with `colour_space`, those code values converted from \
+             that OpenColorIO colour space to the working space instead); a phone's rotation \
+             applied. H.264 MP4 by the bundled \
              reader, every other codec through FFmpeg (`ffmpeg` on the PATH or \
              $VFXGRAPH_FFMPEG).",
         )
         .mode(Mode::PerFrame)
         .input_file_param("path", "the video file, relative to the graph file")
         .options::<ReadVideoOptions>()
+        .options::<ReadColour>()
         .output_of::<ImageArt>("sequence", "the frame's image"),
         run_read_video,
     );
@@ -34,13 +39,15 @@ pub fn register(r: &mut Registry) {
             "Writes the frames of a sequence, in frame order, as an H.264 .mp4 a person can \
              play (OpenH264 encoder, bundled; Y'CbCr 4:2:0, limited range, BT.709 declared \
              in the stream). The input is linear light: it is tone-mapped (`tonemap`: clip \
-             as a PNG is, or Reinhard for HDR) and sRGB-encoded. Frames must be one even \
+             as a PNG is, or Reinhard for HDR) and sRGB-encoded — or, with `view`, put \
+             through that OpenColorIO display/view transform (a preview; `tonemap: srgb`). Frames must be one even \
              size. The write is atomic.",
         )
         .threads(Threads::One)
         .mode(Mode::Once)
         .output_file_param("path", "the .mp4 file, relative to the graph file")
         .options::<WriteVideoOptions>()
+        .options::<WriteColour>()
         .sequence_input_of::<ImageArt>("sequence", "the frames, in order"),
         run_write_video,
     );
@@ -49,15 +56,36 @@ pub fn register(r: &mut Registry) {
 fn run_read_video(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: ReadVideoOptions = ctx.options()?;
     let video = open_shared(&ctx.path("path"), o.backend)?;
-    let img = video.frame(ctx.frame().unwrap_or(0))?;
+    let mut img = video.frame(ctx.frame().unwrap_or(0))?;
+    let colour: ReadColour = ctx.options()?;
+    let config = crate::image_io::ocio_config(ctx);
+    let path = ctx.path("path");
+    colour.convert_decoded(&mut img, config.as_deref(), &path.display().to_string())?;
     ctx.output("sequence", ImageArt(img));
     Ok(())
 }
 
 fn run_write_video(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: WriteVideoOptions = ctx.options()?;
+    let colour: WriteColour = ctx.options()?;
+    let path = ctx.path("path");
+    let managed = !colour.colour_space.is_empty() || !colour.view.is_empty();
+    if managed && (o.tonemap != Operator::Srgb || o.exposure != 0.0) {
+        return Err(NodeError::msg(format!(
+            "{}: `colour_space`/`view` give the frames' codes, so `tonemap` must be srgb and \
+             `exposure` 0 (tone mapping is the view's)",
+            path.display()
+        )));
+    }
     let frames = crate::artifacts::image_sequence(ctx, "sequence")?;
-    Ok(write_video(&ctx.path("path"), &frames, &o)?)
+    if !managed && colour.working_space == WorkingSpace::LinearRec709 {
+        return Ok(write_video(&path, &frames, &o)?);
+    }
+    let mut images: Vec<Image> = frames.iter().map(|(_, i)| (*i).clone()).collect();
+    let config = crate::image_io::ocio_config(ctx);
+    colour.convert_for_srgb_encoder(&mut images, config.as_deref(), &path.display().to_string())?;
+    let frames: Vec<(i64, &Image)> = frames.iter().map(|(f, _)| *f).zip(&images).collect();
+    Ok(write_video(&path, &frames, &o)?)
 }
 
 #[cfg(test)]

@@ -25,7 +25,7 @@
 //! element, big-endian, filled method A, in any of these transfers (default: 10-bit Cineon
 //! log, what a plate is delivered in).
 
-use super::{check_encodable, Format};
+use super::{check_encodable, Format, Values};
 use crate::color::{linear_to_srgb, srgb_to_linear};
 use crate::error::ImageError;
 use crate::image::{sample_count, Image};
@@ -500,6 +500,23 @@ impl Default for DpxOptions {
 /// Encodes a linear-light image (1, 3 or 4 channels; 2 are written as luma + nothing, so
 /// refused) as a big-endian, filled-method-A DPX file of one element.
 pub fn encode(img: &Image, o: &DpxOptions) -> Result<Vec<u8>, ImageError> {
+    encode_values(img, o, Values::Linear)
+}
+
+/// [`encode`] of linear light, or of code values over [0, 1] (`values`): those are quantised
+/// to `o.bits` with no curve, and the header says "user defined" transfer (the colour space
+/// is the one a colour-managed reader is told).
+pub(crate) fn encode_values(
+    img: &Image,
+    o: &DpxOptions,
+    values: Values,
+) -> Result<Vec<u8>, ImageError> {
+    let codes = values == Values::Codes;
+    let user = DpxOptions {
+        bits: o.bits,
+        transfer: Transfer::Srgb,
+    };
+    let o = if codes { &user } else { o };
     check_encodable(img, Format::Dpx)?;
     let descriptor = match img.channels {
         1 => 6u8,
@@ -524,6 +541,7 @@ pub fn encode(img: &Image, o: &DpxOptions) -> Result<Vec<u8>, ImageError> {
     let (black, white) = (low as f32 * 1023.0 / max, high as f32 * 1023.0 / max);
     let code = |v: f32| -> u32 {
         let e = match o.transfer {
+            _ if codes => v,
             Transfer::PrintingDensity => linear_to_cineon(v, black, white) / 1023.0,
             Transfer::Linear => v,
             Transfer::Bt709 => linear_to_bt709(v.max(0.0)),

@@ -29,6 +29,22 @@ pub use self::exr::{
 };
 pub use self::png_jpeg::{encode_jpeg, encode_png16};
 
+/// What an image's values are, relative to a file's numbers.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Values {
+    /// Linear light: the format's own curve decoded on read and applied on write (sRGB for
+    /// 8/16-bit PNG, JPEG and TIFF; the header's transfer characteristic for DPX; float formats
+    /// as stored). What [`decode`] and [`encode`] do.
+    #[default]
+    Linear,
+    /// The file's code values, no curve: integer samples over [0, 1] (code / largest code),
+    /// float samples as stored; on write, values quantised as they are (clamped to [0, 1] for
+    /// integer samples; a DPX header then says "user defined" transfer). For files in a colour
+    /// space a colour-management transform decodes ([`crate::colour`]). Alpha is coverage in
+    /// both.
+    Codes,
+}
+
 /// An image file format this crate reads and writes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -175,10 +191,47 @@ pub fn encode(img: &Image, format: Format) -> Result<Vec<u8>, ImageError> {
     }
 }
 
+/// [`decode`] into `values`: linear light ([`Values::Linear`], what [`decode`] gives) or the
+/// file's code values ([`Values::Codes`]).
+pub fn decode_as(bytes: &[u8], format: Format, values: Values) -> Result<Image, ImageError> {
+    match (values, format) {
+        (Values::Linear, _) | (_, Format::Exr | Format::Pfm | Format::Hdr) => decode(bytes, format),
+        (Values::Codes, Format::Png | Format::Jpeg) => {
+            png_jpeg::decode_values(bytes, format, values)
+        }
+        (Values::Codes, Format::Dpx) => dpx::decode_codes(bytes).map(|(img, _)| img),
+        (Values::Codes, Format::Tiff) => tiff::decode_values(bytes, values),
+    }
+}
+
+/// [`encode`] of `values`: linear light ([`Values::Linear`], what [`encode`] does) or code
+/// values ([`Values::Codes`]), with the same default depths.
+pub fn encode_as(img: &Image, format: Format, values: Values) -> Result<Vec<u8>, ImageError> {
+    check_encodable(img, format)?;
+    match (values, format) {
+        (Values::Linear, _) | (_, Format::Exr | Format::Pfm | Format::Hdr) => encode(img, format),
+        (Values::Codes, Format::Png) => png_jpeg::encode_png8_values(img, values),
+        (Values::Codes, Format::Jpeg) => {
+            png_jpeg::encode_jpeg_values(img, png_jpeg::DEFAULT_JPEG_QUALITY, values)
+        }
+        (Values::Codes, Format::Dpx) => {
+            dpx::encode_values(img, &dpx::DpxOptions::default(), values)
+        }
+        (Values::Codes, Format::Tiff) => {
+            tiff::encode_values(img, &tiff::TiffOptions::default(), values)
+        }
+    }
+}
+
 /// Read an image file. The format comes from the extension; when the file's magic bytes name a
 /// different format the magic bytes win (a mislabelled file still reads), and a file without a
 /// known extension is identified by its magic bytes alone. Errors name `path`.
 pub fn read_image(path: &Path) -> Result<Image, ImageError> {
+    read_image_as(path, Values::Linear)
+}
+
+/// [`read_image`] into `values` (see [`decode_as`]).
+pub fn read_image_as(path: &Path, values: Values) -> Result<Image, ImageError> {
     let bytes = std::fs::read(path).map_err(|source| ImageError::Io {
         path: path.to_path_buf(),
         source,
@@ -193,7 +246,7 @@ pub fn read_image(path: &Path) -> Result<Image, ImageError> {
             .at_path(path))
         }
     };
-    decode(&bytes, format).map_err(|e| e.at_path(path))
+    decode_as(&bytes, format, values).map_err(|e| e.at_path(path))
 }
 
 /// Write an image file in the format named by the extension of `path` (see [`encode`]).
@@ -202,6 +255,11 @@ pub fn read_image(path: &Path) -> Result<Image, ImageError> {
 /// either the old file or the new one. The folder must exist (a mistyped output folder is an
 /// error, not a new folder; the nodes create their output folders). Errors name `path`.
 pub fn write_image(path: &Path, img: &Image) -> Result<(), ImageError> {
+    write_image_as(path, img, Values::Linear)
+}
+
+/// [`write_image`] of `values` (see [`encode_as`]).
+pub fn write_image_as(path: &Path, img: &Image, values: Values) -> Result<(), ImageError> {
     let format = Format::from_path(path).ok_or_else(|| {
         ImageError::UnsupportedFormat(format!(
             "cannot tell the format from the extension (use one of {})",
@@ -209,7 +267,7 @@ pub fn write_image(path: &Path, img: &Image) -> Result<(), ImageError> {
         ))
         .at_path(path)
     })?;
-    let bytes = encode(img, format).map_err(|e| e.at_path(path))?;
+    let bytes = encode_as(img, format, values).map_err(|e| e.at_path(path))?;
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
         if !dir.is_dir() {
             return Err(ImageError::Io {

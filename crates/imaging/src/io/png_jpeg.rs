@@ -13,7 +13,7 @@ use std::io::Cursor;
 
 use image::{DynamicImage, ExtendedColorType, ImageEncoder, ImageFormat, ImageReader, Limits};
 
-use super::{check_encodable, guard, Format};
+use super::{check_encodable, guard, Format, Values};
 use crate::color::{
     linear_to_srgb16, linear_to_srgb8, srgb16_to_linear, srgb8_to_linear, unit_to_u16, unit_to_u8,
 };
@@ -25,6 +25,16 @@ pub const DEFAULT_JPEG_QUALITY: u8 = 95;
 
 /// Decode PNG or JPEG bytes (`format` must be [`Format::Png`] or [`Format::Jpeg`]).
 pub fn decode(bytes: &[u8], format: Format) -> Result<Image, ImageError> {
+    decode_values(bytes, format, Values::Linear)
+}
+
+/// Decode PNG or JPEG bytes into `values`: linear light (the sRGB curve decoded, [`decode`]) or
+/// the code values over [0, 1].
+pub(crate) fn decode_values(
+    bytes: &[u8],
+    format: Format,
+    values: Values,
+) -> Result<Image, ImageError> {
     if !matches!(format, Format::Png | Format::Jpeg) {
         return Err(ImageError::UnsupportedFormat(format!(
             "{format} is not decoded by the PNG/JPEG codec"
@@ -38,27 +48,35 @@ pub fn decode(bytes: &[u8], format: Format) -> Result<Image, ImageError> {
     })?;
     let (w, h) = (dynamic.width() as usize, dynamic.height() as usize);
     sample_count(w, h, 4)?;
+    let codes = values == Values::Codes;
+    let c8: fn(u8) -> f32 = if codes {
+        |c| c as f32 / 255.0
+    } else {
+        srgb8_to_linear
+    };
+    let c16: fn(u16) -> f32 = if codes {
+        |c| c as f32 / 65535.0
+    } else {
+        srgb16_to_linear
+    };
     let img = match dynamic {
-        DynamicImage::ImageLuma8(b) => convert(w, h, 1, b.as_raw(), srgb8_to_linear, |_| 0.0),
-        DynamicImage::ImageRgb8(b) => convert(w, h, 3, b.as_raw(), srgb8_to_linear, |_| 0.0),
-        DynamicImage::ImageRgba8(b) => {
-            convert(w, h, 4, b.as_raw(), srgb8_to_linear, |a| a as f32 / 255.0)
-        }
-        DynamicImage::ImageLumaA8(b) => {
-            gray_alpha(w, h, b.as_raw(), srgb8_to_linear, |a| a as f32 / 255.0)
-        }
-        DynamicImage::ImageLuma16(b) => convert(w, h, 1, b.as_raw(), srgb16_to_linear, |_| 0.0),
-        DynamicImage::ImageRgb16(b) => convert(w, h, 3, b.as_raw(), srgb16_to_linear, |_| 0.0),
-        DynamicImage::ImageRgba16(b) => convert(w, h, 4, b.as_raw(), srgb16_to_linear, |a| {
-            a as f32 / 65535.0
-        }),
-        DynamicImage::ImageLumaA16(b) => {
-            gray_alpha(w, h, b.as_raw(), srgb16_to_linear, |a| a as f32 / 65535.0)
-        }
+        DynamicImage::ImageLuma8(b) => convert(w, h, 1, b.as_raw(), c8, |_| 0.0),
+        DynamicImage::ImageRgb8(b) => convert(w, h, 3, b.as_raw(), c8, |_| 0.0),
+        DynamicImage::ImageRgba8(b) => convert(w, h, 4, b.as_raw(), c8, |a| a as f32 / 255.0),
+        DynamicImage::ImageLumaA8(b) => gray_alpha(w, h, b.as_raw(), c8, |a| a as f32 / 255.0),
+        DynamicImage::ImageLuma16(b) => convert(w, h, 1, b.as_raw(), c16, |_| 0.0),
+        DynamicImage::ImageRgb16(b) => convert(w, h, 3, b.as_raw(), c16, |_| 0.0),
+        DynamicImage::ImageRgba16(b) => convert(w, h, 4, b.as_raw(), c16, |a| a as f32 / 65535.0),
+        DynamicImage::ImageLumaA16(b) => gray_alpha(w, h, b.as_raw(), c16, |a| a as f32 / 65535.0),
         other => {
             // Float or future layouts: values are display-referred in [0, 1], so sRGB-decode.
             let b = other.to_rgba32f();
-            convert(w, h, 4, b.as_raw(), crate::color::srgb_to_linear, |a| a)
+            let f: fn(f32) -> f32 = if codes {
+                |v| v
+            } else {
+                crate::color::srgb_to_linear
+            };
+            convert(w, h, 4, b.as_raw(), f, |a| a)
         }
     };
     Ok(img)
@@ -179,8 +197,9 @@ fn dims_u32(img: &Image, format: Format) -> Result<(u32, u32), ImageError> {
     }
 }
 
-/// Quantise to 8-bit codes: colour through the sRGB curve, alpha linearly.
-fn codes8(img: &Image, keep_alpha: bool) -> (Vec<u8>, usize) {
+/// Quantise to 8-bit codes: colour through the sRGB curve (or, for [`Values::Codes`], as
+/// code values over [0, 1]), alpha linearly.
+fn codes8(img: &Image, keep_alpha: bool, values: Values) -> (Vec<u8>, usize) {
     let cc = img.color_channels();
     let out_ch = if keep_alpha && img.has_alpha() {
         cc + 1
@@ -189,7 +208,10 @@ fn codes8(img: &Image, keep_alpha: bool) -> (Vec<u8>, usize) {
     };
     let mut out = Vec::with_capacity(img.pixel_count() * out_ch);
     for p in img.data.chunks_exact(img.channels) {
-        out.extend(p[..cc].iter().map(|&v| linear_to_srgb8(v)));
+        match values {
+            Values::Linear => out.extend(p[..cc].iter().map(|&v| linear_to_srgb8(v))),
+            Values::Codes => out.extend(p[..cc].iter().map(|&v| unit_to_u8(v))),
+        }
         if out_ch > cc {
             out.push(unit_to_u8(p[cc]));
         }
@@ -208,9 +230,14 @@ fn color_type8(channels: usize) -> ExtendedColorType {
 
 /// Encode as an 8-bit sRGB PNG (gray, gray + alpha, RGB or RGBA as the image is).
 pub fn encode_png8(img: &Image) -> Result<Vec<u8>, ImageError> {
+    encode_png8_values(img, Values::Linear)
+}
+
+/// [`encode_png8`] of linear light or of code values over [0, 1] (`values`).
+pub(crate) fn encode_png8_values(img: &Image, values: Values) -> Result<Vec<u8>, ImageError> {
     check_encodable(img, Format::Png)?;
     let (w, h) = dims_u32(img, Format::Png)?;
-    let (codes, ch) = codes8(img, true);
+    let (codes, ch) = codes8(img, true, values);
     let mut out = Vec::new();
     image::codecs::png::PngEncoder::new(&mut out)
         .write_image(&codes, w, h, color_type8(ch))
@@ -249,6 +276,15 @@ pub fn encode_png16(img: &Image) -> Result<Vec<u8>, ImageError> {
 /// Encode as a baseline 8-bit sRGB JPEG of the given quality (1–100), gray or RGB; alpha is
 /// dropped (JPEG has no alpha channel).
 pub fn encode_jpeg(img: &Image, quality: u8) -> Result<Vec<u8>, ImageError> {
+    encode_jpeg_values(img, quality, Values::Linear)
+}
+
+/// [`encode_jpeg`] of linear light or of code values over [0, 1] (`values`).
+pub(crate) fn encode_jpeg_values(
+    img: &Image,
+    quality: u8,
+    values: Values,
+) -> Result<Vec<u8>, ImageError> {
     check_encodable(img, Format::Jpeg)?;
     let (w, h) = dims_u32(img, Format::Jpeg)?;
     if w > 65535 || h > 65535 {
@@ -257,7 +293,7 @@ pub fn encode_jpeg(img: &Image, quality: u8) -> Result<Vec<u8>, ImageError> {
             format!("{w}x{h} exceeds JPEG's 65535x65535 limit"),
         ));
     }
-    let (codes, ch) = codes8(img, false);
+    let (codes, ch) = codes8(img, false, values);
     let mut out = Vec::new();
     image::codecs::jpeg::JpegEncoder::new_with_quality(&mut out, quality.clamp(1, 100))
         .write_image(&codes, w, h, color_type8(ch))

@@ -18,7 +18,7 @@ use tiff::decoder::{Decoder, DecodingResult, Limits};
 use tiff::encoder::{colortype, Compression, DeflateLevel, Predictor, TiffEncoder};
 use tiff::ColorType;
 
-use super::{check_encodable, guard, Format};
+use super::{check_encodable, guard, Format, Values};
 use crate::color::{linear_to_srgb, srgb_to_linear};
 use crate::error::ImageError;
 use crate::image::{sample_count, Image, MAX_SAMPLES};
@@ -33,10 +33,16 @@ fn tiff_err(e: tiff::TiffError) -> ImageError {
 
 /// Decodes the first image of a TIFF file into linear light (module docs).
 pub fn decode(bytes: &[u8]) -> Result<Image, ImageError> {
-    guard(Format::Tiff, || decode_inner(bytes))
+    decode_values(bytes, Values::Linear)
 }
 
-fn decode_inner(bytes: &[u8]) -> Result<Image, ImageError> {
+/// Decodes the first image of a TIFF file into `values`: linear light ([`decode`]) or the code
+/// values (integer samples over [0, 1], floats as stored).
+pub(crate) fn decode_values(bytes: &[u8], values: Values) -> Result<Image, ImageError> {
+    guard(Format::Tiff, || decode_inner(bytes, values))
+}
+
+fn decode_inner(bytes: &[u8], values: Values) -> Result<Image, ImageError> {
     let mut limits = Limits::default();
     limits.decoding_buffer_size = MAX_SAMPLES * 4;
     limits.intermediate_buffer_size = MAX_SAMPLES * 4;
@@ -101,7 +107,13 @@ fn decode_inner(bytes: &[u8]) -> Result<Image, ImageError> {
         .chunks_exact_mut(out_channels)
         .zip(samples.chunks_exact(stored))
     {
-        let decode = |v: f32| if float { v } else { srgb_to_linear(v) };
+        let decode = |v: f32| {
+            if float || values == Values::Codes {
+                v
+            } else {
+                srgb_to_linear(v)
+            }
+        };
         match stored {
             2 => {
                 let g = decode(src[0]);
@@ -177,6 +189,16 @@ impl Default for TiffOptions {
 
 /// Encodes a linear-light image of 1, 3 or 4 channels as a TIFF file (module docs).
 pub fn encode(img: &Image, o: &TiffOptions) -> Result<Vec<u8>, ImageError> {
+    encode_values(img, o, Values::Linear)
+}
+
+/// [`encode`] of linear light or of code values over [0, 1] (`values`: integer samples are
+/// then the values quantised, with no curve).
+pub(crate) fn encode_values(
+    img: &Image,
+    o: &TiffOptions,
+    values: Values,
+) -> Result<Vec<u8>, ImageError> {
     check_encodable(img, Format::Tiff)?;
     if !matches!(img.channels, 1 | 3 | 4) {
         return Err(ImageError::encode(
@@ -186,8 +208,12 @@ pub fn encode(img: &Image, o: &TiffOptions) -> Result<Vec<u8>, ImageError> {
     }
     let c = img.channels;
     let encoded = |i: usize, v: f32| -> f32 {
-        if c == 4 && i % 4 == 3 {
-            v.clamp(0.0, 1.0)
+        if (c == 4 && i % 4 == 3) || values == Values::Codes {
+            if v.is_nan() {
+                0.0
+            } else {
+                v.clamp(0.0, 1.0)
+            }
         } else {
             linear_to_srgb(v.max(0.0)).min(1.0)
         }
