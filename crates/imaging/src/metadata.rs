@@ -43,6 +43,12 @@ pub struct CameraFocal {
     pub source: FocalSource,
 }
 
+/// A 35 mm equivalent focal length `f35` (mm) in pixels of a `width` × `height` picture: the
+/// same diagonal field of view, f_px = f₃₅ · √(w² + h²) / 43.27.
+pub fn pixels_from_35mm(f35: f64, width: usize, height: usize) -> f64 {
+    f35 * (width as f64).hypot(height as f64) / FULL_FRAME_DIAGONAL_MM
+}
+
 /// The focal length, in pixels of a `width` × `height` image, that the EXIF metadata of a file
 /// (its bytes) records; `Err` says what is missing.
 pub fn camera_focal(bytes: &[u8], width: usize, height: usize) -> Result<CameraFocal, String> {
@@ -72,9 +78,8 @@ pub fn camera_focal(bytes: &[u8], width: usize, height: usize) -> Result<CameraF
         });
     }
     if let Some(f35) = get(Tag::FocalLengthIn35mmFilm) {
-        let diagonal = (width as f64).hypot(height as f64);
         return Ok(CameraFocal {
-            pixels: f35 * diagonal / FULL_FRAME_DIAGONAL_MM,
+            pixels: pixels_from_35mm(f35, width, height),
             millimetres: mm,
             source: FocalSource::Equivalent35mm,
         });

@@ -39,6 +39,9 @@ fn file_reader(
 /// image's centre, its size set.
 fn run_intrinsics_from_metadata(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let path = ctx.path("path");
+    if is_movie(&path) {
+        return intrinsics_from_movie(ctx, &path);
+    }
     let img = vfxgraph_imaging::io::read_image(&path)?;
     let bytes = std::fs::read(&path)
         .map_err(|e| NodeError::msg(format!("cannot read {}: {e}", path.display())))?;
@@ -51,16 +54,49 @@ fn run_intrinsics_from_metadata(ctx: &mut Context<'_>) -> Result<(), NodeError> 
     Ok(())
 }
 
+/// A QuickTime / MP4 file, by its extension.
+fn is_movie(path: &std::path::Path) -> bool {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    matches!(ext.as_deref(), Some("mov" | "mp4" | "m4v" | "3gp"))
+}
+
+/// K of a clip from the 35 mm equivalent focal length a phone records in its QuickTime
+/// metadata ([`vfxgraph_video::metadata`]), for the picture as shown (portrait clips turned).
+fn intrinsics_from_movie(ctx: &mut Context<'_>, path: &std::path::Path) -> Result<(), NodeError> {
+    let m = vfxgraph_video::metadata::camera_metadata(path).map_err(NodeError::msg)?;
+    let (w, h) = m
+        .display_size
+        .ok_or_else(|| NodeError::msg(format!("{}: no video track with a size", path.display())))?;
+    let f35 = m.focal_35mm.ok_or_else(|| {
+        NodeError::msg(format!(
+            "{}: the QuickTime metadata has no {} (the camera did not record its focal              length: use `matchmove` with `focal: unknown`)",
+            path.display(),
+            vfxgraph_video::metadata::KEY_FOCAL_35MM
+        ))
+    })?;
+    let f = vfxgraph_imaging::metadata::pixels_from_35mm(f35, w as usize, h as usize);
+    let (wf, hf) = (w as f64, h as f64);
+    let k =
+        vfxgraph_vision::Intrinsics::new(f, f, (wf - 1.0) / 2.0, (hf - 1.0) / 2.0).with_size(w, h);
+    ctx.output("intrinsics", IntrinsicsArt(k));
+    Ok(())
+}
+
 /// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
     r.register_fn(
         file_reader(
             "intrinsics_from_metadata",
             "K from the focal length a camera recorded in an image's EXIF (the focal plane's \
-             resolution, else the 35 mm equivalent): a start for `matchmove` (`focal: refine`) \
-             on footage shot without a calibration; square pixels, principal point at the \
-             centre, the image's size.",
-            "a photograph or frame of the shot with EXIF (JPEG, TIFF, PNG)",
+             resolution, else the 35 mm equivalent) or in a clip's QuickTime metadata (the 35 \
+             mm equivalent phones record, for the picture as shown): a start for `matchmove` \
+             (`focal: refine`) on footage shot without a calibration; square pixels, principal \
+             point at the centre, the picture's size.",
+            "a photograph or frame of the shot with EXIF (JPEG, TIFF, PNG), or the clip itself \
+             (MOV, MP4)",
             PortSpec::of::<IntrinsicsArt>("intrinsics", "K from the metadata"),
         )
         .threads(vfxgraph_engine::Threads::One)
@@ -274,6 +310,80 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("bare.jpg") && e.contains("no EXIF"), "{e}");
+    }
+
+    /// K of a portrait phone clip from its QuickTime metadata (26 mm equivalent, made by
+    /// FFmpeg as phones write it): the picture as shown, 64 × 96, f = 26 · √(64² + 96²) / 43.27.
+    #[test]
+    fn intrinsics_from_metadata_reads_a_clips_quicktime_focal_length() {
+        if !vfxgraph_video::ffmpeg::available() {
+            assert!(
+                std::env::var("CI").as_deref() != Ok("true"),
+                "FFmpeg is required under CI=true"
+            );
+            eprintln!("notice: FFmpeg not installed; this test did not run");
+            return;
+        }
+        let dir = tempfile::tempdir().unwrap();
+        let ffmpeg = |args: &[&str]| {
+            let ok = std::process::Command::new("ffmpeg")
+                .current_dir(dir.path())
+                .args(["-v", "error", "-y"])
+                .args(args)
+                .status()
+                .unwrap();
+            assert!(ok.success(), "ffmpeg {args:?}");
+        };
+        ffmpeg(&[
+            "-f",
+            "lavfi",
+            "-i",
+            "testsrc=size=96x64:rate=24",
+            "-frames:v",
+            "2",
+            "-c:v",
+            "libx264",
+            "-pix_fmt",
+            "yuv420p",
+            "bare.mp4",
+        ]);
+        // The display matrix is written on a stream copy (an encode drops the tag).
+        let focal = format!("{}=26", vfxgraph_video::metadata::KEY_FOCAL_35MM);
+        ffmpeg(&[
+            "-i",
+            "bare.mp4",
+            "-c",
+            "copy",
+            "-movflags",
+            "use_metadata_tags",
+            "-metadata",
+            &focal,
+            "-metadata:s:v:0",
+            "rotate=90",
+            "clip.mov",
+        ]);
+        let s = spec("intrinsics_from_metadata");
+        let p = params(&s, &[("path", ParamValue::Str("clip.mov".into()))]);
+        let mut ctx = Context::for_test(&s, &p, dir.path(), None, vec![]);
+        run_intrinsics_from_metadata(&mut ctx).unwrap();
+        let k = ctx.take_output::<IntrinsicsArt>("intrinsics").unwrap().0;
+        let want = 26.0 * 64f64.hypot(96.0) / 36f64.hypot(24.0);
+        assert!(
+            (k.f1 - want).abs() < 1e-9 && (k.f2 - want).abs() < 1e-9,
+            "{k:?}"
+        );
+        assert_eq!((k.u0, k.v0), (31.5, 47.5));
+        assert_eq!((k.width, k.height), (Some(64), Some(96)));
+        // A clip without the focal length: an error naming the file and what to do.
+        let p = params(&s, &[("path", ParamValue::Str("bare.mp4".into()))]);
+        let mut ctx = Context::for_test(&s, &p, dir.path(), None, vec![]);
+        let e = run_intrinsics_from_metadata(&mut ctx)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("bare.mp4") && e.contains("focal: unknown"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -31,6 +31,7 @@ mod bounded;
 pub mod capture;
 pub mod ffmpeg;
 pub mod files;
+pub mod metadata;
 mod mux;
 pub mod sps;
 pub mod yuv;

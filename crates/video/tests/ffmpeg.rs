@@ -354,3 +354,77 @@ fn a_file_that_is_not_a_video_is_a_clear_error() {
     let e = Reader::open(&bad, Backend::Auto).err().unwrap().to_string();
     assert!(e.contains("notes.mov"), "{e}");
 }
+
+/// The camera metadata a phone writes (the 35 mm equivalent focal length, make, model, lens),
+/// written by FFmpeg as QuickTime metadata items, read back with the picture's size as shown:
+/// a landscape clip and the same clip turned to portrait by its display matrix. FFprobe reads
+/// the same values from the same files.
+#[test]
+fn quicktime_camera_metadata_and_the_size_as_shown() {
+    if !have_ffmpeg() {
+        return;
+    }
+    use vfxgraph_video::metadata::{camera_metadata, KEY_FOCAL_35MM};
+    let dir = tempfile::tempdir().unwrap();
+    let size = (96, 64);
+    let coded = encode(
+        dir.path(),
+        "coded.mp4",
+        size,
+        3,
+        &["-c:v", "libx264", "-crf", "20", "-pix_fmt", "yuv420p"],
+    );
+    let tag = |k: &str, v: &str| format!("com.apple.quicktime.{k}={v}");
+    for (name, rotate, shown) in [
+        ("phone.mov", "0", (96, 64)),
+        ("portrait.mov", "90", (64, 96)),
+    ] {
+        let clip = dir.path().join(name);
+        let ok = Command::new("ffmpeg")
+            .args(["-v", "error", "-y", "-i"])
+            .arg(&coded)
+            .args(["-c", "copy", "-movflags", "use_metadata_tags"])
+            .args(["-metadata", &format!("{KEY_FOCAL_35MM}=26")])
+            .args(["-metadata", &tag("make", "Apple")])
+            .args(["-metadata", &tag("model", "iPhone 12")])
+            .args([
+                "-metadata",
+                &tag("camera.lens_model", "iPhone 12 back camera 4.2mm f/1.6"),
+            ])
+            .args(["-metadata:s:v:0", &format!("rotate={rotate}")])
+            .arg(&clip)
+            .status()
+            .unwrap();
+        assert!(ok.success());
+        let m = camera_metadata(&clip).unwrap();
+        assert_eq!(m.focal_35mm, Some(26.0), "{name}");
+        assert_eq!(m.make.as_deref(), Some("Apple"));
+        assert_eq!(m.model.as_deref(), Some("iPhone 12"));
+        assert_eq!(
+            m.lens_model.as_deref(),
+            Some("iPhone 12 back camera 4.2mm f/1.6")
+        );
+        assert_eq!(m.display_size, Some(shown), "{name}");
+        // The picture FFmpeg shows has that size.
+        let (w, h) = FfmpegVideo::open(&clip).unwrap().size();
+        assert_eq!((w as u32, h as u32), shown, "{name}");
+        let probe = Command::new("ffprobe")
+            .args(["-v", "error", "-show_entries", "format_tags", "-of", "json"])
+            .arg(&clip)
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&probe.stdout);
+        assert!(
+            text.contains(&format!("\"{KEY_FOCAL_35MM}\": \"26\"")),
+            "{text}"
+        );
+    }
+    // A clip without them: none, and no error.
+    let m = camera_metadata(&coded).unwrap();
+    assert_eq!((m.focal_35mm, m.model), (None, None));
+    assert_eq!(m.display_size, Some((size.0 as u32, size.1 as u32)));
+    // Not a QuickTime file: an error naming it.
+    let png = dir.path().join("coded.mp4-src/f000.png");
+    let e = camera_metadata(&png).unwrap_err();
+    assert!(e.contains("f000.png"), "{e}");
+}
