@@ -227,3 +227,45 @@ fn too_wide_frame_pattern_is_a_range_error() {
         assert!(text.contains("wider than 32 digits"), "{text}");
     }
 }
+
+/// `defaults:` gives a parameter's value to every node that has it and does not set it: a
+/// node's own value and `--set` win, a node without the parameter is untouched, and a
+/// required parameter can come from it.
+#[test]
+fn graph_defaults_fill_the_params_nodes_leave_unset() {
+    let text = "version: 1\nframes: 1-2\ndefaults: {offset: 2.5, value: 4, scale: 3}\nnodes:\n  \
+                n: {type: num}\n  r: {type: ramp, params: {scale: 0.5}}\n  \
+                a: {type: add, inputs: {a: n.out}}\n  \
+                b: {type: add, inputs: {a: n.out}, params: {offset: 1}}\n  \
+                c: {type: add, inputs: {a: n.out}}\n";
+    let o = Overrides {
+        set: vec!["c.offset=7".into()],
+        ..Default::default()
+    };
+    let g = graph::parse(Path::new("g.yaml"), text, &common::registry(), &o).unwrap();
+    let p = |id: &str, name: &str| g.nodes[g.index_of(id).unwrap()].params.f64(name);
+    assert_eq!(p("n", "value"), 4.0);
+    assert_eq!(p("r", "scale"), 0.5);
+    assert_eq!(p("a", "offset"), 2.5);
+    assert_eq!(p("b", "offset"), 1.0);
+    assert_eq!(p("c", "offset"), 7.0);
+}
+
+#[test]
+fn graph_defaults_are_checked() {
+    // A parameter no node has: named, at its value, with a suggestion.
+    let d = errors("version: 1\ndefaults:\n  ofset: 1\nnodes:\n  n: {type: num, params: {value: 1}}\n  a: {type: add, inputs: {a: n.out}}\n");
+    assert_eq!(at(&d, ErrorKind::UnknownParam), (3, 10));
+    let text = d.to_string();
+    assert!(
+        text.contains("`ofset`") && text.contains("did you mean `offset`"),
+        "{text}"
+    );
+    // A value of the wrong type for a node that takes it: at the value, naming the node.
+    let d = errors("version: 1\ndefaults: {offset: fast}\nnodes:\n  n: {type: num, params: {value: 1}}\n  a: {type: add, inputs: {a: n.out}}\n");
+    assert_eq!(at(&d, ErrorKind::ParamType), (2, 20));
+    assert!(d.to_string().contains("node `a`"), "{d}");
+    // Not a mapping.
+    let d = errors("version: 1\ndefaults: [1]\nnodes:\n  n: {type: num, params: {value: 1}}\n");
+    assert_eq!(at(&d, ErrorKind::Structure), (2, 11));
+}

@@ -1,9 +1,11 @@
-//! The top-level document: `version`, `frames` (or `--frames`), `seed`, and the `nodes`
-//! mapping whose entries the other passes read.
+//! The top-level document: `version`, `frames` (or `--frames`), `seed`, `defaults`, and the
+//! `nodes` mapping whose entries the other passes read.
 
 use super::Overrides;
+use crate::diagnostic::Span;
 use crate::diagnostic::{suggest, Diagnostics, ErrorKind};
 use crate::frames::FrameSet;
+use crate::param::ParamValue;
 use crate::yaml::{resolve_scalar, Scalar, Yaml};
 
 /// The checked top level of a graph file.
@@ -11,6 +13,9 @@ pub(super) struct Document<'y> {
     /// The graph's frames (`--frames` wins over the file's).
     pub(super) frames: FrameSet,
     pub(super) seed: u64,
+    /// `defaults:`, parameter name to value as written, with where: the value of that
+    /// parameter in every node that has it and does not set it.
+    pub(super) defaults: Vec<(String, ParamValue, Span)>,
     /// The entries of `nodes:`, node id to node.
     pub(super) nodes: &'y [(Yaml, Yaml)],
 }
@@ -21,6 +26,7 @@ struct TopKeys<'y> {
     version: Option<&'y Yaml>,
     frames: Option<&'y Yaml>,
     seed: u64,
+    defaults: Option<&'y Yaml>,
     nodes: Option<&'y Yaml>,
 }
 
@@ -44,10 +50,12 @@ pub(super) fn read<'y>(
     let keys = top_keys(top, d);
     check_version(root, keys.version, d);
     let frames = frames(overrides, keys.frames, d);
+    let defaults = defaults(keys.defaults, d);
     let nodes = node_entries(root, keys.nodes, d)?;
     Some(Document {
         frames,
         seed: keys.seed,
+        defaults,
         nodes,
     })
 }
@@ -68,16 +76,57 @@ fn top_keys<'y>(top: &'y [(Yaml, Yaml)], d: &mut Diagnostics) -> TopKeys<'y> {
                 ),
             },
             "nodes" => keys.nodes = Some(v),
+            "defaults" => keys.defaults = Some(v),
             "description" | "doc" => {}
             other => d.push_help(
                 ErrorKind::Structure,
                 Some(k.span),
                 format!("unknown top-level key `{other}`"),
-                suggest(other, ["version", "frames", "seed", "nodes", "description"]),
+                suggest(
+                    other,
+                    [
+                        "version",
+                        "frames",
+                        "seed",
+                        "defaults",
+                        "nodes",
+                        "description",
+                    ],
+                ),
             ),
         }
     }
     keys
+}
+
+/// The entries of `defaults:` (a mapping of parameter names to values), as written; each is
+/// checked against the parameters it reaches when the nodes are read.
+fn defaults(y: Option<&Yaml>, d: &mut Diagnostics) -> Vec<(String, ParamValue, Span)> {
+    let Some(y) = y else { return Vec::new() };
+    let Some(m) = y.as_map() else {
+        if !y.is_null() {
+            d.push(
+                ErrorKind::Structure,
+                Some(y.span),
+                "`defaults` is a mapping of parameter names to values, the value of that \
+                 parameter in every node that has it and does not set it",
+            );
+        }
+        return Vec::new();
+    };
+    let mut out = Vec::new();
+    for (k, v) in m {
+        let name = k.as_str().unwrap_or("");
+        match ParamValue::from_yaml(v) {
+            Ok(pv) => out.push((name.to_string(), pv, v.span)),
+            Err(e) => d.push(
+                ErrorKind::ParamType,
+                Some(v.span),
+                format!("default of parameter `{name}`: {e}"),
+            ),
+        }
+    }
+    out
 }
 
 /// Checks that the file says `version: 1`.

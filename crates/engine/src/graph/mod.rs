@@ -4,6 +4,8 @@
 //! version: 1
 //! frames: 0..=239          # optional; needed by per-frame nodes
 //! seed: 7                  # optional, default 0
+//! defaults:                # optional: a param's value in every node that has it and
+//!   working_space: acescg  #   does not set it (its own params and --set win)
 //! nodes:
 //!   plate: { type: read_image_sequence, params: { path: "plate/%04d.png" } }
 //!   bright: { type: exposure, inputs: { image: plate.sequence }, params: { stops: 1 } }
@@ -12,7 +14,8 @@
 //! Validation reports every problem at once, each at its file:line:column.
 //!
 //! [`parse`] drives the checks, one concept per module:
-//! - `document`: the top-level mapping (`version`, `frames` or `--frames`, `seed`, `nodes`).
+//! - `document`: the top-level mapping (`version`, `frames` or `--frames`, `seed`,
+//!   `defaults`, `nodes`).
 //! - `nodes`: node entries — ids, keys, types.
 //! - `params`: params from the file, `--set` overrides, defaults and required params.
 //! - `edges`: input references, required inputs, and the type check of each connection.
@@ -170,7 +173,7 @@ pub fn parse(
     // Pass 1: ids, types, params, raw input references; then overrides and defaults.
     let (mut raws, ids) = nodes::read(doc.nodes, registry, &mut d);
     params::apply_overrides(&mut raws, &overrides.set, &ids, &mut d);
-    params::fill_defaults(&mut raws, &mut d);
+    params::fill_defaults(&mut raws, &doc.defaults, &mut d);
     // Pass 2: input references, then cycles, order and per-frame resolution.
     let edges = edges::connect(&raws, &mut d);
     let cyclic = order::find_cycles(&raws, &edges, &mut d);

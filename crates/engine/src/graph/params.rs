@@ -1,6 +1,6 @@
 //! Params: read from a node's `params:` and checked against its type's declaration, then the
-//! `--set node.param=value` overrides, then defaults (a required param left unset is
-//! reported).
+//! `--set node.param=value` overrides, then the graph's `defaults:` (for every node that has
+//! the parameter), then the node type's defaults (a required param left unset is reported).
 
 use std::collections::{BTreeMap, HashMap};
 
@@ -156,11 +156,38 @@ fn split_set(s: &str) -> Option<(&str, &str, &str)> {
 }
 
 /// Fills in the defaults of params left unset; a required one left unset is reported.
-pub(super) fn fill_defaults(raws: &mut [Raw], d: &mut Diagnostics) {
+pub(super) fn fill_defaults(
+    raws: &mut [Raw],
+    graph_defaults: &[(String, ParamValue, Span)],
+    d: &mut Diagnostics,
+) {
+    let mut used = vec![false; graph_defaults.len()];
+    let mut all_params: Vec<&'static str> = Vec::new();
     for raw in raws {
         let Some(node) = &raw.node else { continue };
         for ps in &node.spec().params {
+            all_params.push(ps.name);
+            let given = graph_defaults
+                .iter()
+                .enumerate()
+                .find(|(_, (n, _, _))| n == ps.name);
+            if let Some((i, _)) = given {
+                used[i] = true;
+            }
             if raw.params.contains_key(ps.name) {
+                continue;
+            }
+            if let Some((_, (name, v, span))) = given {
+                let id = raw.id.clone();
+                check_param(
+                    d,
+                    &id,
+                    name,
+                    &ps.ty,
+                    v.clone(),
+                    Some(*span),
+                    &mut raw.params,
+                );
                 continue;
             }
             match &ps.default {
@@ -179,6 +206,16 @@ pub(super) fn fill_defaults(raws: &mut [Raw], d: &mut Diagnostics) {
                     ),
                 ),
             }
+        }
+    }
+    for ((name, _, span), used) in graph_defaults.iter().zip(used) {
+        if !used {
+            d.push_help(
+                ErrorKind::UnknownParam,
+                Some(*span),
+                format!("`defaults` names `{name}`, a parameter no node of the graph has"),
+                suggest(name, all_params.iter().copied()),
+            );
         }
     }
 }
