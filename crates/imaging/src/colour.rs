@@ -372,6 +372,18 @@ pub struct WriteColour {
     pub ocio_config: String,
 }
 
+/// The plate an image writer keeps the code values of (the writers' `plate` param).
+#[derive(Clone, Debug, Default, PartialEq, vfxgraph_params::Options)]
+pub struct KeepPlate {
+    /// the plate file (pattern) the image was composited over, in the format, depth and colour
+    /// space written here: every pixel the graph left as the plate reads (the working-space
+    /// values equal bit for bit) is written with the plate's own code values, so the output is
+    /// the plate bit for bit wherever nothing was added — whatever the colour space's round
+    /// trip does to the last bit. Empty: none
+    #[param(path = "input")]
+    pub plate: String,
+}
+
 impl ReadColour {
     /// Reads the image file `path` into the working space. `config` is the config file as the
     /// caller resolved `ocio_config` (None when empty). With no colour space and the default
@@ -474,15 +486,73 @@ impl WriteColour {
     /// format's own encoding ([`Self::transform`]). With none of them and the default working
     /// space this is [`crate::write_image`], bit for bit.
     pub fn write(&self, path: &Path, img: &Image, config: Option<&Path>) -> Result<(), ImageError> {
+        self.write_keeping(path, img, config, None)
+    }
+
+    /// [`Self::write`], keeping the code values of `plate` ([`KeepPlate`]): the plate is read
+    /// as a reader in this colour space would read it (its values as this writer writes them,
+    /// then converted to the working space); where a pixel of `img` equals the plate's there
+    /// bit for bit, the plate's file values are written instead of the converted ones.
+    pub fn write_keeping(
+        &self,
+        path: &Path,
+        img: &Image,
+        config: Option<&Path>,
+        plate: Option<&Path>,
+    ) -> Result<(), ImageError> {
         let (t, values) = self.transform(config).map_err(|e| e.at_path(path))?;
-        match t {
-            None => crate::io::write_image_as(path, img, values),
-            Some(t) => {
-                let mut out = img.clone();
-                t.apply(&mut out);
-                crate::io::write_image_as(path, &out, values)
+        let mut out = img.clone();
+        if let Some(t) = &t {
+            t.apply(&mut out);
+        }
+        if let Some(plate) = plate {
+            if !self.view.is_empty() {
+                return Err(colour_err(format!(
+                    "{}: `plate` keeps a plate's codes, a `view` is a preview of the image: not \
+                     both",
+                    path.display()
+                )));
+            }
+            let file = crate::io::read_image_as(plate, values)?;
+            let mut read = file.clone();
+            if !self.colour_space.is_empty() || self.working_space != WorkingSpace::LinearRec709 {
+                let c = ColourConfig::resolve(config).map_err(|e| e.at_path(plate))?;
+                let src = if self.colour_space.is_empty() {
+                    LINEAR_REC709
+                } else {
+                    self.colour_space.as_str()
+                };
+                c.transform(src, self.working_space.name())
+                    .map_err(|e| e.at_path(plate))?
+                    .apply(&mut read);
+            }
+            if (read.width, read.height, read.channels) != (img.width, img.height, img.channels) {
+                return Err(colour_err(format!(
+                    "{}: the plate {} is {}×{}×{}, the image {}×{}×{}",
+                    path.display(),
+                    plate.display(),
+                    read.width,
+                    read.height,
+                    read.channels,
+                    img.width,
+                    img.height,
+                    img.channels
+                )));
+            }
+            let c = img.channels;
+            for (((o, i), r), f) in out
+                .data
+                .chunks_exact_mut(c)
+                .zip(img.data.chunks_exact(c))
+                .zip(read.data.chunks_exact(c))
+                .zip(file.data.chunks_exact(c))
+            {
+                if i.iter().zip(r).all(|(a, b)| a.to_bits() == b.to_bits()) {
+                    o.copy_from_slice(f);
+                }
             }
         }
+        crate::io::write_image_as(path, &out, values)
     }
 
     /// The frames of a writer whose encoder takes linear Rec. 709 and applies the sRGB curve

@@ -7,7 +7,7 @@
 
 use vfxgraph_engine::node::has_frame_pattern;
 use vfxgraph_engine::{Context, Mode, NodeError, NodeSpec, Registry, Threads};
-use vfxgraph_imaging::colour::{ReadColour, WriteColour};
+use vfxgraph_imaging::colour::{KeepPlate, ReadColour, WriteColour};
 
 use crate::artifacts::ImageArt;
 
@@ -42,6 +42,7 @@ pub fn register(r: &mut Registry) {
         .threads(vfxgraph_engine::Threads::One)
         .output_file_param("path", FORMATS)
         .options::<WriteColour>()
+        .options::<KeepPlate>()
         .input_of::<ImageArt>("image", "the image to write"),
         run_write_image,
     );
@@ -67,6 +68,7 @@ pub fn register(r: &mut Registry) {
         .mode(Mode::PerFrame)
         .output_file_param("path", "file pattern, e.g. out/frame.%04d.exr")
         .options::<WriteColour>()
+        .options::<KeepPlate>()
         .input_of::<ImageArt>("sequence", "the frame's image"),
         run_write_image,
     );
@@ -103,7 +105,13 @@ pub(crate) fn run_write_image(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let img = &ctx.input::<ImageArt>(port)?.0;
     let o: WriteColour = ctx.options()?;
     let config = ocio_config(ctx);
-    Ok(o.write(&crate::output_path(ctx, "path")?, img, config.as_deref())?)
+    let plate = (!ctx.params().str("plate").is_empty()).then(|| ctx.path("plate"));
+    Ok(o.write_keeping(
+        &crate::output_path(ctx, "path")?,
+        img,
+        config.as_deref(),
+        plate.as_deref(),
+    )?)
 }
 
 #[cfg(test)]
@@ -125,7 +133,7 @@ mod tests {
     /// `path` and `set`.
     fn params_with(path: &str, set: &[(&str, &str)]) -> Params {
         let mut m: std::collections::BTreeMap<String, ParamValue> =
-            ["colour_space", "view", "display", "ocio_config"]
+            ["colour_space", "view", "display", "ocio_config", "plate"]
                 .iter()
                 .map(|k| (k.to_string(), ParamValue::Str(String::new())))
                 .collect();

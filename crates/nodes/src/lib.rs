@@ -222,6 +222,8 @@ mod tests {
         ("read_image", check_defaults::<colour::ReadColour>),
         ("read_image_sequence", check_defaults::<colour::ReadColour>),
         ("write_image", check_defaults::<colour::WriteColour>),
+        ("write_image", check_defaults::<colour::KeepPlate>),
+        ("write_image_sequence", check_defaults::<colour::KeepPlate>),
         (
             "write_image_sequence",
             check_defaults::<colour::WriteColour>,
