@@ -8,6 +8,7 @@
 //! | `GET /api/events` | server-sent events: `state`, `run_started`, `started`, `progress`, `finished`, `run_done` |
 //! | `POST /api/run`, `POST /api/cancel`, `POST /api/reload` | run (409 while one runs), stop, re-read the file |
 //! | `POST /api/params` | `{node, param, value}` (YAML text, as `--set`; `null` resets) |
+//! | `POST /api/params/save` | `{node, param}`: the edit written into the graph file (only that value's text) |
 //! | `GET /api/image` | `node, port, frame, layer, exposure, srgb, fmt` → PNG/JPEG preview |
 //! | `GET /api/warm` | same query as `/api/image`: encodes every frame's preview in the background; progress |
 //! | `GET /api/pixel` | `node, port, frame, layer, x, y` → linear values |
@@ -52,6 +53,7 @@ pub fn router(studio: Arc<Studio>, access: crate::access::Access) -> Router {
         .route("/api/cancel", post(cancel))
         .route("/api/reload", post(reload))
         .route("/api/params", post(params))
+        .route("/api/params/save", post(save_param))
         .route("/api/image", get(image))
         .route("/api/warm", get(warm))
         .route("/api/pixel", get(pixel))
@@ -203,6 +205,29 @@ async fn params(State(s): S, body: Result<Json<ParamEdit>, JsonRejection>) -> Ap
     })
     .await?;
     Ok(Json(s.snapshot()).into_response())
+}
+
+#[derive(Deserialize)]
+struct ParamRef {
+    node: String,
+    param: String,
+}
+
+/// Writes a param's edit into the graph file (see [`Studio::save_param`]).
+async fn save_param(State(s): S, body: Result<Json<ParamRef>, JsonRejection>) -> ApiResult {
+    let Json(p) = body.map_err(json_rejection)?;
+    if s.is_running() {
+        return Err(ApiError::conflict("a run is going on: save after it"));
+    }
+    let s2 = s.clone();
+    let value = blocking(move || {
+        s2.save_param(&p.node, &p.param)
+            .map_err(|e| ApiError::new(StatusCode::UNPROCESSABLE_ENTITY, e))
+    })
+    .await?;
+    let mut snap = s.snapshot();
+    snap["saved"] = json!(value);
+    Ok(Json(snap).into_response())
 }
 
 #[derive(Deserialize)]

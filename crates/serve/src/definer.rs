@@ -189,7 +189,42 @@ pub fn triangulate(
         .map(|k| &k.0);
     let (points, report) = vfxgraph_vision::modeling::point_cloud_calibrate(m, &cams.0, k)
         .map_err(|e| ApiError::new(axum::http::StatusCode::UNPROCESSABLE_ENTITY, e.to_string()))?;
-    Ok(json!({ "points": points, "report": report, "consumer": consumer.id }))
+    let projected = project_all(&points, &cams.0, k);
+    Ok(json!({
+        "points": points, "report": report, "consumer": consumer.id, "projected": projected,
+    }))
+}
+
+/// Each point through every camera of `path`: `{frame: [[u, v] or null per point]}` (null
+/// behind the camera or without intrinsics), so the page draws the triangulated points back on
+/// the marked frames and predicts them on the others.
+pub fn project_all(
+    points: &vfxgraph_vision::Points3d,
+    path: &vfxgraph_vision::formats::cameras::CameraPath,
+    k: Option<&vfxgraph_vision::camera::Intrinsics>,
+) -> Json {
+    let mut out = serde_json::Map::new();
+    for (i, f) in path.frames.iter().enumerate() {
+        let Some(intrinsics) = path.intrinsics_at(i).or_else(|| k.cloned()) else {
+            continue;
+        };
+        let cam = vfxgraph_vision::camera::Camera {
+            intrinsics,
+            pose: f.pose.clone(),
+        };
+        let uv: Vec<Json> = points
+            .0
+            .iter()
+            .map(|x| match cam.project(x) {
+                Ok(p) if cam.depth(x) > 0.0 && p.x.is_finite() && p.y.is_finite() => {
+                    json!([p.x, p.y])
+                }
+                _ => Json::Null,
+            })
+            .collect();
+        out.insert(f.frame.to_string(), Json::Array(uv));
+    }
+    Json::Object(out)
 }
 
 #[cfg(test)]

@@ -11,6 +11,7 @@
 //! - [`events`]: the engine [`Observer`](vfxgraph_engine::Observer) that publishes events.
 //! - [`access`]: who may drive it (Host, origin and JSON checks; a token off loopback).
 //! - [`api`]: the HTTP routes.
+//! - [`graph_file`]: a param edit saved into the graph file (one value's text, comments kept).
 //! - [`safety`]: which files may be served, request errors as 4xx.
 //! - [`preview`]: artifact decoding for the viewers (images, layers, JSON artifacts); the
 //!   only module that knows node artifact types.
@@ -23,6 +24,7 @@ pub mod api;
 pub mod assets;
 pub mod definer;
 pub mod events;
+pub mod graph_file;
 pub mod preview;
 pub mod refine;
 pub mod safety;

@@ -100,6 +100,10 @@ struct Inner {
     plan: Option<PlanReport>,
     plan_error: Option<String>,
     last_run: Option<RunReport>,
+    /// The last run was stopped from the page (its skipped instances are not failures).
+    last_stopped: bool,
+    /// When the current (or last) run started, ms since the epoch.
+    run_started_at: Option<f64>,
     live: BTreeMap<String, NodeLive>,
 }
 
@@ -150,6 +154,8 @@ impl Studio {
                 plan: None,
                 plan_error: None,
                 last_run: None,
+                last_stopped: false,
+                run_started_at: None,
                 live: BTreeMap::new(),
             }),
             events,
@@ -314,6 +320,60 @@ impl Studio {
         }
     }
 
+    /// Writes the override of `node.param` into the graph file (only that value's text
+    /// changes, see [`crate::graph_file`]) and drops the override: the file now says it.
+    /// Returns the value written.
+    pub fn save_param(&self, node: &str, param: &str) -> Result<String, String> {
+        let prefix = format!("{node}.{param}=");
+        let sets = self.inner().sets.clone();
+        let value = sets
+            .iter()
+            .find_map(|s| s.strip_prefix(&prefix))
+            .ok_or_else(|| {
+                format!("`{node}.{param}` is not edited: nothing to save to the graph file")
+            })?
+            .to_string();
+        let edited = match load(&self.graph_file, &self.registry, &sets) {
+            Loaded::Ok(g) => g,
+            Loaded::Failed(d) => return Err(joined(&d)),
+        };
+        let want = param_text(&edited, node, param)?;
+        let src = std::fs::read_to_string(&self.graph_file).map_err(|e| {
+            format!(
+                "cannot read the graph file `{}`: {e}",
+                self.graph_file.display()
+            )
+        })?;
+        let text = crate::graph_file::replace_param(&src, node, param, &value)?;
+        let others: Vec<String> = sets
+            .iter()
+            .filter(|s| !s.starts_with(&prefix))
+            .cloned()
+            .collect();
+        crate::graph_file::write_checked(&self.graph_file, &text, |tmp| {
+            match load(tmp, &self.registry, &others) {
+                Loaded::Ok(g) => {
+                    let got = param_text(&g, node, param)?;
+                    if got == want {
+                        Ok(())
+                    } else {
+                        Err(format!(
+                            "written in place, `{value}` reads back as {got}, not {want}: \
+                             edit the graph file by hand"
+                        ))
+                    }
+                }
+                Loaded::Failed(d) => Err(format!(
+                    "the file would not load with `{value}` written in place: {}",
+                    joined(&d)
+                )),
+            }
+        })?;
+        self.inner().sets = others;
+        self.reload();
+        Ok(value)
+    }
+
     /// Asks a running run to stop (finished instances stay cached).
     pub fn cancel(&self) {
         self.cancel.store(true, Ordering::SeqCst);
@@ -333,9 +393,11 @@ impl Studio {
         let me = self.clone();
         std::thread::spawn(move || {
             me.run_now();
+            let stopped = me.cancel.load(Ordering::SeqCst);
+            me.inner().last_stopped = stopped;
             me.runs.fetch_add(1, Ordering::SeqCst);
             me.running.store(false, Ordering::SeqCst);
-            me.publish("run_done", json!({}));
+            me.publish("run_done", json!({ "stopped": stopped }));
             me.refresh_plan();
         });
         true
@@ -354,13 +416,14 @@ impl Studio {
         {
             let mut i = self.inner();
             i.loaded = loaded;
+            i.run_started_at = Some(now_ms());
             i.live = g
                 .nodes
                 .iter()
                 .map(|n| (n.id.clone(), NodeLive::default()))
                 .collect();
         }
-        self.publish("run_started", json!({}));
+        self.publish("run_started", json!({ "started_at": now_ms() }));
         let publisher = Publisher::new(self, &g);
         let result = exec::run(&g, &self.registry, &self.options(), &publisher);
         match result {
@@ -386,6 +449,7 @@ impl Studio {
             "runs": self.runs.load(Ordering::SeqCst),
             "plan_error": i.plan_error,
             "live": i.live,
+            "run_started_at": i.run_started_at,
         });
         match &i.loaded {
             Loaded::Failed(d) => {
@@ -406,12 +470,35 @@ impl Studio {
                 "wall_seconds": r.wall_seconds,
                 "nodes": r.nodes,
                 "ran": r.nodes.iter().filter(|n| n.status == Status::Ran).count(),
-                "failed": r.failed(),
+                "failed": r.nodes.iter().any(|n| n.status == Status::Failed)
+                    || (r.failed() && !i.last_stopped),
+                "stopped": i.last_stopped,
+                "failures": r.nodes.iter().filter(|n| n.status == Status::Failed).map(|n| json!({
+                    "id": n.id, "type": n.node_type, "frame": n.frame, "message": n.reason,
+                })).collect::<Vec<_>>(),
             }),
             None => Json::Null,
         };
         out
     }
+}
+
+fn joined(d: &[DiagnosticLine]) -> String {
+    d.iter()
+        .map(|l| l.message.clone())
+        .collect::<Vec<_>>()
+        .join("; ")
+}
+
+/// The value of `node.param` in `g`, as text.
+fn param_text(g: &Graph, node: &str, param: &str) -> Result<String, String> {
+    let i = g
+        .index_of(node)
+        .ok_or_else(|| format!("no node `{node}` in the graph"))?;
+    Ok(g.nodes[i]
+        .params
+        .get(param)
+        .map_or_else(|| "(none)".to_string(), |v| v.to_string()))
 }
 
 fn load(file: &std::path::Path, registry: &Registry, sets: &[String]) -> Loaded {

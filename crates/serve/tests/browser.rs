@@ -216,7 +216,7 @@ fn click_at(s: &Session, x: i64, y: i64, button: i64) {
 
 fn set_definer_frame(s: &Session, frame: i64) {
     s.js(
-        "const i = studio.state.graph.frames.indexOf(arguments[0]); const r = document.getElementById('def-scrub'); r.value = i; r.dispatchEvent(new Event('input'));",
+        "const i = studio.frames.indexOf(arguments[0]); const r = document.getElementById('def-scrub'); r.value = i; r.dispatchEvent(new Event('input'));",
         json!([frame]),
     );
     wait_for("the definer frame", || {
@@ -447,8 +447,7 @@ fn studio_in_a_browser() {
         .then_some(())
     });
     s.clear("#panel [data-param=stops]");
-    s.keys("#panel [data-param=stops]", "lots");
-    s.click("#panel button[data-set=stops]");
+    s.keys("#panel [data-param=stops]", "lots\u{E007}");
     wait_for("the refusal", || {
         s.js(
             "return document.querySelector('#param-msg .err')?.textContent || null;",
@@ -459,8 +458,7 @@ fn studio_in_a_browser() {
     });
     assert!(api_state(port)["sets"].as_array().unwrap().is_empty());
     s.clear("#panel [data-param=stops]");
-    s.keys("#panel [data-param=stops]", "1");
-    s.click("#panel button[data-set=stops]");
+    s.keys("#panel [data-param=stops]", "1\u{E007}");
     wait_for("the edited plan", || {
         (states(&s)["grade"] == "run").then_some(())
     });
@@ -664,7 +662,7 @@ fn studio_in_a_browser() {
     wait_for("the marks", || (marks_on(&s, 1) == 3).then_some(()));
     // Clicks at the target's exact positions: no snapping (tested below, on a corner).
     s.js(
-        "document.getElementById('def-snap').checked = false;",
+        "document.getElementById('def-snap').checked = false; const z = document.getElementById('def-zoom'); z.value = '4'; z.dispatchEvent(new Event('input'));",
         json!([]),
     );
     let zoom = 4.0;
@@ -858,8 +856,8 @@ fn studio_in_a_browser() {
         (!v.is_null()).then_some(v)
     });
     assert_eq!(info["cameras"], 3, "{info}");
-    // The path line, 3 frusta, the point cloud.
-    assert_eq!(info["objects"], 5, "{info}");
+    // The grid, the axes, the path line, 3 frusta, the current camera's, the point cloud.
+    assert_eq!(info["objects"], 8, "{info}");
     for (i, f) in [(0, 1), (1, 2), (2, 3)] {
         s.js("setFrameIdx(arguments[0]);", json!([i]));
         assert_eq!(
@@ -1273,4 +1271,670 @@ fn another_site_cannot_drive_the_studio() {
     run_from_page(&s, port);
     assert_eq!(api_state(port)["runs"].as_u64(), Some(1));
     s.quit();
+}
+
+/// The usability graph: 14 nodes over 12 frames of a 480×270 plate — a grade, a blur and its
+/// written sequence, the book's tracks, a camera path with marks and their calibration, a
+/// point cloud with one far point, a CG render, and a scene file that does not parse (the
+/// failure the page must show).
+const USABILITY: &str = "# The studio's usability graph.
+version: 1
+frames: 1..=12
+nodes:
+  plate:
+    type: read_image_sequence
+    params: {path: plate.%04d.png}
+  grade:
+    type: exposure
+    inputs: {image: plate.sequence}
+    params: {stops: 0.5}   # a grade to keep
+  soft:
+    type: blur
+    inputs: {image: grade.image}
+    params: {sigma: 1.5}
+  soft_out:
+    type: write_image_sequence
+    inputs: {sequence: soft.image}
+    params: {path: out/soft.%04d.png}
+  tracks:
+    type: read_tracks
+    params: {path: f.txt}
+  path:
+    type: synthetic_camera_path
+    params: {frames: 12, first_frame: 1, target: [0, 0, 0], radius: 6, height: 1.5, sweep: 30,
+             focal: 400, width: 480, height_px: 270}
+  cams_out:
+    type: write_cameras
+    inputs: {cameras: path.cameras}
+    params: {path: out/cameras.json}
+  marks:
+    type: read_marks
+    params: {path: marks.txt}
+  ground:
+    type: point_cloud_calibrate
+    inputs: {marks: marks.marks, cameras: path.cameras}
+  ground_report:
+    type: write_report
+    inputs: {report: ground.report}
+    params: {path: out/ground.json}
+  cloud:
+    type: read_points3d
+    params: {path: cloud.txt}
+  cg:
+    type: read_scene
+    params: {path: cg.yaml}
+  render:
+    type: differential_render
+    inputs: {scene: cg.scene}
+    params: {spp: 2, max_depth: 2}
+  broken:
+    type: read_scene
+    params: {path: broken.yaml}
+";
+
+/// The same shot without a `frames:` range (as the book's matchmove): the viewers take the
+/// frames from the camera path.
+const FRAMELESS: &str = "version: 1
+nodes:
+  path:
+    type: synthetic_camera_path
+    params: {frames: 12, first_frame: 1, target: [0, 0, 0], radius: 6, height: 1.5, sweep: 30,
+             focal: 400, width: 480, height_px: 270}
+  marks:
+    type: read_marks
+    params: {path: marks.txt}
+  ground:
+    type: point_cloud_calibrate
+    inputs: {marks: marks.marks, cameras: path.cameras}
+";
+
+const USABILITY_MAKE: &str = "version: 1
+nodes:
+  path:
+    type: synthetic_camera_path
+    params: {frames: 12, first_frame: 1, target: [0, 0, 0], radius: 6, height: 1.5, sweep: 30,
+             focal: 400, width: 480, height_px: 270}
+  first:
+    type: project_marks
+    inputs: {cameras: path.cameras}
+    params: {points: [-1, 0, -1, 1, 0, -1, 0, 0.8, 1], frames: [1, 4, 8]}
+  first_file:
+    type: write_marks
+    inputs: {marks: first.marks}
+    params: {path: marks.txt}
+";
+
+/// Page-side checks shared by both window sizes. `r(el)`: an element's viewport rectangle;
+/// `inside(a, b)`: rectangle a within b (1 px slack).
+const GEOM: &str = "window.r = (e) => { const b = (typeof e === 'string' ? document.querySelector(e) : e).getBoundingClientRect(); return {l: b.left, t: b.top, r: b.right, b: b.bottom, w: b.width, h: b.height}; }; window.inside = (a, b) => a.l >= b.l - 1 && a.t >= b.t - 1 && a.r <= b.r + 1 && a.b <= b.b + 1; window.vp = () => ({l: 0, t: 0, r: innerWidth, b: innerHeight});";
+
+/// Polls `script` until it returns something other than null or false; on a timeout, saves
+/// a screenshot (`timeout.png` among the usability shots) and names the page's script errors.
+fn wait_js(s: &Session, what: &str, script: &str) -> Value {
+    let t0 = Instant::now();
+    loop {
+        let v = s.js(script, json!([]));
+        if !v.is_null() && v != json!(false) {
+            return v;
+        }
+        if t0.elapsed() > Duration::from_secs(60) {
+            let dir = shots_dir().join("usability");
+            let _ = std::fs::create_dir_all(&dir);
+            let _ = std::fs::write(dir.join("timeout.png"), s.screenshot());
+            let errors = s.js("return window.studio ? studio.errors : null;", json!([]));
+            panic!("timed out waiting for {what} (script errors: {errors})");
+        }
+        std::thread::sleep(Duration::from_millis(25));
+    }
+}
+
+/// Sizes the window so that the page's viewport is `w`×`h` (the window's frame, if any, added).
+fn set_viewport(s: &Session, w: u32, h: u32) {
+    s.set_window(w, h);
+    let v = s.js("return [innerWidth, innerHeight];", json!([]));
+    let (iw, ih) = (v[0].as_u64().unwrap() as u32, v[1].as_u64().unwrap() as u32);
+    if (iw, ih) != (w, h) {
+        s.set_window(w + w.saturating_sub(iw), h + h.saturating_sub(ih));
+    }
+}
+
+fn shot(s: &Session, dir: &Path, name: &str) {
+    std::fs::write(dir.join(format!("{name}.png")), s.screenshot()).unwrap();
+}
+
+#[test]
+fn studio_usability_at_two_sizes() {
+    if !browser_available() {
+        return;
+    }
+    let Some(ftxt) = vfxgraph_testdata::path("book-demo/f.txt") else {
+        return;
+    };
+    let t_all = Instant::now();
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let frames: Vec<i64> = (1..=12).collect();
+    write_frames(d, &frames, 480, 270, "png");
+    std::fs::copy(&ftxt, d.join("f.txt")).unwrap();
+    std::fs::write(d.join("make.yaml"), USABILITY_MAKE).unwrap();
+    run_graph(d, "make.yaml");
+    std::fs::write(d.join("cg.yaml"), CG).unwrap();
+    std::fs::write(d.join("broken.yaml"), "camera: [not, a, camera\n").unwrap();
+    // 200 points within a few units, and one 2067 units away (a bad triangulation).
+    let mut cloud = String::new();
+    let mut dists = vec![];
+    for i in 0..200 {
+        let a = i as f64 * 0.7;
+        let (x, y, z) = (
+            (a.sin() * 3.0),
+            ((i % 7) as f64 * 0.3 - 1.0),
+            (a.cos() * 3.0 + (i % 5) as f64 * 0.2),
+        );
+        cloud += &format!("{x} {y} {z}\n");
+        dists.push((x, y, z));
+    }
+    cloud += "2067 3 -12\n";
+    dists.push((2067.0, 3.0, -12.0));
+    std::fs::write(d.join("cloud.txt"), cloud).unwrap();
+    std::fs::write(d.join("usability.yaml"), USABILITY).unwrap();
+    std::fs::write(d.join("frameless.yaml"), FRAMELESS).unwrap();
+
+    let port = serve(d, "usability.yaml");
+    let (_driver, dport) = chromedriver();
+    let profile = tempfile::tempdir().unwrap();
+    let s = Session::start(dport, CHROMIUM, profile.path());
+    let shots = shots_dir().join("usability");
+    std::fs::create_dir_all(&shots).unwrap();
+    let url = format!("http://127.0.0.1:{port}/");
+    let open = |s: &Session| {
+        s.goto(&url);
+        wait_js(s, "the first state", "return studio.readyAt !== null;");
+        s.js(GEOM, json!([]));
+    };
+    let no_errors = |s: &Session| {
+        let e = s.js("return studio.errors;", json!([]));
+        assert_eq!(e, json!([]), "script errors in the page");
+    };
+
+    // --- a run with a failure: the panel opens by itself, names the node, shows the message
+    set_viewport(&s, 1280, 800);
+    open(&s);
+    std::thread::sleep(Duration::from_millis(300));
+    no_errors(&s);
+    run_from_page(&s, port);
+    let fail = wait_js(
+        &s,
+        "the failure panel",
+        "const f = document.getElementById('failure'); return !f.hidden && inside(r(f), vp()) ? [f.textContent, document.getElementById('status').dataset.outcome, document.getElementById('status').textContent] : null;",
+    );
+    let text = fail[0].as_str().unwrap();
+    assert!(text.contains("broken"), "{fail}");
+    let reason = api_state(port)["last_run"]["failures"][0]["message"]
+        .as_str()
+        .unwrap()
+        .to_string();
+    assert!(
+        !reason.is_empty() && text.contains(&reason),
+        "{fail} / {reason}"
+    );
+    assert_eq!(fail[1], "failed");
+    assert!(fail[2].as_str().unwrap().contains("broken"), "{fail}");
+    shot(&s, &shots, "1280-failure");
+    // Fixed: the next run succeeds.
+    std::fs::write(d.join("broken.yaml"), CG).unwrap();
+    run_from_page(&s, port);
+    assert_eq!(
+        s.js(
+            "return document.getElementById('failure').hidden;",
+            json!([])
+        ),
+        json!(true)
+    );
+
+    for (w, h) in [(1280u32, 800u32), (1920, 1080)] {
+        let tag = format!("{w}");
+        set_viewport(&s, w, h);
+        open(&s);
+        let vp = s.js("return [innerWidth, innerHeight];", json!([]));
+        println!("window {w}×{h}: viewport {vp}");
+        // --- the graph: every node inside the graph area and the window, nothing scrolls,
+        // the first frame shown in the side panel
+        let g = wait_js(
+            &s,
+            "the graph fitted and the first frame",
+            "const im = document.getElementById('first-frame'); if (!im || !im.complete || !im.naturalWidth) return null; const wrap = r('#graph-wrap'); const ns = [...document.querySelectorAll('.node')]; const out = ns.filter(n => !inside(r(n.querySelector('rect.box')), wrap) || !inside(r(n.querySelector('rect.box')), vp())).map(n => n.dataset.id); const se = document.scrollingElement; return {nodes: ns.length, out, scroll: [se.scrollWidth - innerWidth, se.scrollHeight - innerHeight], img: inside(r(im), vp()), k: studio.gview.k};",
+        );
+        assert_eq!(g["nodes"], 14, "{g}");
+        assert_eq!(g["out"], json!([]), "nodes outside the view: {g}");
+        assert!(
+            g["scroll"][0].as_f64().unwrap() <= 0.0 && g["scroll"][1].as_f64().unwrap() <= 0.0,
+            "{g}"
+        );
+        assert_eq!(g["img"], true, "the first frame in view: {g}");
+        // No edge passes through a node other than its own two.
+        let through = s.js(
+            "const boxes = [...document.querySelectorAll('.node')].map(n => [n.dataset.id, r(n.querySelector('rect.box'))]); const hits = []; for (const e of document.querySelectorAll('.edge')) { const L = e.getTotalLength(); const m = e.getScreenCTM(); for (let i = 1; i < 60; i++) { const p = e.getPointAtLength(L * i / 60).matrixTransform(m); for (const [id, b] of boxes) { if (id === e.dataset.from || id === e.dataset.to) continue; if (p.x > b.l + 2 && p.x < b.r - 2 && p.y > b.t + 2 && p.y < b.b - 2) hits.push(e.dataset.from + '→' + e.dataset.to + ' through ' + id); } } } return [...new Set(hits)];",
+            json!([]),
+        );
+        assert_eq!(through, json!([]), "edges through nodes");
+        // Ports: one label per port, shown on hover.
+        let (pl, pt, pw, ph) = {
+            let v = s.js(
+                "const b = r('#node-ground rect.box'); return [b.l, b.t, b.w, b.h];",
+                json!([]),
+            );
+            (
+                v[0].as_f64().unwrap(),
+                v[1].as_f64().unwrap(),
+                v[2].as_f64().unwrap(),
+                v[3].as_f64().unwrap(),
+            )
+        };
+        s.pointer(&[("move", (pl + pw / 2.0) as i64, (pt + ph / 2.0) as i64)]);
+        shot(&s, &shots, &format!("{tag}-graph"));
+        let ports = s.js(
+            "const g = document.getElementById('node-ground'); return [...g.querySelectorAll('.port-label')].map(t => [t.textContent, getComputedStyle(t).display]);",
+            json!([]),
+        );
+        assert_eq!(
+            ports,
+            json!([
+                ["marks", "block"],
+                ["cameras", "block"],
+                ["intrinsics", "block"],
+                ["points3d", "block"],
+                ["report", "block"]
+            ]),
+            "ground's ports"
+        );
+
+        // Zoom, pan and fit from the keys and the mouse.
+        let k0 = s.js("return studio.gview.k;", json!([])).as_f64().unwrap();
+        s.js("document.body.focus();", json!([]));
+        s.keys("body", "+");
+        let k1 = s.js("return studio.gview.k;", json!([])).as_f64().unwrap();
+        assert!(k1 > k0 * 1.2, "+ zooms in: {k0} → {k1}");
+        // A point of the graph's background (no node, tool or legend there).
+        let free = s.js(
+            "const w = r('#graph-wrap'); for (let y = w.t + 60; y < w.b - 60; y += 17) for (let x = w.l + 20; x < w.r - 140; x += 23) { if (document.elementFromPoint(x, y) === document.getElementById('graph') && document.elementFromPoint(x + 100, y + 30) === document.getElementById('graph')) return [x, y]; } return null;",
+            json!([]),
+        );
+        let (fx, fy) = (
+            free[0].as_f64().unwrap() as i64,
+            free[1].as_f64().unwrap() as i64,
+        );
+        let x0 = s.js("return studio.gview.x;", json!([])).as_f64().unwrap();
+        s.pointer(&[
+            ("move", fx, fy),
+            ("down", 0, 0),
+            ("move", fx + 100, fy + 30),
+            ("up", 0, 0),
+        ]);
+        let x1 = s.js("return studio.gview.x;", json!([])).as_f64().unwrap();
+        assert!((x1 - x0 - 100.0).abs() < 2.0, "a drag pans: {x0} → {x1}");
+        s.keys("body", "f");
+        let k2 = s.js("return studio.gview.k;", json!([])).as_f64().unwrap();
+        assert!((k2 - k0).abs() < 1e-9, "f fits again: {k0} vs {k2}");
+
+        // --- frames: fit, 1:1, zoom, pan, full window; A/B labels and the wipe dragged on
+        // the image; tracks by age with a trail; playback keys
+        s.click(".tab[data-view=frames]");
+        s.js(
+            "const a = document.getElementById('out-a'); a.value = 'grade.image'; a.dispatchEvent(new Event('input')); const b = document.getElementById('out-b'); b.value = 'soft.image'; b.dispatchEvent(new Event('input')); const t = document.getElementById('tracks'); t.value = 'tracks.tracks'; t.dispatchEvent(new Event('input'));",
+            json!([]),
+        );
+        let fit = wait_js(
+            &s,
+            "the fitted frame",
+            "const c = document.getElementById('viewer'); if (c.dataset.frame !== '1' || c.width !== 480 || !(Number(c.dataset.tracks) > 0)) return null; const st = r('#viewer-wrap'), cv = r(c); return {stage: st, canvas: cv, k: studio.vview.k, tracks: Number(c.dataset.tracks)};",
+        );
+        let (sw, sh) = (
+            fit["stage"]["w"].as_f64().unwrap(),
+            fit["stage"]["h"].as_f64().unwrap(),
+        );
+        let want = (sw / 480.0).min(sh / 270.0);
+        let k = fit["k"].as_f64().unwrap();
+        assert!((k - want).abs() < 1e-3, "fit: {fit}");
+        assert!(
+            (fit["canvas"]["w"].as_f64().unwrap() - 480.0 * want).abs() < 1.5,
+            "the canvas shown at the fit size: {fit}"
+        );
+        if w == 1920 {
+            assert!(k > 2.5, "a 480-px plate fills a 1920-px window: {fit}");
+        }
+        assert!(fit["tracks"].as_u64().unwrap() > 50, "tracks drawn: {fit}");
+        let labels = s.js(
+            "const a = document.getElementById('label-a'), b = document.getElementById('label-b'); return [a.hidden, a.textContent, b.hidden, b.textContent, r(b).l - r('#viewer-wrap').l];",
+            json!([]),
+        );
+        assert_eq!(labels[0], false);
+        assert_eq!(labels[1], "A: grade.image");
+        assert_eq!(labels[3], "B: soft.image");
+        shot(&s, &shots, &format!("{tag}-frames-fit-ab"));
+        // The wipe dragged on the image to a quarter of its width.
+        let (cl, ct, cw, ch) = rect(&s, "#viewer");
+        s.pointer(&[
+            ("move", (cl + cw * 0.5) as i64, (ct + ch * 0.5) as i64),
+            ("down", 0, 0),
+            ("move", (cl + cw * 0.25) as i64, (ct + ch * 0.5) as i64),
+            ("up", 0, 0),
+        ]);
+        let wipe = s
+            .js(
+                "return Number(document.getElementById('wipe').value);",
+                json!([]),
+            )
+            .as_f64()
+            .unwrap();
+        assert!((wipe - 0.25).abs() < 0.02, "wipe dragged to {wipe}");
+        // 1:1, zoom, pan.
+        s.click("#v-one");
+        let one = s.js("return r('#viewer').w;", json!([])).as_f64().unwrap();
+        assert!((one - 480.0).abs() < 0.5, "1:1 shows 480 px: {one}");
+        s.click("#v-in");
+        let z = s.js("return r('#viewer').w;", json!([])).as_f64().unwrap();
+        assert!((z - 600.0).abs() < 1.0, "+ zooms 1.25×: {z}");
+        let x0 = s.js("return studio.vview.x;", json!([])).as_f64().unwrap();
+        s.pointer(&[
+            ("move", (cl + 5.0) as i64, (ct + 5.0) as i64),
+            ("down", 0, 0),
+            ("move", (cl + 65.0) as i64, (ct + 25.0) as i64),
+            ("up", 0, 0),
+        ]);
+        let x1 = s.js("return studio.vview.x;", json!([])).as_f64().unwrap();
+        assert!(
+            (x1 - x0 - 60.0).abs() < 2.0,
+            "a drag pans the frame: {x0} → {x1}"
+        );
+        // The track colour by age, a longer trail.
+        s.js("const t = document.getElementById('trail'); t.value = 40; t.dispatchEvent(new Event('input'));", json!([]));
+        s.click("#v-fit");
+        s.click("#v-full");
+        let full = s.js(
+            "return inside(vp(), r('#viewer-wrap')) && inside(r('#viewer-wrap'), vp());",
+            json!([]),
+        );
+        assert_eq!(full, true, "full window");
+        wait_js(
+            &s,
+            "the frame drawn",
+            "return document.getElementById('viewer').dataset.frame === '1';",
+        );
+        shot(&s, &shots, &format!("{tag}-frames-full-tracks"));
+        s.js("document.activeElement.blur();", json!([]));
+        s.keys("body", "\u{E00C}"); // Esc leaves full window
+        assert_eq!(
+            s.js(
+                "return document.getElementById('viewer-wrap').classList.contains('fullwin');",
+                json!([])
+            ),
+            json!(false)
+        );
+        // Playback keys: → steps, End goes last, Space plays and pauses.
+        s.keys("body", "\u{E014}");
+        wait_js(
+            &s,
+            "frame 2",
+            "return document.getElementById('viewer').dataset.frame === '2';",
+        );
+        s.keys("body", "\u{E010}");
+        wait_js(
+            &s,
+            "frame 12",
+            "return document.getElementById('viewer').dataset.frame === '12';",
+        );
+        s.keys("body", " ");
+        assert_eq!(s.js("return !!studio.playing;", json!([])), json!(true));
+        s.keys("body", " ");
+        assert_eq!(s.js("return !!studio.playing;", json!([])), json!(false));
+        s.keys("body", "\u{E011}");
+
+        // --- the solve: framed on the 95th percentile, grid, axes, the scrubber in step
+        // with the frames view, the current camera highlighted
+        s.js(
+            "document.querySelector('.tab[data-view=solve]').click(); const p = document.getElementById('solve-points'); p.value = 'cloud.points'; p.dispatchEvent(new Event('input'));",
+            json!([]),
+        );
+        let info = wait_js(
+            &s,
+            "the solve drawn",
+            "return solve.info && solve.info.points === 201 ? solve.info : null;",
+        );
+        let fr = s.js("return solve.framing;", json!([]));
+        let c = &fr["centre"];
+        let (cx, cy, cz) = (
+            c[0].as_f64().unwrap(),
+            c[1].as_f64().unwrap(),
+            c[2].as_f64().unwrap(),
+        );
+        let mut dd: Vec<f64> = dists
+            .iter()
+            .map(|(x, y, z)| ((x - cx).powi(2) + (y - cy).powi(2) + (z - cz).powi(2)).sqrt())
+            .collect();
+        dd.sort_by(|a, b| a.partial_cmp(b).unwrap());
+        let p95 = dd[(0.95 * (dd.len() - 1) as f64) as usize];
+        let radius = info["framingRadius"].as_f64().unwrap();
+        println!(
+            "solve framing: radius {radius:.2} (the points' 95th percentile from the centre {p95:.2}, the farthest {:.0})",
+            dd[dd.len() - 1]
+        );
+        assert!(radius <= p95 * 1.6 && radius < 20.0, "{info} vs p95 {p95}");
+        assert!(info["grid"].as_f64().unwrap() > 0.0);
+        s.js("setFrameIdx(0);", json!([]));
+        let solve_scrub = "const r = document.getElementById('solve-scrub'); r.value = 6; r.dispatchEvent(new Event('input')); return [solve.info.highlighted, frameNow(), Number(document.getElementById('scrub').value), document.getElementById('solve-frame').textContent];";
+        assert_eq!(s.js(solve_scrub, json!([])), json!([7, 7, 6, "7"]));
+        let scale = s.js(
+            "return document.getElementById('solve-scale').textContent;",
+            json!([]),
+        );
+        assert!(scale.as_str().unwrap().contains("far point"), "{scale}");
+        assert!(
+            s.js(
+                "return inside(r('#solve3d'), vp()) && inside(r('#error-plot'), vp());",
+                json!([])
+            ) == json!(true),
+            "the 3-D view and the error plot in the window"
+        );
+        shot(&s, &shots, &format!("{tag}-solve"));
+
+        // --- the definer: fits at its default zoom with the loupe and table in view; the
+        // triangulated point drawn back and predicted; undo; unsaved marks kept over a
+        // reload; a warning when the point count changes
+        s.click(".tab[data-view=definer]");
+        s.js("document.getElementById('def-snap').checked = false; const i = document.getElementById('def-image'); i.value = 'plate.sequence'; i.dispatchEvent(new Event('input'));", json!([]));
+        set_definer_frame(&s, 1);
+        let dfit = wait_js(
+            &s,
+            "the definer fitted",
+            "const c = document.getElementById('def-canvas'); if (c.width < 100 || Number(c.dataset.projected) !== 3) return null; return {zoom: Number(c.dataset.zoom), canvas: inside(r(c), vp()), loupe: inside(r('#loupe'), vp()), table: inside(r('#marks-table'), vp()), marks: Number(c.dataset.marks)};",
+        );
+        assert_eq!(
+            (
+                dfit["canvas"].clone(),
+                dfit["loupe"].clone(),
+                dfit["table"].clone()
+            ),
+            (json!(true), json!(true), json!(true)),
+            "{dfit}"
+        );
+        assert_eq!(dfit["marks"], 3);
+        set_definer_frame(&s, 2);
+        let pred = wait_js(
+            &s,
+            "the prediction",
+            "const c = document.getElementById('def-canvas'); return Number(c.dataset.predicted) === 3 ? studio.defProjected : null;",
+        );
+        println!("definer: frame 2 (not marked) predicted at {pred}");
+        shot(&s, &shots, &format!("{tag}-definer-predicted"));
+        // A fourth point clicked on frame 1, then undone, then redone.
+        set_definer_frame(&s, 1);
+        let z = dfit["zoom"].as_f64().unwrap();
+        let (dl, dt, _, _) = rect(&s, "#def-canvas");
+        let (x, y) = ((dl + 200.0 * z) as i64, (dt + 100.0 * z) as i64);
+        click_at(&s, x, y, 0);
+        assert_eq!(marks_on(&s, 1), 4);
+        assert_eq!(
+            s.js(
+                "return !document.getElementById('def-dirty').hidden;",
+                json!([])
+            ),
+            json!(true)
+        );
+        s.js("document.activeElement.blur();", json!([]));
+        s.keys("body", "\u{E009}z\u{E000}");
+        assert_eq!(marks_on(&s, 1), 3, "Ctrl+Z removes the new mark");
+        s.click("#def-redo");
+        assert_eq!(marks_on(&s, 1), 4, "redo puts it back");
+        // Saving 4 points where the file has 3: a warning first.
+        s.click("#def-save");
+        let warn = wait_js(
+            &s,
+            "the count warning",
+            "const w = document.getElementById('def-count-warn'); return w ? w.textContent : null;",
+        );
+        assert!(warn.as_str().unwrap().contains("ground"), "{warn}");
+        shot(&s, &shots, &format!("{tag}-definer-warning"));
+        // Not saved: a reload restores the unsaved marks.
+        open(&s);
+        s.click(".tab[data-view=definer]");
+        wait_js(&s, "the restored marks", "return document.getElementById('def-restored') && !document.getElementById('def-dirty').hidden;");
+        assert_eq!(marks_on(&s, 1), 4);
+        s.click("#def-discard");
+        assert_eq!(marks_on(&s, 1), 3);
+        s.click(".tab[data-view=graph]");
+    }
+
+    // --- progress while a run goes, and Stop shown as stopped: a slow blur
+    set_viewport(&s, 1280, 800);
+    open(&s);
+    let (st, body) = http(
+        port,
+        "POST",
+        "/api/params",
+        Some(&json!({"node": "soft", "param": "sigma", "value": "60"})),
+    );
+    assert_eq!(st, 200, "{body}");
+    let before = api_state(port)["runs"].as_u64().unwrap();
+    s.click("#run");
+    let prog = wait_js(
+        &s,
+        "the progress",
+        "const p = document.getElementById('progress'); return !p.hidden && p.dataset.running.includes('soft') ? [document.getElementById('progress-text').textContent, p.dataset.done, p.dataset.total] : null;",
+    );
+    println!("progress while running: {prog}");
+    assert!(prog[0].as_str().unwrap().contains("running soft"), "{prog}");
+    std::thread::sleep(Duration::from_millis(1200));
+    let later = s.js(
+        "return document.getElementById('progress-text').textContent;",
+        json!([]),
+    );
+    println!("progress a second later: {later}");
+    shot(&s, &shots, "1280-progress");
+    s.click("#cancel");
+    wait_run_done(&s, before + 1);
+    let status = s.js(
+        "const s = document.getElementById('status'); return [s.dataset.outcome, s.textContent, document.getElementById('failure').hidden];",
+        json!([]),
+    );
+    assert_eq!(status[0], "stopped", "{status}");
+    assert!(
+        status[1].as_str().unwrap().starts_with("stopped"),
+        "{status}"
+    );
+    assert_eq!(status[2], true, "no failure panel after a stop: {status}");
+    shot(&s, &shots, "1280-stopped");
+    let (st, _) = http(
+        port,
+        "POST",
+        "/api/params",
+        Some(&json!({"node": "soft", "param": "sigma", "value": null})),
+    );
+    assert_eq!(st, 200);
+
+    // --- params in place: a slider, Enter applies, undo, save to the graph file
+    s.js(
+        "document.getElementById('node-soft').dispatchEvent(new MouseEvent('click', {bubbles: true}));",
+        json!([]),
+    );
+    wait_js(
+        &s,
+        "the panel",
+        "return !!document.querySelector('#panel [data-param=sigma]');",
+    );
+    let slider = s.js("return !!document.querySelector('#panel [data-slider=sigma]') || !!document.querySelector('#panel select, #panel input[type=range]');", json!([]));
+    println!("params: sigma has a slider: {slider}");
+    s.clear("#panel [data-param=sigma]");
+    s.keys("#panel [data-param=sigma]", "2.5\u{E007}");
+    wait_js(
+        &s,
+        "the edit",
+        "return studio.state.sets.includes('soft.sigma=2.5');",
+    );
+    s.clear("#panel [data-param=sigma]");
+    s.keys("#panel [data-param=sigma]", "3\u{E007}");
+    wait_js(
+        &s,
+        "the second edit",
+        "return studio.state.sets.includes('soft.sigma=3');",
+    );
+    s.click("#param-undo");
+    wait_js(
+        &s,
+        "the undo",
+        "return studio.state.sets.includes('soft.sigma=2.5');",
+    );
+    wait_js(
+        &s,
+        "the save button",
+        "return !!document.querySelector('#panel [data-save=sigma]');",
+    );
+    shot(&s, &shots, "1280-params");
+    let before_yaml = std::fs::read_to_string(d.join("usability.yaml")).unwrap();
+    s.click("#panel [data-save=sigma]");
+    wait_js(&s, "the saved file", "return document.getElementById('param-msg').dataset.saved === 'sigma' && studio.state.sets.length === 0;");
+    let after_yaml = std::fs::read_to_string(d.join("usability.yaml")).unwrap();
+    assert_eq!(
+        after_yaml,
+        before_yaml.replace("params: {sigma: 1.5}", "params: {sigma: 2.5}"),
+        "exactly one value changed"
+    );
+    assert!(after_yaml.contains("# a grade to keep") && after_yaml.starts_with("# The studio's"));
+    // The grade's value is not written in the file as edited: a clear refusal.
+    let (st, body) = http(
+        port,
+        "POST",
+        "/api/params/save",
+        Some(&json!({"node": "grade", "param": "stops"})),
+    );
+    assert_eq!(st, 422, "{body}");
+
+    // --- a graph without a `frames:` range: frames from the camera path, marks and their
+    // prediction in the definer
+    let port2 = serve(d, "frameless.yaml");
+    let (st, _) = http(port2, "POST", "/api/run", None);
+    assert_eq!(st, 202);
+    s.goto(&format!("http://127.0.0.1:{port2}/"));
+    wait_run_done(&s, 1);
+    s.js(GEOM, json!([]));
+    s.click(".tab[data-view=definer]");
+    let fl = wait_js(
+        &s,
+        "the frameless definer",
+        "const c = document.getElementById('def-canvas'); return studio.frames.length === 12 && Number(c.dataset.projected) === 3 ? [studio.frames, studio.framesFrom, Number(c.dataset.marks)] : null;",
+    );
+    assert_eq!(fl[0], json!(frames));
+    assert_eq!(fl[2], 3);
+    set_definer_frame(&s, 6);
+    wait_js(
+        &s,
+        "the frameless prediction",
+        "return Number(document.getElementById('def-canvas').dataset.predicted) === 3;",
+    );
+    shot(&s, &shots, "1280-frameless-definer");
+    s.quit();
+    println!(
+        "usability test: {:.1} s; screenshots in {}",
+        t_all.elapsed().as_secs_f64(),
+        shots.display()
+    );
 }

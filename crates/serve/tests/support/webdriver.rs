@@ -227,6 +227,15 @@ impl Session {
         self.call("POST", "/window", Some(json!({ "handle": handle })));
     }
 
+    /// Sets the browser window's size (headless: the viewport's).
+    pub fn set_window(&self, width: u32, height: u32) {
+        self.call(
+            "POST",
+            "/window/rect",
+            Some(json!({ "width": width, "height": height })),
+        );
+    }
+
     /// A PNG screenshot of the page.
     pub fn screenshot(&self) -> Vec<u8> {
         let b64 = self.call("GET", "/screenshot", None);
