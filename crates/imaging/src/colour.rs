@@ -25,10 +25,15 @@
 //! | `Rec.2100-HLG - Display` | hybrid log-gamma, Rec. 2020, 1000 nits | ITU-R BT.2100-2 |
 //! | `Rec.2100-PQ - Display` | perceptual quantizer, Rec. 2020 | ITU-R BT.2100-2, SMPTE ST 2084 |
 //!
-//! Gamut conversions between white points use the chromatic adaptation OpenColorIO's built-in
-//! transforms use (Bradford for ACES' white to D65, as the ACES configs do). A display-referred
-//! space is reached from scene-linear through the config's default view transform (in the
-//! built-in config, the ACES 2.0 output transform), as OpenColorIO does.
+//! Gamut conversions are the config's matrices: the camera vendors' own matrices to ACES2065-1
+//! (ARRI's and Sony's, as the ACES CSC transforms give them) and Bradford adaptation between
+//! the ACES white and D65 (OpenColorIO's `ACES-AP0_to_CIE-XYZ-D65_BFD` built-ins). A
+//! display-referred space is reached from scene-linear through the config's default view
+//! transform (in the built-in config, the ACES 2.0 output transform), as OpenColorIO does.
+//!
+//! `$OCIO` is read when a node runs and is not part of the cache keys: a graph that names its
+//! config (`ocio_config`, e.g. once in the graph's `defaults:`) has the config's content in
+//! them.
 //!
 //! Everything a graph computes is scene-linear in its working space ([`WorkingSpace`]): linear
 //! Rec. 709 by default (what vfxgraph always used: sRGB files decoded to linear light), or

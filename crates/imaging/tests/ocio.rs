@@ -17,7 +17,7 @@ use std::process::Command;
 use serde_json::Value;
 use vfxgraph_imaging::colour::{ColourConfig, BUILTIN_CONFIG};
 
-/// The largest error allowed (the bound, 1e-4).
+/// The largest error allowed: 1e-4, the bound vfxgraph promises for its colour transforms.
 const BOUND: f64 = 1e-4;
 
 fn repo() -> PathBuf {
