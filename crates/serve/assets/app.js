@@ -1126,7 +1126,7 @@ function marksOf(frame, create) {
   return m;
 }
 
-const ZOOMS = [16, 8, 4, 2, 1, 0.75, 0.5, 0.25];
+const ZOOMS = [16, 12, 8, 6, 4, 3, 2, 1.5, 1, 0.75, 0.5, 0.25];
 // The definer's zoom: the menu's, or at "fit" the largest that shows the whole image.
 const zoom = () => studio.defZoom || 1;
 function pickZoom(w, h) {
@@ -1147,9 +1147,12 @@ function blankSize() {
   return { w: Math.ceil(w / 16) * 16, h: Math.ceil(h / 9) * 9 };
 }
 
+// Draws the definer; a draw started later (another frame) wins over one still loading.
+let defDrawToken = 0;
 async function drawDefiner() {
   const c = $('def-canvas');
   const f = frameNow();
+  const tok = ++defDrawToken;
   $('def-frame-label').textContent = f ?? '–';
   const src = $('def-image').value;
   const ctx = c.getContext('2d');
@@ -1157,6 +1160,7 @@ async function drawDefiner() {
   if (src && f !== undefined) {
     try { im = await loadImage(imageUrl(src, f, { png: true })); } catch (e) { im = null; }
   }
+  if (tok !== defDrawToken) return;
   const blank = im ? null : blankSize();
   const w = im ? im.width : blank.w, h = im ? im.height : blank.h;
   studio.defSize = { w, h };

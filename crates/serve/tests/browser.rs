@@ -219,13 +219,11 @@ fn set_definer_frame(s: &Session, frame: i64) {
         "const i = studio.frames.indexOf(arguments[0]); const r = document.getElementById('def-scrub'); r.value = i; r.dispatchEvent(new Event('input'));",
         json!([frame]),
     );
-    wait_for("the definer frame", || {
-        let v = s.js(
-            "const c = document.getElementById('def-canvas'); return c.dataset.frame;",
-            json!([]),
-        );
-        (v.as_str() == Some(&frame.to_string())).then_some(())
-    });
+    wait_js(
+        s,
+        "the definer frame",
+        &format!("return document.getElementById('def-canvas').dataset.frame === '{frame}';"),
+    );
 }
 
 fn marks_on(s: &Session, frame: i64) -> usize {
@@ -1333,9 +1331,13 @@ nodes:
 ";
 
 /// The same shot without a `frames:` range (as the book's matchmove): the viewers take the
-/// frames from the camera path.
+/// frames from the camera paths (here also a 286-frame one, the book video's length).
 const FRAMELESS: &str = "version: 1
 nodes:
+  long:
+    type: synthetic_camera_path
+    params: {frames: 286, first_frame: 1, target: [0, 0, 0], radius: 6, height: 1.5, sweep: 90,
+             focal: 400, width: 480, height_px: 270}
   path:
     type: synthetic_camera_path
     params: {frames: 12, first_frame: 1, target: [0, 0, 0], radius: 6, height: 1.5, sweep: 30,
@@ -1451,6 +1453,14 @@ fn studio_usability_at_two_sizes() {
         wait_js(s, "the first state", "return studio.readyAt !== null;");
         s.js(GEOM, json!([]));
     };
+    // The first paint: the page's own figure (navigation start → the graph drawn).
+    s.goto(&url);
+    let ready = wait_js(&s, "the first paint", "return studio.readyAt;");
+    println!(
+        "first paint: the graph drawn {:.0} ms after the page was asked for",
+        ready.as_f64().unwrap()
+    );
+    assert!(ready.as_f64().unwrap() < 1000.0, "first paint {ready} ms");
     let no_errors = |s: &Session| {
         let e = s.js("return studio.errors;", json!([]));
         assert_eq!(e, json!([]), "script errors in the page");
@@ -1746,7 +1756,7 @@ fn studio_usability_at_two_sizes() {
         let dfit = wait_js(
             &s,
             "the definer fitted",
-            "const c = document.getElementById('def-canvas'); if (c.width < 100 || Number(c.dataset.projected) !== 3) return null; return {zoom: Number(c.dataset.zoom), canvas: inside(r(c), vp()), loupe: inside(r('#loupe'), vp()), table: inside(r('#marks-table'), vp()), marks: Number(c.dataset.marks)};",
+            "const c = document.getElementById('def-canvas'); if (c.width < 100 || Number(c.dataset.projected) !== 3) return null; return {zoom: Number(c.dataset.zoom), canvas: inside(r(c), vp()), loupe: inside(r('#loupe'), vp()), table: inside(r('.def-side .table-wrap'), vp()) && r('#marks-table').h > 20, marks: Number(c.dataset.marks)};",
         );
         assert_eq!(
             (
@@ -1814,6 +1824,10 @@ fn studio_usability_at_two_sizes() {
         Some(&json!({"node": "soft", "param": "sigma", "value": "60"})),
     );
     assert_eq!(st, 200, "{body}");
+    // Zoomed in on the sources: the blur is out of view until it runs.
+    s.js("studio.fitGraph(); for (let i = 0; i < 6; i++) document.getElementById('g-in').click(); studio.gview.x = 0; studio.gview.y = 0; document.getElementById('g-in').click(); document.getElementById('g-out').click();", json!([]));
+    let soft_in_view = "return inside(r('#node-soft rect.box'), r('#graph-wrap'));";
+    assert_eq!(s.js(soft_in_view, json!([])), json!(false));
     let before = api_state(port)["runs"].as_u64().unwrap();
     s.click("#run");
     let prog = wait_js(
@@ -1823,6 +1837,18 @@ fn studio_usability_at_two_sizes() {
     );
     println!("progress while running: {prog}");
     assert!(prog[0].as_str().unwrap().contains("running soft"), "{prog}");
+    assert_eq!(
+        s.js(
+            "return document.getElementById('node-soft').dataset.state;",
+            json!([])
+        ),
+        "running"
+    );
+    assert_eq!(
+        s.js(soft_in_view, json!([])),
+        json!(true),
+        "the running node brought into view"
+    );
     std::thread::sleep(Duration::from_millis(1200));
     let later = s.js(
         "return document.getElementById('progress-text').textContent;",
@@ -1920,9 +1946,9 @@ fn studio_usability_at_two_sizes() {
     let fl = wait_js(
         &s,
         "the frameless definer",
-        "const c = document.getElementById('def-canvas'); return studio.frames.length === 12 && Number(c.dataset.projected) === 3 ? [studio.frames, studio.framesFrom, Number(c.dataset.marks)] : null;",
+        "const c = document.getElementById('def-canvas'); return studio.frames.length === 286 && Number(c.dataset.projected) === 3 ? [studio.frames, studio.framesFrom, Number(c.dataset.marks)] : null;",
     );
-    assert_eq!(fl[0], json!(frames));
+    assert_eq!(fl[0], json!((1..=286).collect::<Vec<i64>>()));
     assert_eq!(fl[2], 3);
     set_definer_frame(&s, 6);
     wait_js(
@@ -1931,6 +1957,18 @@ fn studio_usability_at_two_sizes() {
         "return Number(document.getElementById('def-canvas').dataset.predicted) === 3;",
     );
     shot(&s, &shots, "1280-frameless-definer");
+    // 286 cameras: the path and every 8th frustum, the current one highlighted.
+    s.js(
+        "document.querySelector('.tab[data-view=solve]').click(); const c = document.getElementById('solve-cams'); c.value = 'long.cameras'; c.dispatchEvent(new Event('input'));",
+        json!([]),
+    );
+    let long = wait_js(
+        &s,
+        "the long path",
+        "return solve.info && solve.info.cameras === 286 && solve.info.highlighted === 6 ? solve.info : null;",
+    );
+    assert!(long["frustums"].as_u64().unwrap() <= 41, "{long}");
+    shot(&s, &shots, "1280-frameless-solve");
     s.quit();
     println!(
         "usability test: {:.1} s; screenshots in {}",
