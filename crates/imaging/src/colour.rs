@@ -727,4 +727,89 @@ mod tests {
         t.apply(&mut gray);
         assert!((gray.data[0] - 0.18).abs() < 1e-5 && (gray.data[1] - 1.0).abs() < 1e-5);
     }
+
+    /// A studio's own config, written with the transforms such configs are built from
+    /// (BuiltinTransform, LogCameraTransform, MatrixTransform, ExponentWithLinearTransform,
+    /// ExponentTransform, ColorSpaceTransform, GroupTransform, directions), converts as the
+    /// built-in config does (itself checked against PyOpenColorIO): identical values, the
+    /// bound (1e-6) an allowance for the order in which equal matrices are composed.
+    #[test]
+    fn a_studio_config_file_converts_as_the_builtin_one() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("studio.ocio");
+        // LogC3 (EI 800) and sRGB spelled out with the constants of ARRI's and IEC 61966-2-1's
+        // curves and the ACES CSC matrices, the linear spaces by built-in transforms.
+        let text = r#"ocio_profile_version: 2.4
+roles: {default: ACES2065-1, scene_linear: ACEScg}
+displays: {sRGB: [!<View> {name: Raw, colorspace: ACES2065-1}]}
+colorspaces:
+  - !<ColorSpace>
+    name: ACES2065-1
+  - !<ColorSpace>
+    name: ACEScg
+    to_scene_reference: !<BuiltinTransform> {style: ACEScg_to_ACES2065-1}
+  - !<ColorSpace>
+    name: Linear Rec.709 (sRGB)
+    from_scene_reference: !<GroupTransform>
+      children:
+        - !<BuiltinTransform> {style: ACEScg_to_ACES2065-1, direction: inverse}
+        - !<BuiltinTransform> {style: UTILITY - ACES-AP1_to_LINEAR-REC709_BFD}
+  - !<ColorSpace>
+    name: LogC3 by hand
+    to_scene_reference: !<GroupTransform>
+      children:
+        - !<LogCameraTransform> {base: 10, log_side_slope: 0.247189638318671, log_side_offset: 0.385536998692443, lin_side_slope: 5.55555555555556, lin_side_offset: 0.0522722750251688, lin_side_break: 0.0105909904954696, direction: inverse}
+        - !<MatrixTransform> {matrix: [0.680205505106279, 0.236136601606481, 0.0836578932872398, 0, 0.0854149797421404, 1.01747087860704, -0.102885858349182, 0, 0.00205652166929683, -0.0625625003847921, 1.06050597871549, 0, 0, 0, 0, 1]}
+  - !<ColorSpace>
+    name: LogC3 builtin
+    to_scene_reference: !<BuiltinTransform> {style: ARRI_ALEXA-LOGC-EI800-AWG_to_ACES2065-1}
+  - !<ColorSpace>
+    name: sRGB by hand
+    to_scene_reference: !<GroupTransform>
+      children:
+        - !<ExponentWithLinearTransform> {gamma: 2.4, offset: 0.055}
+        - !<ColorSpaceTransform> {src: Linear Rec.709 (sRGB), dst: ACES2065-1}
+  - !<ColorSpace>
+    name: Gamma 2.2 by hand
+    from_scene_reference: !<GroupTransform>
+      children:
+        - !<ColorSpaceTransform> {src: ACES2065-1, dst: Linear Rec.709 (sRGB)}
+        - !<ExponentTransform> {value: 2.2, style: pass_thru, direction: inverse}
+"#;
+        std::fs::write(&p, text).unwrap();
+        let studio = ColourConfig::open(&p).unwrap();
+        let builtin = ColourConfig::builtin();
+        let values = [-0.02f32, 0.0, 0.01, 0.0929, 0.18, 0.391, 0.5, 0.8, 1.0];
+        let mut worst = 0.0f32;
+        for (ours, theirs) in [
+            ("LogC3 by hand", "ARRI LogC3 (EI800)"),
+            ("LogC3 builtin", "ARRI LogC3 (EI800)"),
+            ("sRGB by hand", "sRGB Encoded Rec.709 (sRGB)"),
+            ("Gamma 2.2 by hand", "Gamma 2.2 Encoded Rec.709"),
+        ] {
+            for work in [LINEAR_REC709, "ACEScg"] {
+                let a = studio.transform(ours, work).unwrap();
+                let b = builtin.transform(theirs, work).unwrap();
+                for &v in &values {
+                    for rgb in [[v, v, v], [v, 0.5 * v + 0.1, 0.2]] {
+                        let (x, y) = (a.apply_rgb(rgb), b.apply_rgb(rgb));
+                        for k in 0..3 {
+                            let e = (x[k] - y[k]).abs() / y[k].abs().max(1.0);
+                            assert!(e < 1e-6, "{ours} to {work} at {rgb:?}: {x:?} vs {y:?}");
+                            worst = worst.max(e);
+                        }
+                    }
+                }
+            }
+        }
+        eprintln!("studio config vs built-in: worst {worst:e}");
+        assert!(worst < 1e-6, "worst {worst}");
+        // A name of this config only, and the builtin's names absent from it: errors naming
+        // the file.
+        let e = studio
+            .transform("ACEScct", "ACEScg")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("studio.ocio") && e.contains("`ACEScct`"), "{e}");
+    }
 }
