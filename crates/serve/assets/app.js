@@ -120,6 +120,7 @@ function renderAll() {
   $('file').textContent = s.file;
   $('file').title = s.file;
   $('sets').textContent = s.sets.length ? s.sets.map((x) => '--set ' + x).join(' ') : '';
+  $('sets').title = $('sets').textContent;
   const diag = $('diagnostics');
   if (s.diagnostics.length) {
     diag.hidden = false;
@@ -541,16 +542,16 @@ function renderPanel() {
   el.innerHTML = `<h3>${esc(n.id)} <small>${esc(n.type)} v${n.version}</small></h3>
     <p>${esc(n.doc)}</p>
     <p>${n.per_frame ? `per frame: ${n.instances} instances` : 'runs once'} · line ${n.line}</p>
-    <h4>Inputs</h4><ul>${n.input_ports.map((p) => {
-      const e = n.inputs.find((x) => x.port === p.name);
-      return `<li><b>${esc(p.name)}</b>: ${esc(p.type)} ← ${e ? esc(e.from + '.' + e.from_port) : '<i>not connected</i>'}</li>`;
-    }).join('') || '<li>none</li>'}</ul>
-    <h4>Outputs</h4><ul>${n.outputs.map((p) => `<li><b>${esc(p.name)}</b>: ${esc(p.type)} — ${esc(p.doc)}</li>`).join('') || '<li>none</li>'}</ul>
     <h4>Params <button id="param-undo" title="undo the last param edit (Ctrl+Z)" ${studio.paramUndo.length ? '' : 'disabled'}>Undo</button> <button id="param-redo" ${studio.paramRedo.length ? '' : 'disabled'}>Redo</button></h4>
     <p class="hint">Enter applies; sliders apply on release.</p>
     <table>${params}</table><p id="param-msg"></p>
     <h4>Plan</h4><ul id="reasons">${Object.entries(reasons).map(([r, l]) => `<li>${esc(r)}${fr(l)}</li>`).join('')}</ul>
-    <h4>Last run</h4><ul>${Object.entries(lastReasons).map(([r, l]) => `<li>${esc(r)}${fr(l)}</li>`).join('') || '<li>not run here yet</li>'}</ul>`;
+    <h4>Last run</h4><ul>${Object.entries(lastReasons).map(([r, l]) => `<li>${esc(r)}${fr(l)}</li>`).join('') || '<li>not run here yet</li>'}</ul>
+    <h4>Inputs</h4><ul>${n.input_ports.map((p) => {
+      const e = n.inputs.find((x) => x.port === p.name);
+      return `<li><b>${esc(p.name)}</b>: ${esc(p.type)} ← ${e ? esc(e.from + '.' + e.from_port) : '<i>not connected</i>'}</li>`;
+    }).join('') || '<li>none</li>'}</ul>
+    <h4>Outputs</h4><ul>${n.outputs.map((p) => `<li><b>${esc(p.name)}</b>: ${esc(p.type)} — ${esc(p.doc)}</li>`).join('') || '<li>none</li>'}</ul>`;
   const apply = (name, value) => setParam(n.id, name, value);
   el.querySelectorAll('[data-param]').forEach((inp) => {
     const name = inp.dataset.param;
@@ -640,7 +641,14 @@ function fillOutputs() {
   const imgs = outputsOfType(['image', 'layers']);
   fillSelect($('out-a'), imgs, false);
   fillSelect($('out-b'), imgs, true);
-  fillSelect($('tracks'), outputsOfType(['tracks']), true);
+  const tracks = outputsOfType(['tracks']);
+  fillSelect($('tracks'), tracks, true);
+  // A graph of tracks and cameras only: show the tracks (on black) rather than nothing.
+  if (!imgs.length && tracks.length && !$('tracks').value && !studio.tracksPicked) {
+    $('tracks').value = tracks[0].node + '.' + tracks[0].port;
+    studio.tracksPicked = true;
+  }
+  frameSizeFromIntrinsics();
   const f = frames();
   for (const id of ['scrub', 'def-scrub', 'solve-scrub']) $(id).max = Math.max(0, f.length - 1);
   studio.frameIdx = Math.min(studio.frameIdx, Math.max(0, f.length - 1));
@@ -648,6 +656,40 @@ function fillOutputs() {
 }
 
 const frameNow = () => frames()[studio.frameIdx];
+
+// The frame size of a graph without images: the intrinsics' (their width and height when
+// recorded, else twice the principal point), for drawing tracks and marks on black.
+async function frameSizeFromIntrinsics() {
+  if (studio.frameSize !== undefined) return;
+  studio.frameSize = null;
+  for (const o of outputsOfType(['intrinsics', 'camera_path'])) {
+    const a = await artifactJson(o.node + '.' + o.port);
+    const k = a && (a.K ? a : a.intrinsics);
+    if (!k) continue;
+    // A principal point at (w − 1)/2 (pixel centres at integers) or at w/2.
+    const dim = (c) => (Math.abs(c - Math.floor(c) - 0.5) < 1e-6 ? 2 * c + 1 : Math.round(2 * c));
+    const w = k.width || (k.K ? dim(k.K[0][2]) : 0), h = k.height || (k.K ? dim(k.K[1][2]) : 0);
+    if (w > 16 && h > 16 && w < 20000 && h < 20000) { studio.frameSize = { w, h }; return; }
+  }
+}
+
+// Tracks on black at frame `f` (no image output to show them over).
+async function drawTracksOnBlack(c, f, tok) {
+  const tr = await tracksData().catch(() => null);
+  if (!tr || tok !== drawToken) return false;
+  const sz = studio.frameSize || { w: 1280, h: 720 };
+  if (c.width !== sz.w || c.height !== sz.h) { c.width = sz.w; c.height = sz.h; layoutViewer(); }
+  const ctx = c.getContext('2d');
+  ctx.fillStyle = '#000'; ctx.fillRect(0, 0, c.width, c.height);
+  const ov = drawTracks(ctx, tr, f);
+  studio.overlay = { tracks: ov.tracks, lost: ov.lost, reproj: [] };
+  c.dataset.tracks = ov.tracks;
+  c.dataset.lost = ov.lost;
+  c.dataset.frame = f ?? '';
+  $('frame-label').textContent = f ?? '–';
+  $('viewer-msg').textContent = 'no image output in this graph: the tracks on black';
+  return true;
+}
 
 function imageUrl(sel, frame, opts = {}) {
   const [node, port] = sel.split('.');
@@ -806,7 +848,10 @@ async function drawViewer() {
   const f = frameNow();
   const tok = ++drawToken;
   const c = $('viewer');
-  if (!a) { $('viewer-msg').textContent = 'no image output in this graph'; return; }
+  if (!a) {
+    if (!(await drawTracksOnBlack(c, f, tok)) && tok === drawToken) $('viewer-msg').textContent = 'no image output in this graph';
+    return;
+  }
   try {
     const b = $('out-b').value;
     const [ia, ib] = await Promise.all([loadImage(imageUrl(a, f)), b ? loadImage(imageUrl(b, f, { layer: false })) : null]);
@@ -1140,6 +1185,7 @@ function pickZoom(w, h) {
 // The size to mark on without an image (a graph of tracks and cameras only): what holds the
 // marks and their projections, at least 640×360.
 function blankSize() {
+  if (studio.frameSize) return studio.frameSize;
   let w = 640, h = 360;
   for (const f of studio.marks.frames) for (const [x, y] of f.points) { w = Math.max(w, x + 1); h = Math.max(h, y + 1); }
   const pr = studio.tri && studio.tri.projected;
@@ -1172,7 +1218,22 @@ async function drawDefiner() {
   ctx.imageSmoothingEnabled = z < 1;
   ctx.fillStyle = '#000'; ctx.fillRect(0, 0, c.width, c.height);
   if (im) ctx.drawImage(im, 0, 0, cw, ch);
-  else { ctx.fillStyle = '#666'; ctx.font = '13px sans-serif'; ctx.fillText(`no image (${w}×${h} from the marks): pick one in "over", or mark on the tracks' frames`, 10, 20); }
+  else {
+    // No image: this frame's tracks, dimmed, to mark on.
+    const tr = $('tracks').value ? await tracksData().catch(() => null) : null;
+    if (tok !== defDrawToken) return;
+    const fi = tr ? tr.frames.indexOf(f) : -1;
+    if (fi >= 0) {
+      ctx.fillStyle = '#4a7';
+      for (const t of tr.tracks) {
+        const i = fi - t.first;
+        if (i < 0 || i >= t.points.length) continue;
+        ctx.fillRect((t.points[i][0] + 0.5) * z - 1.5, (t.points[i][1] + 0.5) * z - 1.5, 3, 3);
+      }
+    }
+    ctx.fillStyle = '#888'; ctx.font = '13px sans-serif';
+    ctx.fillText(`no image: ${w}×${h} black${fi >= 0 ? `, this frame's ${$('tracks').value} shown` : ''}`, 10, 20);
+  }
   const m = marksOf(f, false);
   ctx.font = '12px sans-serif';
   // The triangulated points through this frame's camera: solid where the frame is marked

@@ -1334,6 +1334,9 @@ nodes:
 /// frames from the camera paths (here also a 286-frame one, the book video's length).
 const FRAMELESS: &str = "version: 1
 nodes:
+  tracks:
+    type: read_tracks
+    params: {path: f.txt}
   long:
     type: synthetic_camera_path
     params: {frames: 286, first_frame: 1, target: [0, 0, 0], radius: 6, height: 1.5, sweep: 90,
@@ -1855,6 +1858,7 @@ fn studio_usability_at_two_sizes() {
         json!([]),
     );
     println!("progress a second later: {later}");
+    s.js("studio.fitGraph();", json!([]));
     shot(&s, &shots, "1280-progress");
     s.click("#cancel");
     wait_run_done(&s, before + 1);
@@ -1914,6 +1918,7 @@ fn studio_usability_at_two_sizes() {
         "the save button",
         "return !!document.querySelector('#panel [data-save=sigma]');",
     );
+    s.js("studio.fitGraph();", json!([]));
     shot(&s, &shots, "1280-params");
     let before_yaml = std::fs::read_to_string(d.join("usability.yaml")).unwrap();
     s.click("#panel [data-save=sigma]");
@@ -1957,6 +1962,19 @@ fn studio_usability_at_two_sizes() {
         "return Number(document.getElementById('def-canvas').dataset.predicted) === 3;",
     );
     shot(&s, &shots, "1280-frameless-definer");
+    // No image output: the frames view shows the tracks on black.
+    s.click(".tab[data-view=frames]");
+    let on_black = wait_js(
+        &s,
+        "the tracks on black",
+        "const c = document.getElementById('viewer'); return c.dataset.frame === '6' && Number(c.dataset.tracks) > 50 ? [c.width, c.height, Number(c.dataset.tracks)] : null;",
+    );
+    println!("frameless graph: frame 6's tracks on black: {on_black}");
+    assert_eq!(
+        (on_black[0].clone(), on_black[1].clone()),
+        (json!(480), json!(270)),
+        "the intrinsics' size"
+    );
     // 286 cameras: the path and every 8th frustum, the current one highlighted.
     s.js(
         "document.querySelector('.tab[data-view=solve]').click(); const c = document.getElementById('solve-cams'); c.value = 'long.cameras'; c.dispatchEvent(new Event('input'));",
