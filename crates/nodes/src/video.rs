@@ -370,4 +370,78 @@ mod tests {
         let e = read_with(dir.path(), "text.mkv", 0, "opencv").unwrap_err();
         assert!(e.message.contains("text.mkv"), "{e}");
     }
+
+    /// A preview through a display/view: the MP4's frames, read back as code values (`Raw`),
+    /// are the ACES 2.0 SDR view's sRGB display codes of the scene-linear frames, to within
+    /// the codec (mean |Δ| under 1 % of full scale); a tone map with a view is refused.
+    #[test]
+    fn write_video_previews_through_a_display_view() {
+        let dir = tempfile::tempdir().unwrap();
+        let (w, h) = (64, 48);
+        // Scene-linear, past 1 (the view tone-maps the highlights).
+        let src: Vec<Image> = (0..3)
+            .map(|k| {
+                let t = texture(w, h, k as f32, 0.0);
+                Image::from_fn(w, h, 3, |x, y, c| 6.0 * t.get(x, y, c))
+            })
+            .collect();
+        let view = ParamValue::Str("ACES 2.0 - SDR 100 nits (Rec.709)".into());
+        write_video(dir.path(), "v.mp4", 0, &src, &[("view", view.clone())]).unwrap();
+        let t = vfxgraph_imaging::colour::ColourConfig::builtin()
+            .display_view(
+                "Linear Rec.709 (sRGB)",
+                "sRGB - Display",
+                "ACES 2.0 - SDR 100 nits (Rec.709)",
+            )
+            .unwrap();
+        for (k, img) in src.iter().enumerate() {
+            let s = spec("read_video");
+            let p = params(
+                &s,
+                &[
+                    ("path", ParamValue::Str("v.mp4".into())),
+                    ("colour_space", ParamValue::Str("Raw".into())),
+                ],
+            );
+            let mut ctx = Context::for_test(&s, &p, dir.path(), Some(k as i64), vec![]);
+            run_read_video(&mut ctx).unwrap();
+            let got = ctx.take_output::<ImageArt>("sequence").unwrap().0;
+            let mut want = img.clone();
+            t.apply(&mut want);
+            let mean = got
+                .data
+                .iter()
+                .zip(&want.data)
+                .map(|(a, b)| (a - b).abs())
+                .sum::<f32>()
+                / got.data.len() as f32;
+            assert!(mean < 0.01, "frame {k}: mean |Δ| {mean}");
+            // Not what the default sRGB clip writes (a mean |Δ| of 0.18 from it).
+            let clip = img
+                .data
+                .iter()
+                .zip(&got.data)
+                .map(|(a, b)| {
+                    (vfxgraph_imaging::color::linear_to_srgb(a.clamp(0.0, 1.0)) - b).abs()
+                })
+                .sum::<f32>()
+                / got.data.len() as f32;
+            assert!(clip > 10.0 * mean, "frame {k}: {clip} from the clip");
+        }
+        let e = write_video(
+            dir.path(),
+            "r.mp4",
+            0,
+            &src,
+            &[
+                ("view", view),
+                ("tonemap", ParamValue::Str("reinhard".into())),
+            ],
+        )
+        .unwrap_err();
+        assert!(
+            e.message.contains("r.mp4") && e.message.contains("tonemap"),
+            "{e}"
+        );
+    }
 }
