@@ -370,7 +370,7 @@ function renderGraph() {
     h += `<g class="node" id="node-${esc(n.id)}" data-id="${esc(n.id)}" transform="translate(${p.x},${p.y})">
       <rect class="box" width="${p.w}" height="${p.h}"></rect>
       <text x="9" y="17">${esc(n.id)}</text><text x="9" y="31" opacity=".75">${esc(n.type)}</text>
-      <text class="count" x="${p.w - 8}" y="31" text-anchor="end"></text>
+      <text class="count" x="${p.w - 8}" y="17" text-anchor="end"></text>
       ${n.instances > 1 ? `<rect class="track" x="6" y="${p.h - 9}" height="4" width="${p.w - 12}"></rect>` : ''}
       <rect class="bar" x="6" y="${p.h - 9}" height="4" width="0"></rect>${ports}</g>`;
   }

@@ -1,7 +1,8 @@
 //! The HTTP API without a browser: the router answered in-process (tower `oneshot`). Refused
 //! requests (traversal, oversized bodies, malformed params and marks) get a 4xx and change
 //! nothing; a graph that does not load is served with its diagnostics; a run from the API
-//! stores outputs whose previews and pixels are served; the book's marks round-trip to its file.
+//! stores outputs whose previews and pixels are served; the book's marks round-trip to its file;
+//! a param edit saved into the graph file changes that value's text only.
 
 use std::path::Path;
 use std::sync::Arc;
@@ -603,4 +604,94 @@ async fn paths_set_from_the_page_stay_in_the_graph_folder() {
         std::fs::read_to_string(outside.join("secret.txt")).unwrap(),
         "Frame 1\nNpoints 1\n7 7\n\n"
     );
+}
+
+#[tokio::test]
+async fn a_saved_param_changes_only_its_text_in_the_graph_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let graph = GRAPH
+        .replace("version: 1\n", "# the grade's graph\nversion: 1 # schema\n")
+        .replace("params: {stops: 1}", "params: {stops: 1}   # keep this");
+    let s = studio(dir.path(), &graph);
+    let file = dir.path().join("g.yaml");
+    // Nothing edited: nothing to save.
+    let (st, v) = post_json(
+        &s,
+        "/api/params/save",
+        json!({"node": "grade", "param": "stops"}),
+    )
+    .await;
+    assert_eq!(st, StatusCode::UNPROCESSABLE_ENTITY, "{v}");
+    assert!(v["error"].as_str().unwrap().contains("not edited"), "{v}");
+    // A param the file does not write (its default): refused, the file untouched.
+    let (st, _) = post_json(
+        &s,
+        "/api/params",
+        json!({"node": "plate", "param": "working_space", "value": "acescg"}),
+    )
+    .await;
+    assert_eq!(st, StatusCode::OK);
+    let (st, v) = post_json(
+        &s,
+        "/api/params/save",
+        json!({"node": "plate", "param": "working_space"}),
+    )
+    .await;
+    assert_eq!(st, StatusCode::UNPROCESSABLE_ENTITY, "{v}");
+    assert!(v["error"].as_str().unwrap().contains("by hand"), "{v}");
+    assert_eq!(std::fs::read_to_string(&file).unwrap(), graph);
+    // Unknown node or param: refused.
+    let (st, _) = post_json(
+        &s,
+        "/api/params/save",
+        json!({"node": "nope", "param": "stops"}),
+    )
+    .await;
+    assert_eq!(st, StatusCode::UNPROCESSABLE_ENTITY);
+    // An edit saved: exactly that value's text changes, comments and layout kept; the
+    // override is dropped (the file says it now) and the plan is the same.
+    let (st, _) = post_json(
+        &s,
+        "/api/params",
+        json!({"node": "grade", "param": "stops", "value": "-2.25"}),
+    )
+    .await;
+    assert_eq!(st, StatusCode::OK);
+    let (st, v) = post_json(
+        &s,
+        "/api/params/save",
+        json!({"node": "grade", "param": "stops"}),
+    )
+    .await;
+    assert_eq!(st, StatusCode::OK, "{v}");
+    assert_eq!(v["saved"], "-2.25");
+    assert_eq!(v["sets"], json!(["plate.working_space=acescg"]));
+    assert_eq!(
+        std::fs::read_to_string(&file).unwrap(),
+        graph.replace("{stops: 1}", "{stops: -2.25}")
+    );
+    let (_, v) = get_json(&s, "/api/state").await;
+    let grade = v["graph"]["nodes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|n| n["id"] == "grade")
+        .unwrap()
+        .clone();
+    let stops = grade["params"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|p| p["name"] == "stops")
+        .unwrap()["value"]
+        .clone();
+    assert_eq!(stops, "-2.25");
+    // No temporary file left beside the graph.
+    let left: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .map(|e| e.file_name().to_string_lossy().to_string())
+        .filter(|n| n.contains("saving"))
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
 }

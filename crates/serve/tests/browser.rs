@@ -1524,6 +1524,13 @@ fn studio_usability_at_two_sizes() {
             "{g}"
         );
         assert_eq!(g["img"], true, "the first frame in view: {g}");
+        let legend = s.js(
+            "return inside(r('#legend'), r('#graph-wrap')) ? document.getElementById('legend').textContent.replace(/\\s+/g, ' ').trim() : null;",
+            json!([]),
+        );
+        for state in ["cached", "to run", "waiting", "running", "ran", "failed"] {
+            assert!(legend.as_str().unwrap().contains(state), "legend: {legend}");
+        }
         // No edge passes through a node other than its own two.
         let through = s.js(
             "const boxes = [...document.querySelectorAll('.node')].map(n => [n.dataset.id, r(n.querySelector('rect.box'))]); const hits = []; for (const e of document.querySelectorAll('.edge')) { const L = e.getTotalLength(); const m = e.getScreenCTM(); for (let i = 1; i < 60; i++) { const p = e.getPointAtLength(L * i / 60).matrixTransform(m); for (const [id, b] of boxes) { if (id === e.dataset.from || id === e.dataset.to) continue; if (p.x > b.l + 2 && p.x < b.r - 2 && p.y > b.t + 2 && p.y < b.b - 2) hits.push(e.dataset.from + '→' + e.dataset.to + ' through ' + id); } } } return [...new Set(hits)];",
@@ -1839,7 +1846,11 @@ fn studio_usability_at_two_sizes() {
         "const p = document.getElementById('progress'); return !p.hidden && p.dataset.running.includes('soft') ? [document.getElementById('progress-text').textContent, p.dataset.done, p.dataset.total] : null;",
     );
     println!("progress while running: {prog}");
-    assert!(prog[0].as_str().unwrap().contains("running soft"), "{prog}");
+    let ptext = prog[0].as_str().unwrap();
+    assert!(
+        ptext.contains("running soft") && ptext.contains("/58 instances") && ptext.contains(" s"),
+        "{prog}"
+    );
     assert_eq!(
         s.js(
             "return document.getElementById('node-soft').dataset.state;",
@@ -1858,6 +1869,10 @@ fn studio_usability_at_two_sizes() {
         json!([]),
     );
     println!("progress a second later: {later}");
+    assert!(
+        later.as_str().unwrap().contains("left"),
+        "an estimate: {later}"
+    );
     s.js("studio.fitGraph();", json!([]));
     shot(&s, &shots, "1280-progress");
     s.click("#cancel");
