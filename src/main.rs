@@ -16,7 +16,7 @@ use clap::{Args, Parser, Subcommand};
 use vfxgraph_engine::exec::{self, default_cache_dir, RunOptions};
 use vfxgraph_engine::graph::{self, LoadError, Overrides};
 use vfxgraph_engine::store::Store;
-use vfxgraph_engine::{Graph, Registry};
+use vfxgraph_engine::{Graph, ParamValue, Registry};
 
 /// vfxgraph — a dataflow node-graph engine for visual effects.
 ///
@@ -142,6 +142,40 @@ struct GraphArgs {
     /// Override the frame range, e.g. 0..=239 or 1-10,15,20-40:2.
     #[arg(long)]
     frames: Option<String>,
+    /// The OpenColorIO config of every node with an `ocio_config` parameter it leaves unset
+    /// (above the graph's `defaults:`; its content is part of the cache keys). Default: $OCIO,
+    /// else the built-in ACES studio config.
+    #[arg(long, value_name = "FILE")]
+    ocio: Option<PathBuf>,
+    /// Whether $OCIO stands in for a missing `--ocio` (not in a farm task, which gets its
+    /// submit's config or none, whatever its host's environment says).
+    #[arg(skip = true)]
+    ocio_from_env: bool,
+}
+
+impl GraphArgs {
+    /// The graph file with `--set` and `--frames` (and no `--ocio`, nor $OCIO).
+    fn plain(graph: PathBuf, set: Vec<String>, frames: Option<String>) -> GraphArgs {
+        GraphArgs {
+            graph,
+            set,
+            frames,
+            ocio: None,
+            ocio_from_env: false,
+        }
+    }
+
+    /// `--ocio`, else $OCIO (when allowed and set), as an absolute path.
+    fn ocio_config(&self) -> Option<PathBuf> {
+        let env = || {
+            std::env::var_os("OCIO")
+                .filter(|v| self.ocio_from_env && !v.is_empty())
+                .map(PathBuf::from)
+        };
+        let p = self.ocio.clone().or_else(env)?;
+        // Relative to where the command runs, as the user typed it (not to the graph).
+        Some(std::path::absolute(&p).unwrap_or(p))
+    }
 }
 
 #[derive(Args)]
@@ -306,10 +340,17 @@ fn init_logging(verbose: u8, quiet: bool) {
 static LIMITS: std::sync::OnceLock<graph::Limits> = std::sync::OnceLock::new();
 
 fn load_graph(args: &GraphArgs, registry: &Registry) -> Result<Graph, u8> {
-    let overrides = Overrides {
+    let mut overrides = Overrides {
         set: args.set.clone(),
         frames: args.frames.clone(),
+        ..Overrides::default()
     };
+    if let Some(ocio) = args.ocio_config() {
+        overrides.defaults.push((
+            "ocio_config".into(),
+            ParamValue::Str(ocio.to_string_lossy().into_owned()),
+        ));
+    }
     match graph::load(&args.graph, registry, &overrides) {
         Ok(g) => match g.check_limits(LIMITS.get().unwrap_or(&graph::Limits::default())) {
             Ok(()) => Ok(g),

@@ -855,3 +855,58 @@ fn a_huge_graph_is_refused_at_check_with_the_figure_and_the_flag() {
     let (code, err) = check(&[&big[..], &["--max-instance-memory", "385"]].concat());
     assert_eq!(code, Some(0), "{err}");
 }
+
+/// `--ocio FILE` gives every node with an `ocio_config` parameter the studio's config (its
+/// content in the cache keys), `$OCIO` stands in for it, a farm task (`exec`) ignores its host's
+/// `$OCIO`, and a config that cannot be read fails the node naming the file.
+#[test]
+fn ocio_flag_and_environment() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("g.yaml"),
+        "version: 1\nnodes:\n  c:\n    type: constant\n    params: {width: 8, height: 4, color: \
+         [0.18, 0.18, 0.18]}\n  w:\n    type: write_image\n    inputs: {image: c.image}\n    \
+         params: {path: out.tif, colour_space: ACEScct}\n",
+    )
+    .unwrap();
+    let vfx_env = |args: &[&str], ocio: Option<&str>| {
+        let mut c = std::process::Command::new(env!("CARGO_BIN_EXE_vfxgraph"));
+        c.current_dir(dir.path()).args(args).env_remove("OCIO");
+        if let Some(o) = ocio {
+            c.env("OCIO", o);
+        }
+        c.output().unwrap()
+    };
+    // The built-in config: it runs.
+    let out = vfx_env(&["run", "g.yaml"], None);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // A missing config given by the flag: the node fails naming the file and the parameter.
+    let out = vfx_env(&["run", "g.yaml", "--ocio", "studio.ocio"], None);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("studio.ocio") && err.contains("ocio_config"),
+        "{err}"
+    );
+    // $OCIO is the same as the flag …
+    let out = vfx_env(&["plan", "g.yaml", "--json"], Some("env.ocio"));
+    let plan = String::from_utf8_lossy(&out.stdout);
+    assert!(plan.contains("env.ocio"), "{plan}");
+    // … but not for a farm task, which runs with its submit's config only.
+    let out = vfx_env(&["exec", "g.yaml", "--node", "w"], Some("env.ocio"));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // A config file that is not a config: the node fails naming it.
+    std::fs::write(dir.path().join("bad.ocio"), "ocio_profile_version: 2\n").unwrap();
+    let out = vfx_env(&["run", "g.yaml", "--ocio", "bad.ocio"], None);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("bad.ocio"), "{err}");
+}

@@ -30,6 +30,9 @@ pub struct ExecArgs {
     /// Override a parameter: node.param=value (repeatable).
     #[arg(long = "set", value_name = "NODE.PARAM=VALUE")]
     pub set: Vec<String>,
+    /// The OpenColorIO config of the submit (a task ignores $OCIO).
+    #[arg(long, value_name = "FILE")]
+    pub ocio: Option<PathBuf>,
     /// Cache folder (default: .vfxgraph/ beside the graph file).
     #[arg(long, value_name = "DIR")]
     pub cache: Option<PathBuf>,
@@ -131,11 +134,8 @@ pub fn exec_command(a: ExecArgs, registry: &Registry, quiet: bool) -> Result<u8,
             return Ok(1);
         }
     }
-    let ga = GraphArgs {
-        graph: a.graph.clone(),
-        set: a.set.clone(),
-        frames: a.range.clone(),
-    };
+    let mut ga = GraphArgs::plain(a.graph.clone(), a.set.clone(), a.range.clone());
+    ga.ocio = a.ocio.clone();
     let g = match load_graph(&ga, registry) {
         Ok(g) => g,
         Err(code) => return Ok(code),
@@ -194,6 +194,7 @@ fn task_context(a: &SubmitArgs, cache: &std::path::Path) -> Result<TaskContext, 
         cache: absolute(cache)?,
         set: a.graph.set.clone(),
         range: a.graph.frames.clone(),
+        ocio: a.graph.ocio_config(),
         graph_name: a
             .graph
             .graph
@@ -578,11 +579,13 @@ pub fn status_command(a: StatusArgs, registry: &Registry) -> Result<u8, String> 
         return Err(format!("no cache at {}", cache.display()));
     }
     let sub = status_submission(&a, &cache)?;
-    let mut ga = GraphArgs {
-        graph: a.graph.graph.clone(),
-        set: a.graph.set.clone(),
-        frames: a.graph.frames.clone(),
-    };
+    let mut ga = GraphArgs::plain(
+        a.graph.graph.clone(),
+        a.graph.set.clone(),
+        a.graph.frames.clone(),
+    );
+    ga.ocio = a.graph.ocio.clone();
+    ga.ocio_from_env = true;
     if let Some((_, s)) = &sub {
         if ga.frames.is_none() {
             ga.frames = s.frames.clone();

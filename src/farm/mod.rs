@@ -94,6 +94,8 @@ pub struct TaskContext {
     pub set: Vec<String>,
     /// The graph's frame range override (`--frames` of submit), passed as `exec --range`.
     pub range: Option<String>,
+    /// The OpenColorIO config of the submit (`--ocio` or $OCIO), passed as `exec --ocio`.
+    pub ocio: Option<PathBuf>,
     /// The graph's name in job names (its file stem).
     pub graph_name: String,
     /// The submission's token (see [`write_token`]), passed to every task as `exec --token`.
@@ -125,6 +127,9 @@ impl TaskContext {
         }
         for s in &self.set {
             a.extend(["--set".into(), s.clone()]);
+        }
+        if let Some(o) = &self.ocio {
+            a.extend(["--ocio".into(), o.display().to_string()]);
         }
         if let Some(j) = jobs {
             a.extend(["--jobs".into(), j.into()]);

@@ -4,7 +4,7 @@ mod common;
 
 use std::path::Path;
 
-use vfxgraph_engine::{graph, Diagnostics, ErrorKind, Overrides};
+use vfxgraph_engine::{graph, Diagnostics, ErrorKind, Overrides, ParamValue};
 
 fn errors(text: &str) -> Diagnostics {
     errors_with(text, &Overrides::default())
@@ -182,7 +182,7 @@ fn overrides_are_checked() {
     let text = "version: 1\nnodes:\n  a: {type: num, params: {value: 1}}\n";
     let o = Overrides {
         set: vec!["a.value=x".into(), "b.value=1".into(), "a.nope=1".into()],
-        frames: None,
+        ..Default::default()
     };
     let d = errors_with(text, &o);
     assert_eq!(d.items.len(), 3, "{d}");
@@ -193,7 +193,7 @@ fn overrides_are_checked() {
         &common::registry(),
         &Overrides {
             set: vec!["a.value=2.5".into()],
-            frames: None,
+            ..Default::default()
         },
     )
     .unwrap();
@@ -249,6 +249,40 @@ fn graph_defaults_fill_the_params_nodes_leave_unset() {
     assert_eq!(p("a", "offset"), 2.5);
     assert_eq!(p("b", "offset"), 1.0);
     assert_eq!(p("c", "offset"), 7.0);
+}
+
+/// Command-line defaults (`--ocio FILE`): above the graph's `defaults:`, below a node's own
+/// value and `--set`; a name no node has is no error (the flag applies to any graph).
+#[test]
+fn command_line_defaults_rank_between_the_graphs_and_a_nodes() {
+    let text =
+        "version: 1\ndefaults: {offset: 2.5}\nnodes:\n  n: {type: num, params: {value: 4}}\n  \
+                a: {type: add, inputs: {a: n.out}}\n  \
+                b: {type: add, inputs: {a: n.out}, params: {offset: 1}}\n  \
+                c: {type: add, inputs: {a: n.out}}\n";
+    let o = Overrides {
+        set: vec!["c.offset=7".into()],
+        defaults: vec![
+            ("offset".into(), ParamValue::Float(3.0)),
+            ("no_such_param".into(), ParamValue::Float(1.0)),
+        ],
+        ..Default::default()
+    };
+    let g = graph::parse(Path::new("g.yaml"), text, &common::registry(), &o).unwrap();
+    let p = |id: &str| g.nodes[g.index_of(id).unwrap()].params.f64("offset");
+    assert_eq!((p("a"), p("b"), p("c")), (3.0, 1.0, 7.0));
+    // A value of the wrong type: an error naming the node and the parameter.
+    let o = Overrides {
+        defaults: vec![("offset".into(), ParamValue::Str("fast".into()))],
+        ..Default::default()
+    };
+    let Err(d) = graph::parse(Path::new("g.yaml"), text, &common::registry(), &o) else {
+        panic!("a string offset was accepted");
+    };
+    assert!(
+        d.to_string().contains("node `a`") && d.to_string().contains("offset"),
+        "{d}"
+    );
 }
 
 #[test]

@@ -31,9 +31,9 @@
 //! display-referred space is reached from scene-linear through the config's default view
 //! transform (in the built-in config, the ACES 2.0 output transform), as OpenColorIO does.
 //!
-//! `$OCIO` is read when a node runs and is not part of the cache keys: a graph that names its
-//! config (`ocio_config`, e.g. once in the graph's `defaults:`) has the config's content in
-//! them.
+//! A node's config is its `ocio_config` parameter (a graph states it once in `defaults:`; the
+//! command line's `--ocio FILE`, or `$OCIO`, fills it in for every node that leaves it unset),
+//! so the config's content is part of the cache keys; nothing here reads the environment.
 //!
 //! Everything a graph computes is scene-linear in its working space ([`WorkingSpace`]): linear
 //! Rec. 709 by default (what vfxgraph always used: sRGB files decoded to linear light), or
@@ -48,12 +48,10 @@ use rayon::prelude::*;
 use crate::error::ImageError;
 use crate::image::Image;
 
-/// The OpenColorIO config used when neither a file nor `$OCIO` names one: the ACES studio
+/// The OpenColorIO config used when a node names none: the ACES studio
 /// config of OpenColorIO 2.5 (ACES 2.0 output transforms).
 pub const BUILTIN_CONFIG: &str = "ocio://studio-config-v4.0.0_aces-v2.0_ocio-v2.5";
 
-/// The environment variable naming a studio's OpenColorIO config (OpenColorIO's own).
-pub const OCIO_ENV: &str = "OCIO";
 
 /// The scene-linear space a graph computes in.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, vfxgraph_params::Choice)]
@@ -156,14 +154,12 @@ impl ColourConfig {
     }
 
     /// The config a graph uses: `path` when given (relative paths as the caller resolved them),
-    /// else the file `$OCIO` names, else the built-in one.
+    /// else the built-in one. The environment is not read here: what a node computes depends
+    /// only on its parameters (the command line puts `$OCIO` into them, so it is in the cache
+    /// keys and a farm task uses its submit's config).
     pub fn resolve(path: Option<&Path>) -> Result<Arc<ColourConfig>, ImageError> {
-        if let Some(p) = path.filter(|p| !p.as_os_str().is_empty()) {
-            return Self::open(p);
-        }
-        match std::env::var_os(OCIO_ENV).filter(|v| !v.is_empty()) {
-            Some(v) => Self::open(Path::new(&v))
-                .map_err(|e| colour_err(format!("${OCIO_ENV} names a config that fails: {e}"))),
+        match path.filter(|p| !p.as_os_str().is_empty()) {
+            Some(p) => Self::open(p),
             None => Ok(Self::builtin()),
         }
     }
@@ -349,8 +345,8 @@ pub struct ReadColour {
     /// the graph's scene-linear working space: linear_rec709 (Rec. 709 / sRGB primaries) |
     /// acescg (ACES AP1)
     pub working_space: WorkingSpace,
-    /// an OpenColorIO config (.ocio or .ocioz) naming the colour spaces; empty: the file $OCIO
-    /// names, else the ACES studio config built into OpenColorIO
+    /// an OpenColorIO config (.ocio or .ocioz) naming the colour spaces; empty: the ACES studio
+    /// config built into OpenColorIO (`--ocio FILE` or $OCIO set it for every node)
     #[param(path = "input")]
     pub ocio_config: String,
 }
@@ -371,8 +367,8 @@ pub struct WriteColour {
     pub display: String,
     /// the graph's scene-linear working space: linear_rec709 | acescg
     pub working_space: WorkingSpace,
-    /// an OpenColorIO config (.ocio or .ocioz); empty: the file $OCIO names, else the built-in
-    /// ACES studio config
+    /// an OpenColorIO config (.ocio or .ocioz); empty: the built-in ACES studio config
+    /// (`--ocio FILE` or $OCIO set it for every node)
     #[param(path = "input")]
     pub ocio_config: String,
 }

@@ -504,7 +504,7 @@ fn param_text(g: &Graph, node: &str, param: &str) -> Result<String, String> {
 fn load(file: &std::path::Path, registry: &Registry, sets: &[String]) -> Loaded {
     let overrides = Overrides {
         set: sets.to_vec(),
-        frames: None,
+        ..Overrides::default()
     };
     match graph::load(file, registry, &overrides) {
         Ok(g) => match g.check_limits(&graph::Limits::default()) {

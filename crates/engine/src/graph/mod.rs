@@ -29,7 +29,7 @@ use std::sync::Arc;
 use crate::diagnostic::{Diagnostics, ErrorKind, Span};
 use crate::frames::FrameSet;
 use crate::node::{Node, NodeSpec};
-use crate::param::Params;
+use crate::param::{ParamValue, Params};
 use crate::registry::Registry;
 use crate::yaml;
 
@@ -123,6 +123,10 @@ pub struct Overrides {
     pub set: Vec<String>,
     /// `--frames R`.
     pub frames: Option<String>,
+    /// Parameter values from the command line for every node that has the parameter and
+    /// leaves it unset (e.g. `--ocio FILE`): above the graph's `defaults:`, below a node's own
+    /// value and `--set`; a name no node of the graph has is ignored.
+    pub defaults: Vec<(String, ParamValue)>,
 }
 
 /// Why a graph could not be loaded.
@@ -173,7 +177,7 @@ pub fn parse(
     // Pass 1: ids, types, params, raw input references; then overrides and defaults.
     let (mut raws, ids) = nodes::read(doc.nodes, registry, &mut d);
     params::apply_overrides(&mut raws, &overrides.set, &ids, &mut d);
-    params::fill_defaults(&mut raws, &doc.defaults, &mut d);
+    params::fill_defaults(&mut raws, &overrides.defaults, &doc.defaults, &mut d);
     // Pass 2: input references, then cycles, order and per-frame resolution.
     let edges = edges::connect(&raws, &mut d);
     let cyclic = order::find_cycles(&raws, &edges, &mut d);

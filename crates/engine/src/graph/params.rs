@@ -158,6 +158,7 @@ fn split_set(s: &str) -> Option<(&str, &str, &str)> {
 /// Fills in the defaults of params left unset; a required one left unset is reported.
 pub(super) fn fill_defaults(
     raws: &mut [Raw],
+    command_line: &[(String, ParamValue)],
     graph_defaults: &[(String, ParamValue, Span)],
     d: &mut Diagnostics,
 ) {
@@ -175,6 +176,11 @@ pub(super) fn fill_defaults(
                 used[i] = true;
             }
             if raw.params.contains_key(ps.name) {
+                continue;
+            }
+            if let Some((name, v)) = command_line.iter().find(|(n, _)| n == ps.name) {
+                let id = raw.id.clone();
+                check_param(d, &id, name, &ps.ty, v.clone(), None, &mut raw.params);
                 continue;
             }
             if let Some((_, (name, v, span))) = given {
