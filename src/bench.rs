@@ -11,6 +11,18 @@ use vfxgraph_engine::{PlanStatus, Registry, Status};
 
 #[derive(Subcommand)]
 pub enum BenchCommand {
+    /// Reads a clip into the graph (every frame as `read_video` gives it, in order) and times
+    /// FFmpeg's own decode of it (`ffmpeg -f null`) in the same run; the peak resident memory.
+    Video {
+        /// The clip.
+        file: std::path::PathBuf,
+        /// Only the first N frames.
+        #[arg(long)]
+        frames: Option<usize>,
+        /// Print the figures as JSON.
+        #[arg(long)]
+        json: bool,
+    },
     /// Plan + cache check of a generated, fully cached graph of N node instances
     /// (goal: under 1 s for 10 000).
     Plan {
@@ -134,6 +146,7 @@ pub enum BenchCommand {
 
 pub fn run(cmd: BenchCommand, registry: &Registry) -> Result<u8, String> {
     match cmd {
+        BenchCommand::Video { file, frames, json } => crate::bench_video::run(&file, frames, json),
         BenchCommand::Plan { instances, json } => bench_plan(instances, json, registry),
         BenchCommand::Ba {
             file,

@@ -3,6 +3,7 @@
 
 mod bench;
 mod bench_shot;
+mod bench_video;
 mod farm;
 mod interrupt;
 mod progress;

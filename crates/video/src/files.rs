@@ -79,6 +79,16 @@ impl Reader {
         }
     }
 
+    /// The number of frames (pictures shown).
+    pub fn frame_count(&self) -> usize {
+        match self {
+            Reader::Native(v) => v.frame_count(),
+            Reader::Ffmpeg(v) => v.frame_count(),
+            #[cfg(feature = "opencv")]
+            Reader::OpenCv(c) => c.frame_count(),
+        }
+    }
+
     /// Frame `frame` (0 = the first picture), linear-light RGB.
     pub fn frame(&self, frame: i64) -> Result<Image, VideoError> {
         match self {
