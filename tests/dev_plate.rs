@@ -1,4 +1,4 @@
-//! Real footage with the defaults (the real-cameras issue's "defaults survive real noise"):
+//! Real footage with the defaults ("defaults survive real noise"):
 //! `graphs/dev_plate_solve.yaml` tracks and solves the Blender Cycles plate of
 //! `../shared/data/blender_plate_dev/pinhole` (48 frames, 960×540, render grain of σ ≈ 10 gray
 //! levels) with K known and nothing tuned, and the cameras are checked against the
@@ -58,12 +58,12 @@ fn the_default_graph_solves_the_grainy_blender_plate() {
 /// k1 = −0.16).
 ///
 /// Measured (this commit, the default 400 features): focal 921.5 px (+0.16 %), k1 −0.1642,
-/// k2 0.057, rotation max 0.034°, centre max 0.085 % of the path — the goals (0.5 %,
+/// k2 0.057, rotation max 0.034°, centre max 0.085 % of the path — the goals (0.5 %,
 /// 0.01, 0.1°, 0.5 %) are met. The rotation errors bend smoothly along the path with the lens's
 /// remaining error (its tangential terms are not solved by `k1k2`; given the true lens the same
 /// tracks solve to 0.013°). Before the tracker ended the tracks whose drift correction fails:
 /// 919.2 px, −0.164, 0.092°, 0.19 %; without the track weighting as well, 917.2 px, −0.171,
-/// 0.24°, 0.49 %. Bounds: the focal and k1 goals, 2× the rotation and centre errors.
+/// 0.24°, 0.49 %. Bounds: the focal and k1 goals, 2× the rotation and centre errors.
 #[test]
 fn an_unknown_lens_is_solved_from_the_distorted_plate() {
     let tmp = tempfile::tempdir().unwrap();

@@ -44,6 +44,8 @@ const MAKING: &[&str] = &[
     "helper session",
     "(issue",
     "issue #",
+    "the issue's",
+    "the issue asks",
 ];
 
 /// "session 12", "issue 9", "stop 44": a word of the making followed by a number.

@@ -11,7 +11,7 @@
 //! texel channels clamped. Texels seen in 8+ frames: 4.4 %; in 3–7 frames: 8–13 % (the view's
 //! edge, grazing). The rest is the plates' 32-spp grain and JPEG, Cycles' pixel filter and the
 //! irradiance's own Monte Carlo noise (1024 → 2048 paths per grid point: 4.8 → 4.7 % on 24
-//! frames). Bound: the 5 %.
+//! frames). Bound: the 5 % aimed at.
 
 use std::path::Path;
 

@@ -265,7 +265,7 @@ pub(crate) mod tests {
     }
 
     /// Every pixel of the plate (and its outer edges), through redistort's map then
-    /// undistort's: back where it started (the issue asks 0.01 px; Newton's tolerance gives
+    /// undistort's: back where it started (the goal: 0.01 px; Newton's tolerance gives
     /// 3.5e-13–4.7e-13 px, bound 1e-12). Also a wide-angle division lens and a pincushion lens.
     #[test]
     fn undistort_after_redistort_is_the_identity_over_the_frame() {

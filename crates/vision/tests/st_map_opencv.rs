@@ -1,6 +1,6 @@
 //! Our ST-maps in another program: OpenCV's `remap` applies the undistort ST-map to a
 //! frame of `blender_plate_dev/distorted` (Cycles' render seen through its Brown–Conrady lens)
-//! and must reproduce our `undistort` of it within 0.5 % of the image's range (the issue; the test
+//! and must reproduce our `undistort` of it within 0.5 % of the image's range (the goal; the test
 //! holds it to 0.01 %)
 //! (scripts/check/st_map_remap.py; measured: max 0.0027 %, RMS 0.00007 %).
 //!

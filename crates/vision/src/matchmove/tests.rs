@@ -792,11 +792,11 @@ fn distortion_from_too_few_tracks_is_a_clear_error() {
     assert!(err.contains("needs at least 30 tracks"), "{err}");
 }
 
-/// A zoom (the issue of real cameras): 60 frames whose focal length runs 900 → 1400 px, the
+/// A zoom: 60 frames whose focal length runs 900 → 1400 px, the
 /// camera on a curved path (a zoom along a straight track or an orbit is not determined,
 /// [`super::zoom`]), 0.5 px noise and 5 % drifting tracks, solved with `zoom: true` and the
 /// focal length unknown (only the image size given). Measured: every frame's focal length
-/// within 0.16 % (the issue asks 1 %), rotation max 0.038°, centre max 0.21 % of the path.
+/// within 0.16 % (the goal: 1 %), rotation max 0.038°, centre max 0.21 % of the path.
 #[test]
 fn a_zoom_is_solved_frame_by_frame() {
     let shot = synthetic_shot(&ShotOptions {
