@@ -58,6 +58,7 @@ const nodeById = (id) => nodes().find((n) => n.id === id);
 
 async function refresh() {
   const s = await api('GET', '/api/state');
+  if (studio.state && s.runs !== studio.state.runs) studio.trackErr = null;
   studio.state = s;
   studio.running = s.running;
   studio.live = s.live || {};
@@ -891,11 +892,36 @@ async function drawViewer() {
 }
 
 // Each track's trail (the last `trail` frames) up to this frame, coloured by its age (yellow:
-// new, blue: 50 frames or older) or by its error (how far the point is from the middle of
-// its neighbours on the track, px: green under 0.25, red from 2); a track lost at this frame is
-// marked with a red x.
+// new, blue: 50 frames or older) or by its error: the solve's RMS reprojection error of the
+// track when a report gives one per track (green up to the median track's, red from the 95th
+// percentile's: the worst tracks stand out), else how far
+// the point is from the middle of its neighbours on the track (green under 0.25 px, red from
+// 2 px); a track lost at this frame is marked with a red x.
+let trackErrCache = { key: null, data: null };
+async function trackErrors() {
+  const key = (studio.state ? studio.state.runs : 0) + '|' + studio.graphKey;
+  if (trackErrCache.key === key) return trackErrCache.data;
+  let data = null;
+  for (const o of outputsOfType(['report'])) {
+    const r = await artifactJson(o.node + '.' + o.port);
+    if (r && Array.isArray(r.tracks) && r.tracks.length && r.tracks[0].id !== undefined && r.tracks[0].rms !== undefined) {
+      const v = r.tracks.map((t) => t.rms).filter(Number.isFinite).sort((a, b) => a - b);
+      const med = v[Math.floor(v.length / 2)] || 0, p95 = v[Math.floor(0.95 * (v.length - 1))] || 1;
+      data = { from: o.node + '.' + o.port, rms: new Map(r.tracks.map((t) => [t.id, t.rms])), med, p95: Math.max(p95, med + 1e-6) };
+      break;
+    }
+  }
+  trackErrCache = { key, data };
+  return data;
+}
+
 function trackColour(t, upto) {
   if ($('track-colour').value === 'error') {
+    const te = studio.trackErr;
+    if (te && te.rms.has(t.id)) {
+      const a = Math.min(1, Math.max(0, (te.rms.get(t.id) - te.med) / (te.p95 - te.med)));
+      return `hsl(${Math.round(120 * (1 - a))}, 90%, 55%)`;
+    }
     const p = t.points, i = upto;
     let e = 0;
     if (i > 0 && i + 1 < p.length) e = Math.hypot(p[i][0] - (p[i - 1][0] + p[i + 1][0]) / 2, p[i][1] - (p[i - 1][1] + p[i + 1][1]) / 2);
@@ -909,6 +935,10 @@ function trackColour(t, upto) {
 
 function drawTracks(ctx, tr, f) {
   const fi = tr.frames.indexOf(f);
+  if ($('track-colour').value === 'error' && !studio.trackErr) {
+    // Fetched once, then the frame is drawn again with it.
+    trackErrors().then((d) => { if (d) { studio.trackErr = d; drawViewer(); } });
+  }
   const n = { tracks: 0, lost: 0 };
   if (fi < 0) return n;
   const trail = Math.max(0, Math.min(500, Number($('trail').value) || 0));
@@ -1756,7 +1786,7 @@ function wire() {
   $('reload').addEventListener('click', () => api('POST', '/api/reload').catch((e) => ($('status').textContent = e.message)));
   $('scrub').addEventListener('input', () => setFrameIdx(Number($('scrub').value)));
   $('def-scrub').addEventListener('input', () => setFrameIdx(Number($('def-scrub').value)));
-  for (const id of ['exposure', 'srgb', 'jpeg', 'layer', 'wipe', 'out-b', 'tracks', 'reproj']) $(id).addEventListener('input', () => { $('exposure-label').textContent = $('exposure').value; drawViewer(); warmSoon(); });
+  for (const id of ['exposure', 'srgb', 'jpeg', 'layer', 'wipe', 'out-b', 'tracks', 'reproj', 'track-colour', 'trail']) $(id).addEventListener('input', () => { $('exposure-label').textContent = $('exposure').value; drawViewer(); warmSoon(); });
   $('out-a').addEventListener('input', () => loadLayers().then(drawViewer).then(warmSoon));
   $('play').addEventListener('click', play);
   $('viewer').addEventListener('mousemove', hoverPixel);
