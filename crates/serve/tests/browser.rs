@@ -1375,6 +1375,44 @@ const GEOM: &str = "window.r = (e) => { const b = (typeof e === 'string' ? docum
 
 /// Polls `script` until it returns something other than null or false; on a timeout, saves
 /// a screenshot (`timeout.png` among the usability shots) and names the page's script errors.
+/// A 480×270 plate of 30-px checks over a colour ramp, moving 3 px right and 2 px down a frame,
+/// and its corners tracked (the book's `f.txt` form, frames 0–12): the tracks the frames view
+/// draws over it. Every 7th track jitters by 2 px (its error stands out).
+fn write_plate_and_tracks(d: &Path, frames: &[i64]) {
+    let (w, h) = (480usize, 270usize);
+    for &f in frames {
+        let (ox, oy) = (3.0 * f as f32, 2.0 * f as f32);
+        let img = Image::from_fn(w, h, 3, |x, y, c| {
+            let (u, v) = (x as f32 - ox, y as f32 - oy);
+            let check = ((u / 30.0).floor() + (v / 30.0).floor()).rem_euclid(2.0);
+            let ramp = match c {
+                0 => x as f32 / w as f32,
+                1 => y as f32 / h as f32,
+                _ => 0.5,
+            };
+            0.15 + 0.55 * ramp + 0.3 * check
+        });
+        vfxgraph_imaging::write_image(&d.join(format!("plate.{f:04}.png")), &img).unwrap();
+    }
+    let corners: Vec<(f64, f64)> = (1..15)
+        .flat_map(|i| (1..8).map(move |j| (30.0 * i as f64, 30.0 * j as f64)))
+        .collect();
+    let mut t = format!("Features per frame = {}\n", corners.len());
+    for f in 0..=12 {
+        t += &format!("Frame {f}\n");
+        for (k, (x, y)) in corners.iter().enumerate() {
+            let jitter = if k % 7 == 0 {
+                2.0 * (f % 2) as f64
+            } else {
+                0.0
+            };
+            let (x, y) = (x + 3.0 * f as f64 - 0.5 + jitter, y + 2.0 * f as f64 - 0.5);
+            t += &format!("{x} {y} 0\n");
+        }
+    }
+    std::fs::write(d.join("f.txt"), t).unwrap();
+}
+
 fn wait_js(s: &Session, what: &str, script: &str) -> Value {
     let t0 = Instant::now();
     loop {
@@ -1412,15 +1450,11 @@ fn studio_usability_at_two_sizes() {
     if !browser_available() {
         return;
     }
-    let Some(ftxt) = vfxgraph_testdata::path("book-demo/f.txt") else {
-        return;
-    };
     let t_all = Instant::now();
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let frames: Vec<i64> = (1..=12).collect();
-    write_frames(d, &frames, 480, 270, "png");
-    std::fs::copy(&ftxt, d.join("f.txt")).unwrap();
+    write_plate_and_tracks(d, &frames);
     std::fs::write(d.join("make.yaml"), USABILITY_MAKE).unwrap();
     run_graph(d, "make.yaml");
     std::fs::write(d.join("cg.yaml"), CG).unwrap();
@@ -1668,6 +1702,20 @@ fn studio_usability_at_two_sizes() {
         );
         // The track colour by age, a longer trail.
         s.js("const t = document.getElementById('trail'); t.value = 40; t.dispatchEvent(new Event('input'));", json!([]));
+        // By error: the jittering tracks (every 7th) red, the still ones green.
+        s.js("const c = document.getElementById('track-colour'); c.value = 'error'; c.dispatchEvent(new Event('input'));", json!([]));
+        let colours = s.js(
+            "const t = tracksCache.data.tracks; return [trackColour(t[0], 5), trackColour(t[1], 5), trackColour(t[1], 11)];",
+            json!([]),
+        );
+        assert_eq!(
+            colours,
+            json!([
+                "hsl(0, 90%, 55%)",
+                "hsl(120, 90%, 55%)",
+                "hsl(120, 90%, 55%)"
+            ])
+        );
         s.click("#v-fit");
         s.click("#v-full");
         let full = s.js(
