@@ -175,6 +175,15 @@ fn convert<S: Copy + Into<f32> + Sync>(
         let f = t - i as f32;
         lut[i] + (lut[i + 1] - lut[i]) * f
     };
+    // ycbcr_to_rgb's arithmetic with the matrix and range taken out of the pixel loop.
+    let (kr, kb) = c.matrix.kr_kb();
+    let kg = 1.0 - kr - kb;
+    let (y0, ys, cs) = if c.full_range {
+        (0.0, 1.0 / 255.0, 1.0 / 255.0)
+    } else {
+        (16.0, 1.0 / 219.0, 1.0 / 224.0)
+    };
+    let (rcr, bcb, inv_kg) = (2.0 * (1.0 - kr), 2.0 * (1.0 - kb), 1.0 / kg);
     let mut data = vec![0.0f32; w * h * 3];
     data.par_chunks_mut(w * 3).enumerate().for_each(|(y, row)| {
         let (cy0, cy1, fy) = if l.half_height {
@@ -189,35 +198,35 @@ fn convert<S: Copy + Into<f32> + Sync>(
         } else {
             (y, y, 0.0)
         };
+        // This row's chroma, interpolated vertically once per chroma sample and centred
+        // (Pb, Pr before the range's scale).
         let at = |plane: &[S], cx: usize| {
             let a: f32 = plane[cy0 * l.uv_stride + cx].into();
             let b: f32 = plane[cy1 * l.uv_stride + cx].into();
-            a + (b - a) * fy
+            chroma(a + (b - a) * fy) - 128.0
         };
-        for x in 0..w {
+        let pb: Vec<f32> = (0..cw).map(|cx| at(pu, cx)).collect();
+        let pr: Vec<f32> = (0..cw).map(|cx| at(pv, cx)).collect();
+        let luma_row = &py[y * l.y_stride..y * l.y_stride + w];
+        for (x, (out, &yv)) in row.chunks_exact_mut(3).zip(luma_row).enumerate() {
             let (cb, cr) = if !l.half_width {
-                (at(pu, x), at(pv, x))
+                (pb[x], pr[x])
             } else {
                 // Co-sited horizontally: even columns on a chroma sample, odd ones half-way.
                 let cx0 = (x / 2).min(cw - 1);
                 if x % 2 == 0 || cx0 + 1 >= cw {
-                    (at(pu, cx0), at(pv, cx0))
+                    (pb[cx0], pr[cx0])
                 } else {
-                    (
-                        0.5 * (at(pu, cx0) + at(pu, cx0 + 1)),
-                        0.5 * (at(pv, cx0) + at(pv, cx0 + 1)),
-                    )
+                    (0.5 * (pb[cx0] + pb[cx0 + 1]), 0.5 * (pr[cx0] + pr[cx0 + 1]))
                 }
             };
-            let rgb = ycbcr_to_rgb(
-                luma(py[y * l.y_stride + x].into()),
-                chroma(cb),
-                chroma(cr),
-                c,
-            );
-            for k in 0..3 {
-                row[3 * x + k] = decode(rgb[k]);
-            }
+            let yy = (luma(yv.into()) - y0) * ys;
+            let r = yy + rcr * (cr * cs);
+            let b = yy + bcb * (cb * cs);
+            let g = (yy - kr * r - kb * b) * inv_kg;
+            out[0] = decode(r);
+            out[1] = decode(g);
+            out[2] = decode(b);
         }
     });
     Image {
