@@ -52,7 +52,6 @@ use crate::image::Image;
 /// config of OpenColorIO 2.5 (ACES 2.0 output transforms).
 pub const BUILTIN_CONFIG: &str = "ocio://studio-config-v4.0.0_aces-v2.0_ocio-v2.5";
 
-
 /// The scene-linear space a graph computes in.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, vfxgraph_params::Choice)]
 pub enum WorkingSpace {
