@@ -1271,23 +1271,38 @@ async function drawDefiner() {
   const pr = studio.tri && studio.tri.projected ? studio.tri.projected[String(f)] : null;
   let nproj = 0;
   if (pr) {
-    ctx.strokeStyle = '#3ef'; ctx.lineWidth = 1.5;
     ctx.setLineDash(m ? [] : [4, 3]);
+    ctx.font = 'bold 12px sans-serif';
     pr.forEach((p, i) => {
       if (!p) return;
       const cx = (p[0] + 0.5) * z, cy = (p[1] + 0.5) * z;
-      ctx.beginPath(); ctx.arc(cx, cy, 7, 0, 2 * Math.PI); ctx.stroke();
-      ctx.fillStyle = '#3ef'; ctx.fillText((m ? '' : '?') + (i + 1), cx + 8, cy + 14);
+      // A dark outline under the cyan: visible on bright plates too.
+      for (const [col, lw] of [['#000', 3.5], ['#3ef', 1.6]]) {
+        ctx.strokeStyle = col; ctx.lineWidth = lw;
+        ctx.beginPath(); ctx.arc(cx, cy, 7, 0, 2 * Math.PI); ctx.stroke();
+      }
+      ctx.lineWidth = 3; ctx.strokeStyle = '#000';
+      ctx.strokeText((m ? '' : '?') + (i + 1), cx + 8, cy + 15);
+      ctx.fillStyle = '#3ef'; ctx.fillText((m ? '' : '?') + (i + 1), cx + 8, cy + 15);
       nproj += 1;
     });
+    ctx.font = '12px sans-serif';
     ctx.setLineDash([]);
   }
   (m ? m.points : []).forEach(([x, y], i) => {
     const cx = (x + 0.5) * z, cy = (y + 0.5) * z;
-    ctx.strokeStyle = '#ff0'; ctx.lineWidth = 1.5;
-    ctx.beginPath(); ctx.moveTo(cx - 6, cy); ctx.lineTo(cx + 6, cy); ctx.moveTo(cx, cy - 6); ctx.lineTo(cx, cy + 6); ctx.stroke();
+    for (const [col, lw] of [['#000', 3.5], ['#ff0', 1.5]]) {
+      ctx.strokeStyle = col; ctx.lineWidth = lw;
+      ctx.beginPath(); ctx.moveTo(cx - 6, cy); ctx.lineTo(cx + 6, cy); ctx.moveTo(cx, cy - 6); ctx.lineTo(cx, cy + 6); ctx.stroke();
+    }
+    ctx.lineWidth = 3; ctx.strokeStyle = '#000'; ctx.strokeText(String(i + 1), cx + 5, cy - 5);
     ctx.fillStyle = '#ff0'; ctx.fillText(String(i + 1), cx + 5, cy - 5);
   });
+  // Until the mouse moves over the image, the loupe shows the first mark (or the middle).
+  if (!studio.loupeUsed) {
+    const p0 = m && m.points.length ? m.points[0] : [w / 2, h / 2];
+    loupeAt(p0[0] + 0.5, p0[1] + 0.5);
+  }
   c.dataset.frame = f ?? '';
   c.dataset.src = src;
   c.dataset.marks = m ? m.points.length : 0;
@@ -1400,10 +1415,16 @@ function definerEvents() {
 
 // The loupe: 8× the image around the cursor (20 image pixels across), with the marks.
 function drawLoupe(ev) {
-  const c = $('def-canvas'), l = $('loupe');
+  const c = $('def-canvas');
   const r = c.getBoundingClientRect();
   const z = zoom();
-  const u = ((ev.clientX - r.left) * c.width) / r.width / z, v = ((ev.clientY - r.top) * c.height) / r.height / z;
+  studio.loupeUsed = true;
+  loupeAt(((ev.clientX - r.left) * c.width) / r.width / z, ((ev.clientY - r.top) * c.height) / r.height / z);
+}
+
+// The loupe around image point (u, v) (pixel edges at integers).
+function loupeAt(u, v) {
+  const l = $('loupe');
   const ctx = l.getContext('2d');
   ctx.imageSmoothingEnabled = false;
   const s = 20, k = l.width / s;
@@ -1444,9 +1465,11 @@ function triangulateSoon() {
   clearTimeout(triTimer);
   triTimer = setTimeout(async () => {
     if (!studio.marksNode || !studio.marks.frames.length) return;
-    // The frames marked in full (a frame being marked has fewer points yet).
-    const n = Math.max(...studio.marks.frames.map((f) => f.points.length));
-    const full = { frames: studio.marks.frames.filter((f) => f.points.length === n) };
+    // The most points marked on at least two frames, on the frames that have them (a frame
+    // being marked, or a point marked on one frame so far, waits for its second frame).
+    const counts = studio.marks.frames.map((f) => f.points.length).sort((a, b) => b - a);
+    const n = counts.length > 1 ? counts[1] : counts[0] || 0;
+    const full = { frames: studio.marks.frames.filter((f) => f.points.length >= n).map((f) => ({ frame: f.frame, points: f.points.slice(0, n) })) };
     try {
       studio.tri = await api('POST', '/api/triangulate', { node: studio.marksNode, marks: full });
     } catch (e) {

@@ -1841,6 +1841,12 @@ fn studio_usability_at_two_sizes() {
         let (x, y) = ((dl + 200.0 * z) as i64, (dt + 100.0 * z) as i64);
         click_at(&s, x, y, 0);
         assert_eq!(marks_on(&s, 1), 4);
+        // The three points marked on several frames are still triangulated and drawn back.
+        wait_js(
+            &s,
+            "the 3 points drawn back beside the new one",
+            "const c = document.getElementById('def-canvas'); return c.dataset.marks === '4' && c.dataset.projected === '3';",
+        );
         assert_eq!(
             s.js(
                 "return !document.getElementById('def-dirty').hidden;",
