@@ -5,7 +5,7 @@
 //! | --- | --- |
 //! | `GET /` , `GET /assets/{file}` | the page (embedded) |
 //! | `GET /api/state` | graph, node docs, plan, live counts, last run, diagnostics |
-//! | `GET /api/events` | server-sent events: `state`, `run_started`, `started`, `progress`, `finished`, `run_done` |
+//! | `GET /api/events` | server-sent events: `state`, `run_started` (`started_at`), `started`, `progress`, `finished`, `run_done` (`stopped`) |
 //! | `POST /api/run`, `POST /api/cancel`, `POST /api/reload` | run (409 while one runs), stop, re-read the file |
 //! | `POST /api/params` | `{node, param, value}` (YAML text, as `--set`; `null` resets) |
 //! | `POST /api/params/save` | `{node, param}`: the edit written into the graph file (only that value's text) |
@@ -14,7 +14,7 @@
 //! | `GET /api/pixel` | `node, port, frame, layer, x, y` → linear values |
 //! | `GET /api/artifact` | `node, port, frame` → a JSON artifact as stored, or an image's size and layers |
 //! | `GET /api/file?path=` | a file under the graph's folder or the cache |
-//! | `GET/POST /api/marks`, `POST /api/triangulate` | the point-cloud definer |
+//! | `GET/POST /api/marks`, `POST /api/triangulate` | the point-cloud definer (triangulate: the points, the report, each point through every camera) |
 //! | `POST /api/refine` | `{node, port, frame, layer, x, y, radius}` → the corner near (x, y), sub-pixel |
 
 use std::sync::Arc;

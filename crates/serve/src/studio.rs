@@ -1,12 +1,16 @@
 //! The served state: the graph as loaded (or its diagnostics), the param overrides made from
 //! the page, the last plan, the live state of a run, and the event channel.
 //!
-//! Param edits are kept as the engine's own [`Overrides`] (`--set node.param=value`), not
-//! written into the YAML: the user's file (its comments and layout) is never rewritten, an edit
+//! Param edits are kept as the engine's own [`Overrides`] (`--set node.param=value`): an edit
 //! is validated by the same loader as the command line (a bad value gives its diagnostic and
 //! changes nothing), and the cache keys of the edited node's dependants change exactly as for
 //! `vfxgraph run --set`, so a run reruns only them. The page shows the overrides as the
-//! `--set` arguments that reproduce the run from the shell.
+//! `--set` arguments that reproduce the run from the shell. Only on request
+//! ([`Studio::save_param`], the page's "save to file") is an edit written into the YAML, and
+//! then only that value's text ([`crate::graph_file`]): comments and layout stay.
+//!
+//! After a run, the snapshot's `last_run` says whether it was stopped from the page (its
+//! skipped instances are then not failures) and lists each failed instance with its message.
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
