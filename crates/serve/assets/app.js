@@ -118,7 +118,7 @@ function handle(ev) {
 
 function renderAll() {
   const s = studio.state;
-  $('file').textContent = s.file;
+  $('file').textContent = s.file.split(/[\\/]/).pop();
   $('file').title = s.file;
   $('sets').textContent = s.sets.length ? s.sets.map((x) => '--set ' + x).join(' ') : '';
   $('sets').title = $('sets').textContent;
@@ -196,6 +196,7 @@ function renderStatus() {
     }
   }
   $('status').textContent = t;
+  $('status').title = t;
   $('status').dataset.outcome = outcome;
   $('status').dataset.running = studio.running ? '1' : '0';
   $('run').disabled = studio.running || !s.graph;
