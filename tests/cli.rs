@@ -433,6 +433,8 @@ fn example_with_shared_data(name: &str) -> Option<(tempfile::TempDir, PathBuf)> 
     let tmp = tempfile::tempdir().unwrap();
     let g = tmp.path().join("graphs");
     vfxgraph_testdata::graph_with_data(&repo().join("graphs").join(name), &g)?;
+    // The book's marks are embedded beside the graphs.
+    common::copy_dir(&repo().join("graphs/data/book"), &g.join("data/book"));
     Some((tmp, g))
 }
 

@@ -117,8 +117,9 @@ fn every_graph_checks() {
     );
 }
 
-/// Copies `graphs/NAME` and `graphs/scenes/` into a scratch folder with their paths into the
-/// shared data made absolute. Returns (scratch dir guard, graphs dir).
+/// Copies `graphs/NAME`, `graphs/scenes/` and the book's embedded marks (`graphs/data/book/`)
+/// into a scratch folder with their paths into the shared data made absolute. Returns (scratch
+/// dir guard, graphs dir).
 fn scratch_copy(name: &str, data: &Path) -> (tempfile::TempDir, PathBuf) {
     let tmp = tempfile::tempdir().unwrap();
     let g = tmp.path().join("graphs");
@@ -139,6 +140,7 @@ fn scratch_copy(name: &str, data: &Path) -> (tempfile::TempDir, PathBuf) {
         };
         fs::write(g.join("scenes").join(p.file_name().unwrap()), body).unwrap();
     }
+    common::copy_dir(&repo().join("graphs/data/book"), &g.join("data/book"));
     (tmp, g)
 }
 
