@@ -30,6 +30,16 @@ pub fn required() -> bool {
     std::env::var("CI").is_ok_and(|v| v == "true" || v == "1")
 }
 
+/// Whether a test's external tool (`what`, e.g. "FFmpeg (ffmpeg, ffprobe)") is `present`: when
+/// it is not, a panic under CI, elsewhere a notice and `false` (the test returns).
+pub fn tool(present: bool, what: &str) -> bool {
+    if !present {
+        assert!(!required(), "{what} is required under CI=true");
+        eprintln!("notice: {what} is absent; this test is skipped (under CI=true it fails)");
+    }
+    present
+}
+
 /// The files of the manifest, in its order.
 pub fn manifest() -> impl Iterator<Item = &'static str> {
     MANIFEST
