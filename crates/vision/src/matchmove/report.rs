@@ -45,11 +45,9 @@ pub struct FrameReport {
     /// The frame's solved focal length, px, when the lens zooms.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub focal_px: Option<f64>,
-    /// How well the frame's inliers determine its camera's rotation: the standard deviation,
-    /// degrees, of its least-determined axis, with the points held at their solved positions
-    /// ([`pose_sd`]; a lower bound — a frame that sees few points, or points bunched in one
-    /// part of the image, has a large one). `None` without a camera or with fewer than 4
-    /// inliers.
+    /// How well the solve determines the frame's rotation: the standard deviation, degrees, of
+    /// its least-determined axis ([`SolveReport::rotation_sd_basis`] says how it was found).
+    /// `None` without a camera or with fewer than 4 inliers.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rotation_sd_deg: Option<f64>,
 }
@@ -100,6 +98,27 @@ pub struct SolveReport {
     /// deviations ([`crate::bundle::covariance`]); empty when K was held.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub intrinsics: Vec<SolvedIntrinsic>,
+    /// How the frames' `rotation_sd_deg` were found.
+    #[serde(default)]
+    pub rotation_sd_basis: RotationSdBasis,
+}
+
+/// How a [`FrameReport::rotation_sd_deg`] was found.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RotationSdBasis {
+    /// From the whole solve's covariance, the points free ([`shot_rotation_sd`]): what the
+    /// tracks leave undetermined in the structure every frame shares is in it, and the rotation
+    /// shared by every frame (the choice of world) is out of it, as when cameras are compared
+    /// after aligning them — the mean rotation error removed, or the first frame's for a
+    /// rotation-only solve.
+    Shot,
+    /// Each frame alone with the points held at their solved positions ([`pose_sd`]): a lower
+    /// bound (a frame that sees few points, or points bunched in one part of the image, has a
+    /// large one), used where the shot's covariance is not computed (over
+    /// [`crate::bundle::covariance::MAX_DIMENSION`] camera parameters, or singular).
+    #[default]
+    Frame,
 }
 
 /// One intrinsic parameter of a solve.
@@ -131,6 +150,120 @@ fn rotation_sd(cov: &Matrix6<f64>) -> Option<f64> {
     let rot = (rot + rot.transpose()) * 0.5;
     let lmax = rot.symmetric_eigenvalues().max();
     (lmax.is_finite() && lmax >= 0.0).then(|| lmax.sqrt().to_degrees())
+}
+
+/// Per frame, the standard deviation (degrees) of the least-determined axis of its rotation
+/// error from the whole solve's covariance ([`RotationSdBasis::Shot`]): a bundle problem of
+/// the solve's inlier observations (K held), the points eliminated
+/// ([`crate::bundle::covariance::rotation_covariance`]: the larger of the white-noise and the
+/// tracks' sandwich estimates, so a feature that drifts counts), the rotation every frame shares
+/// removed — the mean's for a moving camera (as [`crate::camera_path::align_poses`] aligns
+/// cameras), the first frame's for a rotation-only solve (every centre at the origin; the
+/// points are directions). `None` when the covariance is not available (too many frames, too
+/// few observations, a singular system). With `free_focal` the focal length is a parameter of
+/// the problem too (a solve that estimated it): its uncertainty, and how it trades against
+/// the cameras' motion, is then in every frame's figure.
+pub fn shot_rotation_sd(
+    tracks: &Tracks,
+    k: &Intrinsics,
+    poses: &[Option<Pose>],
+    points: &[Option<Vector3<f64>>],
+    marks: &[Vec<bool>],
+    free_focal: bool,
+) -> Option<Vec<Option<f64>>> {
+    use crate::bundle::{CameraPose, Gauge, Observation, Point, Problem};
+    let mut cam_index = vec![usize::MAX; poses.len()];
+    let mut cameras = Vec::new();
+    let mut cam_frame = Vec::new();
+    for (f, p) in poses.iter().enumerate() {
+        if let Some(p) = p {
+            cam_index[f] = cameras.len();
+            cam_frame.push(f);
+            cameras.push(CameraPose::from_rt(&p.r, &p.t, 0));
+        }
+    }
+    if cameras.len() < 2 {
+        return None;
+    }
+    let rotation_only = poses.iter().flatten().all(|p| p.t == Vector3::zeros());
+    let (mut pts, mut observations) = (Vec::new(), Vec::new());
+    for ((t, x), m) in tracks.tracks.iter().zip(points).zip(marks) {
+        let Some(x) = x else { continue };
+        let before = observations.len();
+        for (j, o) in t.points.iter().enumerate() {
+            let f = t.first + j;
+            if m[j] && f < poses.len() && cam_index[f] != usize::MAX {
+                observations.push(Observation {
+                    camera: cam_index[f],
+                    point: pts.len(),
+                    pixel: nalgebra::Vector2::new(o[0], o[1]),
+                    weight: 1.0,
+                });
+            }
+        }
+        if observations.len() - before < 2 {
+            observations.truncate(before);
+            continue;
+        }
+        pts.push(Point {
+            position: *x,
+            fixed: false,
+        });
+    }
+    let mut block = crate::bundle::Intrinsics::pinhole(k.f1, k.u0, k.v0, !free_focal);
+    block.held[1] = true;
+    block.held[2] = true;
+    block.model = crate::bundle::CameraModel::Pinhole {
+        aspect: k.f2 / k.f1,
+        skew: k.s,
+    };
+    let problem = Problem {
+        cameras,
+        intrinsics: vec![block],
+        points: pts,
+        observations,
+        gauge: if rotation_only {
+            Gauge::RotationOnly
+        } else {
+            Gauge::FixFirstCameraAndScale
+        },
+        priors: Vec::new(),
+    };
+    let cov = crate::bundle::covariance::rotation_covariance(&problem).ok()?;
+    let reference = rotation_only.then_some(0);
+    let white = crate::bundle::covariance::aligned_rotation_sd(&cov.white, reference);
+    let by_tracks = crate::bundle::covariance::aligned_rotation_sd(&cov.tracks, reference);
+    let mut out = vec![None; poses.len()];
+    for ((w, t), &f) in white.iter().zip(&by_tracks).zip(&cam_frame) {
+        let s = w.max(*t);
+        out[f] = s.is_finite().then(|| s.to_degrees());
+    }
+    Some(out)
+}
+
+impl SolveReport {
+    /// Recomputes the frames' `rotation_sd_deg` from the shot's covariance with the focal
+    /// length free ([`shot_rotation_sd`]), for a solve that estimated it; `tracks`, `k`,
+    /// `poses`, `points` and `inlier_tolerance` as given to [`solve_report`]. Left as it is
+    /// when that covariance is not available.
+    pub fn with_free_focal_sd(
+        &mut self,
+        tracks: &Tracks,
+        k: &Intrinsics,
+        poses: &[Option<Pose>],
+        points: &[Option<Vector3<f64>>],
+        inlier_tolerance: f64,
+    ) {
+        let marks = super::inlier_marks(tracks, k, poses, points, inlier_tolerance);
+        if let Some(sd) = shot_rotation_sd(tracks, k, poses, points, &marks, true) {
+            for (fr, s) in self.frames.iter_mut().zip(sd) {
+                if fr.inliers >= 4 {
+                    fr.rotation_sd_deg = s;
+                }
+            }
+            self.rotation_sd_basis = RotationSdBasis::Shot;
+        }
+    }
 }
 
 /// Builds the per-frame and per-track figures of a solve; `marks` (by track index and
@@ -209,9 +342,13 @@ pub fn solve_report(
     };
     // σ per image coordinate: the overall RMS (a 2-D error) over √2.
     let sigma = overall_rms / std::f64::consts::SQRT_2;
-    for (fr, a) in frames.iter_mut().zip(&normal) {
+    let shot = shot_rotation_sd(tracks, k, poses, points, marks, false);
+    for (f, (fr, a)) in frames.iter_mut().zip(&normal).enumerate() {
         if fr.inliers >= 4 && sigma.is_finite() {
-            fr.rotation_sd_deg = pose_sd(a, sigma);
+            fr.rotation_sd_deg = match &shot {
+                Some(sd) => sd[f],
+                None => pose_sd(a, sigma),
+            };
         }
     }
     SolveReport {
@@ -227,6 +364,11 @@ pub fn solve_report(
         warnings: Vec::new(),
         rotation_only: false,
         intrinsics: Vec::new(),
+        rotation_sd_basis: if shot.is_some() {
+            RotationSdBasis::Shot
+        } else {
+            RotationSdBasis::Frame
+        },
     }
 }
 

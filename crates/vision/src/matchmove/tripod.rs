@@ -715,6 +715,11 @@ pub fn solve_rotations(
         false,
     )?;
     solve.report.rotation_only = true;
+    if !held[0] {
+        solve
+            .report
+            .with_free_focal_sd(&und, &k.pinhole(), &poses, &points, tolerance);
+    }
     if held.iter().any(|h| !h) {
         solve.report.intrinsics = super::solved_intrinsics(&k, held, cov.as_ref());
     }
