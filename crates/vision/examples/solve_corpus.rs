@@ -161,6 +161,9 @@ fn solve(spec: &PlateSpec, options: &MatchmoveOptions) -> Outcome {
         for f in &solve.report.fragments {
             eprintln!("{f:?}");
         }
+        for s in &solve.report.stages {
+            eprintln!("{}: {:.3} s", s.stage, s.seconds);
+        }
     }
     out.rotation_only = solve.report.rotation_only;
     if std::env::var("VFXGRAPH_ORACLE").is_ok() && !solve.report.rotation_only {

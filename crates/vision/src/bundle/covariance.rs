@@ -42,11 +42,12 @@ pub fn intrinsics_covariance(problem: &Problem) -> Result<Covariances, BundleErr
         .zip(&problem.intrinsics)
         .map(|(idx, b)| {
             (!b.fixed).then(|| {
+                let x = reduced.columns(idx);
                 let mut c = IntrinsicsCovariance::zeros();
                 for a in 0..INTRINSICS {
                     for d in 0..INTRINSICS {
-                        if idx[a] != usize::MAX && idx[d] != usize::MAX {
-                            c[(a, d)] = sigma2 * reduced.inverse[(idx[a], idx[d])];
+                        if idx[a] != usize::MAX {
+                            c[(a, d)] = sigma2 * x[(idx[a], d)];
                         }
                     }
                 }
@@ -76,15 +77,10 @@ pub fn rotation_covariance(problem: &Problem) -> Result<RotationCovariance, Bund
             r.transpose() * jl
         })
         .collect();
-    // The rotation parameters' rows of (JᵀJ)⁻¹ (zero for a held one).
+    // The rotation parameters' rows of (JᵀJ)⁻¹ (zero for a held one), as its columns.
     let rows: Vec<usize> = reduced.pose.iter().flat_map(|p| p[..3].to_vec()).collect();
-    let row_of = |a: usize, col: usize| -> f64 {
-        if rows[a] == usize::MAX {
-            0.0
-        } else {
-            reduced.inverse[(rows[a], col)]
-        }
-    };
+    let x = reduced.columns(&rows);
+    let row_of = |a: usize, col: usize| -> f64 { x[(col, a)] };
     let mut white = DMatrix::<f64>::zeros(3 * cams, 3 * cams);
     for a in 0..3 * cams {
         for b in 0..3 * cams {
@@ -192,8 +188,8 @@ pub fn aligned_rotation_covariances(
 /// The inverse of the reduced (camera-side) information matrix at a problem's current values:
 /// the points eliminated, the gauge's own `fixed` and held parameters left out.
 struct ReducedCovariance {
-    /// (JᵀJ)⁻¹ over the free camera-side parameters (unscaled).
-    inverse: DMatrix<f64>,
+    /// The Cholesky factor of JᵀJ over the free camera-side parameters.
+    cholesky: nalgebra::Cholesky<f64, nalgebra::Dyn>,
     /// Per camera, the index of each pose parameter `[ω, t]` (`usize::MAX`: held).
     pose: Vec<[usize; 6]>,
     /// Per intrinsics block, the index of each parameter (`usize::MAX`: held).
@@ -205,6 +201,25 @@ struct ReducedCovariance {
 }
 
 impl ReducedCovariance {
+    /// The columns `index` of (JᵀJ)⁻¹ (unscaled; a zero column for `usize::MAX`, a held
+    /// parameter), solved from the factor rather than inverting the whole matrix.
+    fn columns(&self, index: &[usize]) -> DMatrix<f64> {
+        let n = self.cholesky.l_dirty().nrows();
+        let mut e = DMatrix::<f64>::zeros(n, index.len());
+        for (j, &i) in index.iter().enumerate() {
+            if i != usize::MAX {
+                e[(i, j)] = 1.0;
+            }
+        }
+        let mut x = self.cholesky.solve(&e);
+        for (j, &i) in index.iter().enumerate() {
+            if i == usize::MAX {
+                x.column_mut(j).fill(0.0);
+            }
+        }
+        x
+    }
+
     fn new(problem: &Problem) -> Result<Self, BundleError> {
         problem.validate()?;
         let masks = problem.pose_masks();
@@ -302,7 +317,7 @@ impl ReducedCovariance {
             .map(|obs| point_gradient(problem, obs, &index))
             .collect();
         Ok(ReducedCovariance {
-            inverse: chol.inverse(),
+            cholesky: chol,
             pose: pose_index,
             intrinsics: intr_index,
             sigma: (sq / dof).sqrt(),

@@ -406,8 +406,12 @@ pub fn finish_solve(
     let path = path_from_poses(tracks, k, poses)?;
     let marks = inlier_marks(tracks, k, poses, points, inlier_tolerance);
     let cloud = cloud_from_points(tracks, k, poses, points, &marks);
+    let t0 = Instant::now();
     let mut report = report::solve_report(tracks, k, poses, points, &marks, inlier_tolerance);
     report.stages = stages;
+    report
+        .stages
+        .push(StageTime::new("report and per-frame confidence", t0));
     if with_score {
         let t0 = Instant::now();
         report.score = Some(score::score_poses(tracks, k, poses));
