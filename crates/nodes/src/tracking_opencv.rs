@@ -121,9 +121,9 @@ mod tests {
                 .iter()
                 .map(|p| match p.name {
                     "drift_correction" | "noisy_window" | "spread_factor" => {
-                        format!("{} {:?}", p.name, p.ty)
+                        format!("{} {:?}", p.name, p.kind)
                     }
-                    _ => format!("{} {:?} {:?}", p.name, p.ty, p.default),
+                    _ => format!("{} {:?} {:?}", p.name, p.kind, p.default),
                 })
                 .collect()
         };
