@@ -236,4 +236,51 @@ mod tests {
         values.insert("check".to_string(), ParamValue::Float(2.5));
         assert_eq!(Outer::read(&Params::new(values)).unwrap(), Outer::default());
     }
+
+    /// A required param and a path list, beside a flattened struct.
+    #[derive(Debug, Default, PartialEq, Options)]
+    struct Node {
+        /// the frame
+        #[param(required)]
+        frame: i64,
+        /// the photographs
+        #[param(path = "input")]
+        photos: Vec<String>,
+        #[param(flatten)]
+        files: Files,
+    }
+
+    #[test]
+    fn a_required_param_has_no_default_and_is_recorded_with_its_struct() {
+        let spec = NodeSpec::new("t", "test").options::<Node>();
+        assert_eq!(spec.params[0].default, None);
+        assert_eq!(
+            spec.params[0].kind,
+            Kind::Int {
+                min: i64::MIN,
+                max: i64::MAX
+            }
+        );
+        assert_eq!(spec.params[1].kind, Kind::PathList(PathRole::Input));
+        assert_eq!(spec.params[1].default, Some(ParamValue::List(vec![])));
+        let decl = &spec.options[0];
+        assert_eq!(decl.params, ["frame", "photos", "plate", "reference"]);
+        let mut values = BTreeMap::new();
+        values.insert("photos".to_string(), ParamValue::List(vec![]));
+        values.insert("plate".to_string(), ParamValue::Str(String::new()));
+        values.insert("reference".to_string(), ParamValue::Int(-1));
+        let e = Node::read(&Params::new(values.clone())).unwrap_err();
+        assert_eq!(e, "parameter `frame` has no value");
+        values.insert("frame".to_string(), ParamValue::Int(12));
+        let photos = ParamValue::List(vec![ParamValue::Str("a.jpg".into())]);
+        values.insert("photos".to_string(), photos);
+        let read = Node::read(&Params::new(values.clone())).unwrap();
+        assert_eq!(
+            (read.frame, read.photos.as_slice()),
+            (12, &["a.jpg".to_string()][..])
+        );
+        let again = (decl.read_back)(&Params::new(values)).unwrap();
+        assert_eq!(again[0].default, None);
+        assert_eq!(again[3].default, Some(ParamValue::Int(-1)));
+    }
 }
