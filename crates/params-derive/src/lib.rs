@@ -174,6 +174,12 @@ fn options(input: &DeriveInput) -> syn::Result<Tokens> {
             .clone()
             .unwrap_or_else(|| LitStr::new(&doc_comment(&f.attrs), field.span()));
         let cosmetic = a.cosmetic;
+        if a.required && (a.skip || a.flatten || a.toggle.is_some()) {
+            return Err(syn::Error::new_spanned(
+                field,
+                "required is for a parameter field, not with skip, flatten or toggle",
+            ));
+        }
         if a.skip {
             reads.push(quote!(#field: d.#field));
         } else if a.flatten {
