@@ -104,7 +104,7 @@ fn node_section(out: &mut String, s: &NodeSpec, registry: &Registry) {
                 .as_ref()
                 .map(|d| format!("`{d}`"))
                 .unwrap_or_else(|| "required".into());
-            let cosmetic = if p.affects_output {
+            let cosmetic = if !p.cosmetic {
                 ""
             } else {
                 " (does not affect the output)"
@@ -113,7 +113,7 @@ fn node_section(out: &mut String, s: &NodeSpec, registry: &Registry) {
                 out,
                 "| `{}` | {} | {default} | {}{cosmetic} |",
                 p.name,
-                cell(&p.ty.to_string()),
+                cell(&p.kind.to_string()),
                 cell(p.doc)
             );
         }

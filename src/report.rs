@@ -245,12 +245,12 @@ pub fn print_describe(s: &NodeSpec, registry: &Registry) {
                 .as_ref()
                 .map(|d| format!("default {d}"))
                 .unwrap_or_else(|| "required".into());
-            let cosmetic = if p.affects_output {
+            let cosmetic = if !p.cosmetic {
                 ""
             } else {
                 "; does not affect output"
             };
-            println!("  {:<14} {} ({default}{cosmetic})", p.name, p.ty);
+            println!("  {:<14} {} ({default}{cosmetic})", p.name, p.kind);
             if !p.doc.is_empty() {
                 println!("  {:<14} {}", "", p.doc);
             }

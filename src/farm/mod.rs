@@ -341,10 +341,10 @@ pub fn recipes(graph: &Graph) -> Vec<String> {
         }
         h.update(&spec.version.to_le_bytes());
         h.update(&[u8::from(node.per_frame)]);
-        for p in spec.params.iter().filter(|p| p.affects_output) {
+        for p in spec.params.iter().filter(|p| !p.cosmetic) {
             if let Some(v) = node.params.get(p.name) {
                 buf.clear();
-                v.canonical(&mut buf);
+                vfxgraph_engine::param::canonical(v, &mut buf);
                 h.update(p.name.as_bytes());
                 h.update(&[0]);
                 h.update(&buf);

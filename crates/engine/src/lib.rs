@@ -33,5 +33,6 @@ pub use exec::{
 pub use frames::FrameSet;
 pub use graph::{load, Graph, LoadError, Overrides};
 pub use node::{Context, InputValue, Memory, Mode, Node, NodeError, NodeSpec, PortSpec, Threads};
-pub use param::{ParamSpec, ParamType, ParamValue, Params, PathRole};
+pub use options::OptionsDecl;
+pub use param::{Kind, ParamCheck, ParamDesc, ParamValue, Params, PathRole};
 pub use registry::{Registry, RunFn};

@@ -1,7 +1,7 @@
 //! Node types: what a node declares (ports, params, mode) and what it sees when it runs.
 //!
 //! A node never computes its own cache key: it declares its inputs, parameters (with
-//! `affects_output`), version and whether it is seeded, and the engine derives the key
+//! which are `cosmetic`), version and whether it is seeded, and the engine derives the key
 //! (Gaffer's pattern: a hash of exactly what the computation reads; docs/design/cache.md, "Cache
 //! keys").
 
@@ -16,7 +16,8 @@ pub use crate::frames::{
 };
 
 use crate::artifact::{ArtifactType, Digest, Value};
-use crate::param::{ParamSpec, ParamType, Params, PathRole};
+use crate::options::OptionsDecl;
+use crate::param::{Kind, ParamDesc, Params, PathRole};
 use crate::stream::{Deferred, Items, Stream};
 
 /// Whether a node type runs once, once per frame, or either (chosen by the graph).
@@ -122,7 +123,9 @@ pub struct NodeSpec {
     /// Output ports.
     pub outputs: Vec<PortSpec>,
     /// Parameters.
-    pub params: Vec<ParamSpec>,
+    pub params: Vec<ParamDesc>,
+    /// The options structs the params come from ([`NodeSpec::options`]), in order.
+    pub options: Vec<OptionsDecl>,
     /// Once, per frame, or either.
     pub mode: Mode,
     /// True if the node draws random numbers: its key then includes the graph seed and node id.
@@ -198,6 +201,7 @@ impl NodeSpec {
             inputs: Vec::new(),
             outputs: Vec::new(),
             params: Vec::new(),
+            options: Vec::new(),
             mode: Mode::Either,
             seeded: false,
             threads: Threads::All,
@@ -277,43 +281,35 @@ impl NodeSpec {
     }
     /// Adds a required parameter naming a file the node reads (its content enters the key).
     pub fn input_file_param(self, name: &'static str, doc: &'static str) -> Self {
-        self.param(ParamSpec::required(
-            name,
-            ParamType::Path(PathRole::Input),
-            doc,
-        ))
+        self.param(ParamDesc::required(name, Kind::Path(PathRole::Input), doc))
     }
     /// Adds a required parameter naming a file the node writes.
     pub fn output_file_param(self, name: &'static str, doc: &'static str) -> Self {
-        self.param(ParamSpec::required(
-            name,
-            ParamType::Path(PathRole::Output),
-            doc,
-        ))
+        self.param(ParamDesc::required(name, Kind::Path(PathRole::Output), doc))
     }
     /// Adds a parameter.
-    pub fn param(mut self, p: ParamSpec) -> Self {
+    pub fn param(mut self, p: ParamDesc) -> Self {
         self.params.push(p);
         self
     }
 
     /// Looks up a parameter.
-    pub fn param_spec(&self, name: &str) -> Option<&ParamSpec> {
+    pub fn param_desc(&self, name: &str) -> Option<&ParamDesc> {
         self.params.iter().find(|p| p.name == name)
     }
 
     /// Names of path parameters with the given role.
     pub fn path_params(&self, role: PathRole) -> impl Iterator<Item = &'static str> + '_ {
-        self.params.iter().filter_map(move |p| match p.ty {
-            ParamType::Path(r) if r == role => Some(p.name),
+        self.params.iter().filter_map(move |p| match p.kind {
+            Kind::Path(r) if r == role => Some(p.name),
             _ => None,
         })
     }
 
     /// Names of path-list parameters with the given role.
     pub fn path_list_params(&self, role: PathRole) -> impl Iterator<Item = &'static str> + '_ {
-        self.params.iter().filter_map(move |p| match p.ty {
-            ParamType::PathList(r) if r == role => Some(p.name),
+        self.params.iter().filter_map(move |p| match p.kind {
+            Kind::PathList(r) if r == role => Some(p.name),
             _ => None,
         })
     }
@@ -653,14 +649,14 @@ mod tests {
             .input(PortSpec::one("b", "int", "doc b").optional())
             .input(PortSpec::sequence("c", "string", "doc c"))
             .output(PortSpec::one("d", "bool", "doc d"))
-            .param(ParamSpec::required(
+            .param(ParamDesc::required(
                 "in",
-                ParamType::Path(PathRole::Input),
+                Kind::Path(PathRole::Input),
                 "read",
             ))
-            .param(ParamSpec::required(
+            .param(ParamDesc::required(
                 "out",
-                ParamType::Path(PathRole::Output),
+                Kind::Path(PathRole::Output),
                 "written",
             ));
         assert_eq!(format!("{short:?}"), format!("{long:?}"));

@@ -3,92 +3,49 @@
 //! the engine) with [`NodeSpec::options`], and its run reads the struct back with
 //! [`Context::options`]. Name, type, range, default and doc are written once, on the struct.
 
-use vfxgraph_params::{Kind, Options, ParamDesc, Source, Value};
+use vfxgraph_params::{Options, ParamDesc, Source};
 
 use crate::node::{Context, NodeError, NodeSpec};
-use crate::param::{ParamSpec, ParamType, ParamValue, Params, PathRole};
 
-impl From<Value> for ParamValue {
-    fn from(v: Value) -> Self {
-        match v {
-            Value::Bool(b) => ParamValue::Bool(b),
-            Value::Int(i) => ParamValue::Int(i),
-            Value::Float(x) => ParamValue::Float(x),
-            Value::Str(s) => ParamValue::Str(s),
-            Value::List(l) => ParamValue::List(l.into_iter().map(Into::into).collect()),
-        }
-    }
+/// An options struct a node type declares its params from ([`NodeSpec::options`]): which
+/// params are its, and how to read them back, so a test can walk a registry and check every
+/// node's declared defaults against its structs without a list of them.
+#[derive(Clone, Debug)]
+pub struct OptionsDecl {
+    /// The struct's Rust type name.
+    pub type_name: &'static str,
+    /// Its params' names, in declaration order.
+    pub params: Vec<&'static str>,
+    /// Reads the struct from `src` and describes it again: the params with the values read as
+    /// their defaults (for a node's declared defaults, those same defaults).
+    pub read_back: fn(&dyn Source) -> Result<Vec<ParamDesc>, String>,
 }
 
-impl From<&ParamValue> for Value {
-    fn from(v: &ParamValue) -> Self {
-        match v {
-            ParamValue::Bool(b) => Value::Bool(*b),
-            ParamValue::Int(i) => Value::Int(*i),
-            ParamValue::Float(x) => Value::Float(*x),
-            ParamValue::Str(s) => Value::Str(s.clone()),
-            ParamValue::List(l) => Value::List(l.iter().map(Into::into).collect()),
-        }
-    }
-}
-
-impl From<vfxgraph_params::PathRole> for PathRole {
-    fn from(r: vfxgraph_params::PathRole) -> Self {
-        match r {
-            vfxgraph_params::PathRole::Input => PathRole::Input,
-            vfxgraph_params::PathRole::Output => PathRole::Output,
-        }
-    }
-}
-
-impl From<Kind> for ParamType {
-    fn from(k: Kind) -> Self {
-        match k {
-            Kind::Bool => ParamType::Bool,
-            Kind::Int { min, max } => ParamType::Int { min, max },
-            Kind::Float { min, max } => ParamType::Float { min, max },
-            Kind::Str => ParamType::Str,
-            Kind::Enum(c) => ParamType::Enum(c),
-            Kind::Path(r) => ParamType::Path(r.into()),
-            Kind::PathList(r) => ParamType::PathList(r.into()),
-            Kind::FloatList { len } => ParamType::FloatList { len },
-        }
-    }
-}
-
-impl From<ParamDesc> for ParamSpec {
-    fn from(d: ParamDesc) -> Self {
-        ParamSpec {
-            name: d.name,
-            ty: d.kind.into(),
-            default: d.default.map(Into::into),
-            doc: d.doc,
-            affects_output: !d.cosmetic,
-        }
-    }
-}
-
-impl Source for Params {
-    fn value(&self, name: &str) -> Option<Value> {
-        self.get(name).map(Into::into)
-    }
+fn read_back<T: Options>(src: &dyn Source) -> Result<Vec<ParamDesc>, String> {
+    T::read(src).map(|t| T::params_from(&t))
 }
 
 impl NodeSpec {
     /// Adds the params of options struct `T`, in its field order.
-    pub fn options<T: Options>(mut self) -> Self {
-        for d in T::params() {
-            self = self.param(d.into());
-        }
-        self
+    pub fn options<T: Options>(self) -> Self {
+        self.declare::<T>(T::params())
     }
 
     /// Adds the params of options struct `T` with the values of `defaults` as their defaults
     /// (a node type whose defaults differ from `T`'s `Default`, as an OpenCV cross-check
     /// without drift correction).
-    pub fn options_from<T: Options>(mut self, defaults: &T) -> Self {
-        for d in T::params_from(defaults) {
-            self = self.param(d.into());
+    pub fn options_from<T: Options>(self, defaults: &T) -> Self {
+        self.declare::<T>(T::params_from(defaults))
+    }
+
+    fn declare<T: Options>(mut self, params: Vec<ParamDesc>) -> Self {
+        self.options.push(OptionsDecl {
+            type_name: std::any::type_name::<T>(),
+            params: params.iter().map(|d| d.name).collect(),
+            read_back: read_back::<T>,
+        });
+        for d in params {
+            self = self.param(d);
         }
         self
     }
@@ -104,8 +61,9 @@ impl Context<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::param::{Kind, ParamValue, Params, PathRole};
     use std::collections::BTreeMap;
-    use vfxgraph_params::{Choice, Options};
+    use vfxgraph_params::Choice;
 
     #[derive(Clone, Copy, Debug, PartialEq, Choice)]
     enum Loss {
@@ -173,17 +131,17 @@ mod tests {
         let names: Vec<&str> = spec.params.iter().map(|p| p.name).collect();
         assert_eq!(names, ["count", "scale_factor", "loss", "refine", "values"]);
         let p = &spec.params[0];
-        assert_eq!(p.ty, ParamType::Int { min: 1, max: 10 });
+        assert_eq!(p.kind, Kind::Int { min: 1, max: 10 });
         assert_eq!(p.default, Some(ParamValue::Int(3)));
         assert_eq!(p.doc, "how many");
         assert_eq!(
-            spec.params[1].ty,
-            ParamType::Float {
+            spec.params[1].kind,
+            Kind::Float {
                 min: 0.5,
                 max: f64::INFINITY
             }
         );
-        assert_eq!(spec.params[2].ty, ParamType::Enum(&["none", "soft_l1"]));
+        assert_eq!(spec.params[2].kind, Kind::Enum(&["none", "soft_l1"]));
         assert_eq!(
             spec.params[2].default,
             Some(ParamValue::Str("soft_l1".into()))
@@ -222,9 +180,9 @@ mod tests {
     #[test]
     fn a_path_field_is_a_path_param_and_minus_one_is_none() {
         let spec = NodeSpec::new("t", "test").options::<Files>();
-        assert_eq!(spec.params[0].ty, ParamType::Path(PathRole::Input));
+        assert_eq!(spec.params[0].kind, Kind::Path(PathRole::Input));
         assert_eq!(spec.params[0].default, Some(ParamValue::Str(String::new())));
-        assert_eq!(spec.params[1].ty, ParamType::Int { min: -1, max: 100 });
+        assert_eq!(spec.params[1].kind, Kind::Int { min: -1, max: 100 });
         assert_eq!(spec.params[1].default, Some(ParamValue::Int(-1)));
         let mut values = BTreeMap::new();
         values.insert("plate".to_string(), ParamValue::Str("a.exr".into()));
@@ -277,5 +235,52 @@ mod tests {
         assert_eq!(read.inner.tolerance, 1e-5_f32);
         values.insert("check".to_string(), ParamValue::Float(2.5));
         assert_eq!(Outer::read(&Params::new(values)).unwrap(), Outer::default());
+    }
+
+    /// A required param and a path list, beside a flattened struct.
+    #[derive(Debug, Default, PartialEq, Options)]
+    struct Node {
+        /// the frame
+        #[param(required)]
+        frame: i64,
+        /// the photographs
+        #[param(path = "input")]
+        photos: Vec<String>,
+        #[param(flatten)]
+        files: Files,
+    }
+
+    #[test]
+    fn a_required_param_has_no_default_and_is_recorded_with_its_struct() {
+        let spec = NodeSpec::new("t", "test").options::<Node>();
+        assert_eq!(spec.params[0].default, None);
+        assert_eq!(
+            spec.params[0].kind,
+            Kind::Int {
+                min: i64::MIN,
+                max: i64::MAX
+            }
+        );
+        assert_eq!(spec.params[1].kind, Kind::PathList(PathRole::Input));
+        assert_eq!(spec.params[1].default, Some(ParamValue::List(vec![])));
+        let decl = &spec.options[0];
+        assert_eq!(decl.params, ["frame", "photos", "plate", "reference"]);
+        let mut values = BTreeMap::new();
+        values.insert("photos".to_string(), ParamValue::List(vec![]));
+        values.insert("plate".to_string(), ParamValue::Str(String::new()));
+        values.insert("reference".to_string(), ParamValue::Int(-1));
+        let e = Node::read(&Params::new(values.clone())).unwrap_err();
+        assert_eq!(e, "parameter `frame` has no value");
+        values.insert("frame".to_string(), ParamValue::Int(12));
+        let photos = ParamValue::List(vec![ParamValue::Str("a.jpg".into())]);
+        values.insert("photos".to_string(), photos);
+        let read = Node::read(&Params::new(values.clone())).unwrap();
+        assert_eq!(
+            (read.frame, read.photos.as_slice()),
+            (12, &["a.jpg".to_string()][..])
+        );
+        let again = (decl.read_back)(&Params::new(values)).unwrap();
+        assert_eq!(again[0].default, None);
+        assert_eq!(again[3].default, Some(ParamValue::Int(-1)));
     }
 }

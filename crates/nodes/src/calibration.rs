@@ -3,9 +3,9 @@
 //! `intrinsics_from_metadata` (K from a photograph's EXIF focal length).
 
 use vfxgraph_engine::{ArtifactType, Context, Mode, NodeError, NodeSpec, PortSpec, Registry};
-use vfxgraph_vision::calibration::{calibrate_camera, CalibrateParams};
+use vfxgraph_vision::calibration::{calibrate_camera, CalibrateCameraOptions};
 use vfxgraph_vision::formats;
-use vfxgraph_vision::two_view::{reconstruct_two_view, TwoViewParams};
+use vfxgraph_vision::two_view::{reconstruct_two_view, TwoViewRansacOptions};
 
 use crate::artifacts::{CameraArt, IndicesArt, IntrinsicsArt, Points2dArt, Points3dArt, ReportArt};
 
@@ -142,7 +142,7 @@ pub fn register(r: &mut Registry) {
         )
         .input_of::<Points3dArt>("points3d", "world points")
         .input_of::<Points2dArt>("points2d", "their projections, same order")
-        .options::<CalibrateParams>()
+        .options::<CalibrateCameraOptions>()
         .output_of::<CameraArt>("camera", "K[R|t]")
         .output_of::<ReportArt>("report", "per-point reprojection errors, inliers and RMS"),
         run_calibrate,
@@ -157,7 +157,7 @@ pub fn register(r: &mut Registry) {
         .input_of::<Points2dArt>("points_a", "points in view a")
         .input_of::<Points2dArt>("points_b", "the same points in view b")
         .input_of::<IntrinsicsArt>("intrinsics", "K of both views")
-        .options::<TwoViewParams>()
+        .options::<TwoViewRansacOptions>()
         .output_of::<CameraArt>("camera_b", "K[R|t] of view b")
         .output_of::<Points3dArt>("points3d", "triangulated inliers")
         .output_of::<IndicesArt>("inliers", "input index of each 3D point")
@@ -203,7 +203,7 @@ pub fn register(r: &mut Registry) {
 }
 
 fn run_calibrate(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let o: CalibrateParams = ctx.options()?;
+    let o: CalibrateCameraOptions = ctx.options()?;
     let p3 = &ctx.input::<Points3dArt>("points3d")?.0;
     let p2 = &ctx.input::<Points2dArt>("points2d")?.0;
     let (camera, report) = calibrate_camera(&p3.0, &p2.0, &o.options()?, &mut o.rng())?;
@@ -213,7 +213,7 @@ fn run_calibrate(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 }
 
 fn run_two_view(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let o: TwoViewParams = ctx.options()?;
+    let o: TwoViewRansacOptions = ctx.options()?;
     let a = &ctx.input::<Points2dArt>("points_a")?.0;
     let b = &ctx.input::<Points2dArt>("points_b")?.0;
     let k = &ctx.input::<IntrinsicsArt>("intrinsics")?.0;

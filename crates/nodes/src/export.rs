@@ -2,11 +2,9 @@
 //! `export_cameras` and `import_cameras`. The formats and their conventions live in
 //! `vfxgraph_vision::export`.
 
-use vfxgraph_engine::{
-    Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, PortSpec, Registry,
-};
+use vfxgraph_engine::{Context, Mode, NodeError, NodeSpec, PortSpec, Registry};
 use vfxgraph_imaging::Image;
-use vfxgraph_params::{read_field, Choice};
+use vfxgraph_params::Options;
 use vfxgraph_vision::export::files::{report, write_with};
 use vfxgraph_vision::export::{read, ExportFormat, ExportOptions, ImportFormat};
 
@@ -14,6 +12,40 @@ use crate::artifacts::{
     image_sequence, CameraPathArt, ImageArt, IntrinsicsArt, PointCloudArt, ReportArt,
 };
 use crate::tracking::TracksArt;
+
+/// `export_cameras`' format (its other options, after the file: [`ExportOptions`]).
+#[derive(Options)]
+struct ExportFormatOptions {
+    /// colmap, blender, usd, nuke, json or ply
+    #[param(required)]
+    format: ExportFormat,
+}
+
+/// Required: its `Default` only gives the derive a value to start from.
+impl Default for ExportFormatOptions {
+    fn default() -> Self {
+        ExportFormatOptions {
+            format: ExportFormat::Colmap,
+        }
+    }
+}
+
+/// `import_cameras`' format.
+#[derive(Options)]
+struct ImportFormatOptions {
+    /// colmap or book
+    #[param(required)]
+    format: ImportFormat,
+}
+
+/// Required: its `Default` only gives the derive a value to start from.
+impl Default for ImportFormatOptions {
+    fn default() -> Self {
+        ImportFormatOptions {
+            format: ImportFormat::Colmap,
+        }
+    }
+}
 
 /// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
@@ -49,11 +81,7 @@ pub fn register(r: &mut Registry) {
             PortSpec::sequence_of::<ImageArt>("plate", "the plate: image size and point colours")
                 .optional(),
         )
-        .param(ParamSpec::required(
-            "format",
-            ParamType::Enum(ExportFormat::CHOICES),
-            "colmap, blender, usd, nuke, json or ply",
-        ))
+        .options::<ExportFormatOptions>()
         .output_file_param("path", "the file to write (colmap: the model's cameras.txt)")
         .options::<ExportOptions>()
         .output_of::<ReportArt>("report", "format, files written, frames, points, image size"),
@@ -71,11 +99,7 @@ pub fn register(r: &mut Registry) {
             "intrinsics",
             "K of the book's format (ignored for colmap, which carries its own)",
         )
-        .param(ParamSpec::required(
-            "format",
-            ParamType::Enum(ImportFormat::CHOICES),
-            "colmap or book",
-        ))
+        .options::<ImportFormatOptions>()
         .input_file_param("path", "COLMAP cameras.txt (images.txt and points3D.txt beside it) or the book's cameras file")
         .output_of::<CameraPathArt>("cameras", "one [R|t] per frame")
         .output_of::<IntrinsicsArt>("intrinsics", "K")
@@ -88,7 +112,7 @@ pub fn register(r: &mut Registry) {
 }
 
 fn run_export(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let format: ExportFormat = read_field(ctx.params(), "format").map_err(NodeError::msg)?;
+    let ExportFormatOptions { format } = ctx.options()?;
     let o: ExportOptions = ctx.options()?;
     let path = &ctx.input::<CameraPathArt>("cameras")?.0;
     let k = crate::intrinsics_or_path_k(ctx, Some(path))?
@@ -118,7 +142,7 @@ fn run_export(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 }
 
 fn run_import(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let format: ImportFormat = read_field(ctx.params(), "format").map_err(NodeError::msg)?;
+    let ImportFormatOptions { format } = ctx.options()?;
     let k = ctx.input_opt::<IntrinsicsArt>("intrinsics")?.map(|k| &k.0);
     let (cameras, intrinsics, cloud) = read(format, &ctx.path("path"), k)?;
     ctx.output("cameras", CameraPathArt(cameras));

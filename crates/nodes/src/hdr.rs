@@ -6,10 +6,7 @@
 
 use nalgebra::Vector3;
 use vfxgraph_engine::artifact::codec::{put_bytes, put_f64, put_u64, Reader};
-use vfxgraph_engine::{
-    ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, ParamValue, PathRole,
-    Registry,
-};
+use vfxgraph_engine::{ArtifactType, Context, Mode, NodeError, NodeSpec, Registry};
 
 use vfxgraph_imaging::draw::{plot_response, PlotOptions};
 use vfxgraph_imaging::hdr::{
@@ -131,6 +128,20 @@ impl ArtifactType for DomeArt {
     }
 }
 
+/// `read_exposure_stack`'s params: the files (a list file or the photographs), then
+/// [`StackOptions`].
+#[derive(Default, vfxgraph_params::Options)]
+struct ReadStackOptions {
+    /// the exposure list file (or give `paths`)
+    #[param(path = "input")]
+    list: String,
+    /// the photographs, when no `list` is given
+    #[param(path = "input")]
+    paths: Vec<String>,
+    #[param(flatten)]
+    stack: StackOptions,
+}
+
 /// Registers the artifact and node types of this module.
 pub fn register(r: &mut Registry) {
     r.register_artifact::<StackArt>();
@@ -149,19 +160,7 @@ pub fn register(r: &mut Registry) {
         )
         .version(2)
         .mode(Mode::Once)
-        .param(ParamSpec::optional(
-            "list",
-            ParamType::Path(PathRole::Input),
-            ParamValue::Str(String::new()),
-            "the exposure list file (or give `paths`)",
-        ))
-        .param(ParamSpec::optional(
-            "paths",
-            ParamType::PathList(PathRole::Input),
-            ParamValue::List(vec![]),
-            "the photographs, when no `list` is given",
-        ))
-        .options::<StackOptions>()
+        .options::<ReadStackOptions>()
         .output_of::<StackArt>("stack", "the exposure stack"),
         run_read_stack,
     );
@@ -280,8 +279,9 @@ pub fn register(r: &mut Registry) {
 }
 
 fn run_read_stack(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let o: StackOptions = ctx.options()?;
-    let list = (!ctx.params().str("list").is_empty()).then(|| ctx.path("list"));
+    let ReadStackOptions { list, stack: o, .. } = ctx.options()?;
+    // The names as written; the context resolves them against the graph file.
+    let list = (!list.is_empty()).then(|| ctx.path("list"));
     let files = StackFiles::resolve(list.as_deref(), ctx.paths("paths"), &o.times)?;
     // The listed images are inputs too: declare them so an edit reruns the node.
     for path in files.listed() {
@@ -368,6 +368,7 @@ mod tests {
     use crate::testing::{params, spec};
     use nalgebra::Matrix3;
     use std::path::Path;
+    use vfxgraph_engine::ParamValue;
     use vfxgraph_engine::{InputValue, Value};
     use vfxgraph_imaging::Image;
 

@@ -111,7 +111,8 @@ mod tests {
         for (k, v) in params {
             values.insert(
                 k.to_string(),
-                spec.param_spec(k).unwrap().ty.check(v.clone()).unwrap(),
+                vfxgraph_engine::param::check(&spec.param_desc(k).unwrap().kind, v.clone())
+                    .unwrap(),
             );
         }
         let params = Params::new(values);

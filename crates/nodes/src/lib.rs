@@ -94,180 +94,81 @@ pub(crate) fn write_output(ctx: &Context<'_>, param: &str, bytes: &[u8]) -> Resu
 
 #[cfg(test)]
 mod tests {
-    use crate::testing::check_defaults;
-    use vfxgraph_engine::ParamValue;
-    use vfxgraph_imaging::{colour, hdr};
-    use vfxgraph_render as render;
-    use vfxgraph_video as video;
-    use vfxgraph_vision::{camera_path, klt};
+    use std::collections::BTreeMap;
 
-    /// Every node type whose params come from an options struct, and that struct: the nodes
-    /// of a family are listed here when the family is converted.
-    type Check = fn(&str) -> Vec<&'static str>;
-    const OPTIONS: &[(&str, Check)] = &[
-        (
-            "matchmove",
-            check_defaults::<vfxgraph_vision::matchmove::MatchmoveOptions>,
-        ),
-        (
-            "relax",
-            check_defaults::<vfxgraph_vision::matchmove::RelaxParams>,
-        ),
-        (
-            "bundle_adjust",
-            check_defaults::<vfxgraph_vision::bundle::SequenceAdjustOptions>,
-        ),
-        (
-            "global_bundle_adjust",
-            check_defaults::<vfxgraph_vision::matchmove::GlobalParams>,
-        ),
-        (
-            "write_cameras",
-            check_defaults::<vfxgraph_vision::formats::WriteCamerasOptions>,
-        ),
-        (
-            "undistort",
-            check_defaults::<vfxgraph_vision::undistort::UndistortOptions>,
-        ),
-        (
-            "redistort",
-            check_defaults::<vfxgraph_vision::undistort::UndistortOptions>,
-        ),
-        (
-            "write_st_map",
-            check_defaults::<vfxgraph_vision::st_map::StMapOptions>,
-        ),
-        ("read_exposure_stack", check_defaults::<hdr::StackOptions>),
-        ("align_exposures", check_defaults::<hdr::AlignOptions>),
-        ("hdr_calibrate", check_defaults::<hdr::CalibrateOptions>),
-        ("hdr_to_ldr", check_defaults::<hdr::LdrOptions>),
-        (
-            "plot_response",
-            check_defaults::<vfxgraph_imaging::draw::PlotOptions>,
-        ),
-        ("probe_to_equirect", check_defaults::<hdr::ProbeOptions>),
-        ("dome", check_defaults::<vfxgraph_render::dome::DomeOptions>),
-        ("render", check_defaults::<vfxgraph_render::RenderOptions>),
-        (
-            "fit_catcher",
-            check_defaults::<render::catcher_fit::FitCatcherOptions>,
-        ),
-        (
-            "differential_render",
-            check_defaults::<render::differential::DifferentialOptions>,
-        ),
-        (
-            "composite",
-            check_defaults::<render::differential::CompositeOptions>,
-        ),
-        (
-            "write_layers",
-            check_defaults::<vfxgraph_imaging::io::LayersOptions>,
-        ),
-        (
-            "exposure",
-            check_defaults::<vfxgraph_imaging::ExposureOptions>,
-        ),
-        (
-            "tonemap",
-            check_defaults::<vfxgraph_imaging::TonemapOptions>,
-        ),
-        (
-            "constant",
-            check_defaults::<vfxgraph_imaging::ConstantOptions>,
-        ),
-        ("blur", check_defaults::<vfxgraph_imaging::BlurOptions>),
-        (
-            "place_scene",
-            check_defaults::<render::placement::place::PlaceOptions>,
-        ),
-        (
-            "catcher_from_points",
-            check_defaults::<render::placement::place::CatcherOptions>,
-        ),
-        (
-            "export_cameras",
-            check_defaults::<vfxgraph_vision::export::ExportOptions>,
-        ),
-        ("klt_track", check_defaults::<klt::TrackerParams>),
-        ("write_tracks", check_defaults::<klt::WriteTracksOptions>),
-        ("draw_tracks", check_defaults::<klt::DrawTracksOptions>),
-        ("read_video", check_defaults::<video::ReadVideoOptions>),
-        ("write_video", check_defaults::<video::WriteVideoOptions>),
-        (
-            "synthetic_camera_path",
-            check_defaults::<camera_path::SyntheticPathOptions>,
-        ),
-        (
-            "project_marks",
-            check_defaults::<camera_path::ProjectMarksOptions>,
-        ),
-        (
-            "calibrate_camera",
-            check_defaults::<vfxgraph_vision::calibration::CalibrateParams>,
-        ),
-        (
-            "two_view",
-            check_defaults::<vfxgraph_vision::two_view::TwoViewParams>,
-        ),
-        (
-            "proxy_from_points",
-            check_defaults::<render::proxy::ProxyOptions>,
-        ),
-        (
-            "catcher_texture",
-            check_defaults::<render::local_scene::LocalTextureOptions>,
-        ),
-        ("catcher_texture", check_defaults::<render::ImageSize>),
-        ("read_image", check_defaults::<colour::ReadColour>),
-        ("read_image_sequence", check_defaults::<colour::ReadColour>),
-        ("write_image", check_defaults::<colour::WriteColour>),
-        ("write_image", check_defaults::<colour::KeepPlate>),
-        ("write_image_sequence", check_defaults::<colour::KeepPlate>),
-        (
-            "write_image_sequence",
-            check_defaults::<colour::WriteColour>,
-        ),
-        ("read_video", check_defaults::<colour::ReadColour>),
-        ("write_video", check_defaults::<colour::WriteColour>),
-        ("differential_render", check_defaults::<colour::ReadColour>),
-        ("composite", check_defaults::<colour::ReadColour>),
-    ];
+    use vfxgraph_engine::{param, Kind, ParamValue, Params};
 
-    /// Walks every node type: those with an options struct declare exactly its defaults; any
-    /// other param with a default is a path left empty (no file), so no default is written
-    /// outside an options struct.
+    /// A value of `kind` for a required param, so that a node's options structs read back
+    /// without a graph.
+    fn sample(kind: &Kind) -> ParamValue {
+        match kind {
+            Kind::Bool => ParamValue::Bool(false),
+            Kind::Int { min, max } => ParamValue::Int(0.clamp(*min, *max)),
+            Kind::Float { min, max } => ParamValue::Float(0.0_f64.clamp(*min, *max)),
+            Kind::Str | Kind::Path(_) => ParamValue::Str(String::new()),
+            Kind::Enum(choices) => ParamValue::Str(choices[0].to_string()),
+            Kind::PathList(_) => ParamValue::List(Vec::new()),
+            Kind::FloatList { len } => {
+                ParamValue::List(vec![ParamValue::Float(0.0); len.unwrap_or(0)])
+            }
+        }
+    }
+
+    /// Walks every node type of the registry: each param comes from one of the node's options
+    /// structs (but the file a file param names, which has no default), each declared default
+    /// fits its param, and the declared defaults read back into each struct and describe it
+    /// again unchanged (same kind, default, doc, cache role), so no default is written
+    /// anywhere but a struct's `Default`.
     #[test]
     fn declared_defaults_are_the_options_structs_defaults() {
         let r = crate::registry();
-        let mut checked = 0;
+        let mut structs = 0;
         for node in r.nodes() {
             let spec = node.spec();
             let name = spec.name;
-            let mut from_struct = Vec::new();
-            for (_, check) in OPTIONS.iter().filter(|(n, _)| *n == name) {
-                from_struct.extend(check(name));
-                checked += 1;
-            }
+            let mut values = BTreeMap::new();
             for p in &spec.params {
-                let empty = match &p.default {
-                    None => true,
-                    Some(ParamValue::Str(s)) => s.is_empty(),
-                    Some(ParamValue::List(l)) => l.is_empty(),
-                    Some(_) => false,
-                };
+                let from_struct = spec.options.iter().any(|o| o.params.contains(&p.name));
+                let file = p.default.is_none() && matches!(p.kind, Kind::Path(_));
                 assert!(
-                    empty || from_struct.contains(&p.name),
-                    "{name}.{}: default {:?} written outside an options struct",
-                    p.name,
-                    p.default
+                    from_struct || file,
+                    "{name}.{}: declared outside an options struct",
+                    p.name
                 );
+                if let Some(d) = &p.default {
+                    assert_eq!(
+                        param::check(&p.kind, d.clone()).as_ref(),
+                        Ok(d),
+                        "{name}.{}: the default does not fit",
+                        p.name
+                    );
+                }
+                let v = p.default.clone().unwrap_or_else(|| sample(&p.kind));
+                values.insert(p.name.to_string(), v);
+            }
+            let declared = Params::new(values);
+            for o in &spec.options {
+                structs += 1;
+                let again = (o.read_back)(&declared)
+                    .unwrap_or_else(|e| panic!("{name} ({}): {e}", o.type_name));
+                let names: Vec<&str> = again.iter().map(|d| d.name).collect();
+                assert_eq!(names, o.params, "{name} ({})", o.type_name);
+                for d in &again {
+                    let p = spec.param_desc(d.name).expect("declared");
+                    let at = format!("{name}.{} ({})", d.name, o.type_name);
+                    assert_eq!(p.kind, d.kind, "{at}");
+                    assert_eq!(p.doc, d.doc, "{at}");
+                    assert_eq!(p.cosmetic, d.cosmetic, "{at}");
+                    match &p.default {
+                        Some(_) => assert_eq!(p.default, d.default, "{at}: read back"),
+                        None => assert_eq!(d.default, None, "{at}: required"),
+                    }
+                }
             }
         }
-        assert_eq!(
-            checked,
-            OPTIONS.len(),
-            "every listed node type is registered"
+        assert!(
+            structs > 50,
+            "only {structs} options structs in the registry"
         );
     }
 }

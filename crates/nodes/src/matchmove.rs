@@ -6,8 +6,8 @@ use vfxgraph_engine::{Context, Mode, NodeError, NodeSpec, Registry};
 use vfxgraph_imaging::draw::svg::solve_error_svg;
 use vfxgraph_vision::formats;
 use vfxgraph_vision::matchmove::{
-    adjust_path, matchmove_with_lens, relax_path, solve_progress, GlobalParams, MatchmoveOptions,
-    RelaxParams, Solve,
+    adjust_path, matchmove_with_lens, relax_path, solve_progress, GlobalPathOptions,
+    MatchmoveOptions, RelaxPathOptions, Solve,
 };
 
 use crate::artifacts::{CameraPathArt, IntrinsicsArt, PointCloudArt, ReportArt};
@@ -75,7 +75,7 @@ fn run_matchmove(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 }
 
 fn run_relax(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let o: RelaxParams = ctx.options()?;
+    let o: RelaxPathOptions = ctx.options()?;
     let tracks = &ctx.input::<TracksArt>("tracks")?.0;
     let k = &ctx.input::<IntrinsicsArt>("intrinsics")?.0;
     let path = &ctx.input::<CameraPathArt>("cameras")?.0;
@@ -86,7 +86,7 @@ fn run_relax(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 }
 
 fn run_global(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let o: GlobalParams = ctx.options()?;
+    let o: GlobalPathOptions = ctx.options()?;
     let tracks = &ctx.input::<TracksArt>("tracks")?.0;
     let k = &ctx.input::<IntrinsicsArt>("intrinsics")?.0;
     let path = &ctx.input::<CameraPathArt>("cameras")?.0;
@@ -130,7 +130,7 @@ pub fn register(r: &mut Registry) {
          point and camera Levenberg–Marquardt with a shrinking inlier tolerance.",
         true,
     )
-    .options::<RelaxParams>();
+    .options::<RelaxPathOptions>();
     r.register_fn(spec, run_relax);
 
     let spec = solve_node(
@@ -140,7 +140,7 @@ pub fn register(r: &mut Registry) {
          at shrinking thresholds.",
         true,
     )
-    .options::<GlobalParams>();
+    .options::<GlobalPathOptions>();
     r.register_fn(spec, run_global);
 
     r.register_fn(

@@ -4,15 +4,27 @@
 //! by projecting known 3-D points with the true cameras and rounding to whole pixels, in the
 //! book's marked-points form of chapter 8).
 
-use vfxgraph_engine::{
-    Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, Registry, Threads,
-};
+use vfxgraph_engine::{Context, Mode, NodeError, NodeSpec, Registry, Threads};
+use vfxgraph_params::Options;
 use vfxgraph_vision::camera_path::{
     project_marks, synthetic_path, ProjectMarksOptions, SyntheticPathOptions,
 };
 
 use crate::artifacts::{CameraPathArt, IntrinsicsArt};
 use crate::modeling::MarkedPointsArt;
+
+/// `project_marks`' params: the points and frames, then [`ProjectMarksOptions`].
+#[derive(Default, Options)]
+struct ProjectMarksNodeOptions {
+    /// the scene points, x y z of each in turn
+    #[param(required)]
+    points: Vec<f64>,
+    /// the frames marked (whole numbers)
+    #[param(required)]
+    frames: Vec<f64>,
+    #[param(flatten)]
+    marks: ProjectMarksOptions,
+}
 
 /// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
@@ -42,17 +54,7 @@ pub fn register(r: &mut Registry) {
              `round: false`). Every point must be in front of every chosen camera.",
         )
         .mode(Mode::Once)
-        .param(ParamSpec::required(
-            "points",
-            ParamType::FloatList { len: None },
-            "the scene points, x y z of each in turn",
-        ))
-        .param(ParamSpec::required(
-            "frames",
-            ParamType::FloatList { len: None },
-            "the frames marked (whole numbers)",
-        ))
-        .options::<ProjectMarksOptions>()
+        .options::<ProjectMarksNodeOptions>()
         .input_of::<CameraPathArt>("cameras", "the true cameras (with K)")
         .output_of::<MarkedPointsArt>("marks", "the marks"),
         run_project_marks,
@@ -67,10 +69,9 @@ fn run_synthetic_camera_path(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 }
 
 fn run_project_marks(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let o: ProjectMarksOptions = ctx.options()?;
-    let (points, frames) = (ctx.params().f64s("points"), ctx.params().f64s("frames"));
+    let o: ProjectMarksNodeOptions = ctx.options()?;
     let path = &ctx.input::<CameraPathArt>("cameras")?.0;
-    let marks = project_marks(path, &points, &frames, &o)?;
+    let marks = project_marks(path, &o.points, &o.frames, &o.marks)?;
     ctx.output("marks", MarkedPointsArt(marks));
     Ok(())
 }

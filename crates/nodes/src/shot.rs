@@ -3,9 +3,7 @@
 //! Debevec 1998) and `write_layers` (multi-layer OpenEXR for a compositor).
 
 use vfxgraph_engine::artifact::codec::{put_bytes, put_u64, Reader};
-use vfxgraph_engine::{
-    ArtifactType, Context, Mode, NodeError, NodeSpec, ParamSpec, ParamType, Registry,
-};
+use vfxgraph_engine::{ArtifactType, Context, Mode, NodeError, NodeSpec, Registry};
 use vfxgraph_imaging::colour::ReadColour;
 use vfxgraph_imaging::io::LayersOptions;
 use vfxgraph_imaging::Image;
@@ -57,6 +55,16 @@ pub(crate) const SHOT_INPUTS: [&str; 3] = [
     "K (and image size) replacing the path's and the scene camera's",
 ];
 
+/// `fit_catcher`'s params: the frame, then [`FitCatcherOptions`].
+#[derive(Default, vfxgraph_params::Options)]
+struct FitCatcherNodeOptions {
+    /// the plate frame (and camera) to fit on
+    #[param(required)]
+    frame: i64,
+    #[param(flatten)]
+    fit: FitCatcherOptions,
+}
+
 /// Registers the artifact and nodes of this module.
 pub fn register(r: &mut Registry) {
     r.register_artifact::<LayersArt>();
@@ -73,15 +81,7 @@ pub fn register(r: &mut Registry) {
                  colour before/after, residual).",
             )
             .seeded()
-            .param(ParamSpec::required(
-                "frame",
-                ParamType::Int {
-                    min: i64::MIN,
-                    max: i64::MAX,
-                },
-                "the plate frame (and camera) to fit on",
-            ))
-            .options::<FitCatcherOptions>(),
+            .options::<FitCatcherNodeOptions>(),
             SHOT_INPUTS,
         )
         .sequence_input_of::<ImageArt>(
@@ -171,10 +171,9 @@ pub fn register(r: &mut Registry) {
 }
 
 fn run_fit_catcher(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let o: FitCatcherOptions = ctx.options()?;
+    let FitCatcherNodeOptions { frame, fit: o } = ctx.options()?;
     let art = ctx.input::<SceneArt>("scene")?;
     let light = pick_light(ctx, art)?;
-    let frame = ctx.params().i64("frame");
     let plate = plate_frames(&image_sequence(ctx, "plate")?, &[frame])?[0].1;
     let camera = camera_for(ctx, &art.scene, Some(frame))?;
     let (scene, fit) = fit_catcher(

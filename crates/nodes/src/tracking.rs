@@ -4,7 +4,7 @@
 use vfxgraph_engine::stream::Stream;
 use vfxgraph_engine::{Context, Mode, NodeError, NodeSpec, Registry};
 use vfxgraph_vision::klt::{
-    draw_tracks, track_loaded, DrawTracksOptions, GrayImage, TrackerParams, Tracks,
+    draw_tracks, track_loaded, DrawTracksOptions, GrayImage, TrackerOptions, Tracks,
     WriteTracksOptions,
 };
 
@@ -26,7 +26,7 @@ pub fn register(r: &mut Registry) {
     r.register_fn(
         klt_spec(
             "klt_track",
-            &TrackerParams::default(),
+            &TrackerOptions::default(),
             "KLT feature tracking (book ch. 6): Shi–Tomasi corners in the first frame, pyramidal \
                  Lucas–Kanade frame to frame, disposal of features that leave the image, become \
                  untrackable or whose window residual exceeds `max_residual` (6.5), and refill of \
@@ -80,11 +80,11 @@ pub fn register(r: &mut Registry) {
 }
 
 /// The spec of `klt_track` and of its OpenCV cross-check `klt_track_opencv`: the params of
-/// [`TrackerParams`] with `defaults`' values (they differ in the default drift correction:
+/// [`TrackerOptions`] with `defaults`' values (they differ in the default drift correction:
 /// OpenCV's tracker has none), the same ports.
 pub(crate) fn klt_spec(
     name: &'static str,
-    defaults: &TrackerParams,
+    defaults: &TrackerOptions,
     doc: &'static str,
 ) -> NodeSpec {
     NodeSpec::new(name, doc)
@@ -113,7 +113,7 @@ fn gray_frame(frames: &Stream<'_, ImageArt>, k: usize) -> Result<(i64, GrayImage
 /// Tracks the plate a frame at a time: each frame is read (an uncached reader decodes it)
 /// while the one before is tracked.
 pub(crate) fn run_klt_track(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let params: TrackerParams = ctx.options()?;
+    let params: TrackerOptions = ctx.options()?;
     let tracks = {
         let frames = ctx.stream::<ImageArt>("frames")?;
         let load = |k| gray_frame(&frames, k);

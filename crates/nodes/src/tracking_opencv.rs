@@ -5,7 +5,7 @@
 
 use vfxgraph_engine::{Context, NodeError, Registry};
 use vfxgraph_vision::klt::opencv::track_sequence_opencv;
-use vfxgraph_vision::klt::{GrayImage, TrackerParams};
+use vfxgraph_vision::klt::{GrayImage, TrackerOptions};
 
 use crate::tracking::{gray_frames, klt_spec, TracksArt};
 
@@ -14,11 +14,11 @@ pub fn register(r: &mut Registry) {
     r.register_fn(
         klt_spec(
             "klt_track_opencv",
-            &TrackerParams {
+            &TrackerOptions {
                 drift_correction: None,
                 noisy_window: 0,
                 spread_factor: 0.0,
-                ..TrackerParams::default()
+                ..TrackerOptions::default()
             },
             "klt_track with OpenCV's goodFeaturesToTrack + calcOpticalFlowPyrLK (what the book \
              used) in place of ours, same params and output, to cross-check klt_track in a \
@@ -31,7 +31,7 @@ pub fn register(r: &mut Registry) {
 }
 
 fn run_klt_track_opencv(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let mut params: TrackerParams = ctx.options()?;
+    let mut params: TrackerOptions = ctx.options()?;
     if params.drift_correction.is_some() {
         return Err(NodeError::msg(
             "klt_track_opencv: drift_correction is only implemented by klt_track (OpenCV's \
@@ -121,9 +121,9 @@ mod tests {
                 .iter()
                 .map(|p| match p.name {
                     "drift_correction" | "noisy_window" | "spread_factor" => {
-                        format!("{} {:?}", p.name, p.ty)
+                        format!("{} {:?}", p.name, p.kind)
                     }
-                    _ => format!("{} {:?} {:?}", p.name, p.ty, p.default),
+                    _ => format!("{} {:?} {:?}", p.name, p.kind, p.default),
                 })
                 .collect()
         };

@@ -96,7 +96,7 @@ mod tests {
     use vfxgraph_engine::{InputValue, ParamValue, Value};
     use vfxgraph_imaging::Image;
     use vfxgraph_video::{write_mp4, ColorInfo, Matrix, Video};
-    use vfxgraph_vision::klt::{track_sequence, GrayImage, TrackerParams};
+    use vfxgraph_vision::klt::{track_sequence, GrayImage, TrackerOptions};
 
     /// A smooth random-ish texture translated by `(dx, dy)` pixels (linear light, gray).
     fn texture(w: usize, h: usize, dx: f32, dy: f32) -> Image {
@@ -151,7 +151,7 @@ mod tests {
             .map(|(f, img)| (f as i64, GrayImage::from_image(img)))
             .collect();
         let refs: Vec<(i64, &GrayImage)> = grays.iter().map(|(f, g)| (*f, g)).collect();
-        let mut tp = TrackerParams::default();
+        let mut tp = TrackerOptions::default();
         tp.corners.max_corners = 40;
         tp.corners.min_distance = 8.0;
         let tracks = track_sequence(&refs, &tp, |_| {}).unwrap();

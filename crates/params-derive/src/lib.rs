@@ -38,6 +38,7 @@ struct FieldAttrs {
     toggle: Option<LitStr>,
     path: Option<LitStr>,
     cosmetic: bool,
+    required: bool,
     check: bool,
 }
 
@@ -82,6 +83,8 @@ fn field_attrs(attrs: &[Attribute]) -> syn::Result<FieldAttrs> {
                 a.flatten = true;
             } else if p.is_ident("cosmetic") {
                 a.cosmetic = true;
+            } else if p.is_ident("required") {
+                a.required = true;
             } else if p.is_ident("check") {
                 a.check = true;
             } else {
@@ -133,6 +136,12 @@ fn option_inner(ty: &Type) -> Option<&Type> {
     }
 }
 
+/// Whether `ty` is a `Vec<_>` (a path list, with `path = ...`).
+fn is_vec(ty: &Type) -> bool {
+    let Type::Path(tp) = ty else { return false };
+    tp.path.segments.last().is_some_and(|s| s.ident == "Vec")
+}
+
 fn bound(t: &Option<Tokens>) -> Tokens {
     match t {
         Some(t) => quote!(::core::option::Option::Some((#t) as f64)),
@@ -165,6 +174,12 @@ fn options(input: &DeriveInput) -> syn::Result<Tokens> {
             .clone()
             .unwrap_or_else(|| LitStr::new(&doc_comment(&f.attrs), field.span()));
         let cosmetic = a.cosmetic;
+        if a.required && (a.skip || a.flatten || a.toggle.is_some()) {
+            return Err(syn::Error::new_spanned(
+                field,
+                "required is for a parameter field, not with skip, flatten or toggle",
+            ));
+        }
         if a.skip {
             reads.push(quote!(#field: d.#field));
         } else if a.flatten {
@@ -192,19 +207,29 @@ fn options(input: &DeriveInput) -> syn::Result<Tokens> {
             );
         } else {
             let (min, max) = (bound(&a.min), bound(&a.max));
+            let path = if is_vec(ty) {
+                quote!(PathList)
+            } else {
+                quote!(Path)
+            };
             let kind = match a.path.as_ref().map(LitStr::value).as_deref() {
-                Some("input") => quote!(::vfxgraph_params::Kind::Path(
+                Some("input") => quote!(::vfxgraph_params::Kind::#path(
                     ::vfxgraph_params::PathRole::Input
                 )),
-                Some(_) => quote!(::vfxgraph_params::Kind::Path(
+                Some(_) => quote!(::vfxgraph_params::Kind::#path(
                     ::vfxgraph_params::PathRole::Output
                 )),
                 None => quote!(<#ty as ::vfxgraph_params::Field>::kind(#min, #max)),
             };
+            let default = if a.required {
+                quote!(::core::option::Option::None)
+            } else {
+                quote!(::core::option::Option::Some(::vfxgraph_params::Field::to_value(&d.#field)))
+            };
             descs.push(quote!(out.push(::vfxgraph_params::ParamDesc {
                 name: #name,
                 kind: #kind,
-                default: ::core::option::Option::Some(::vfxgraph_params::Field::to_value(&d.#field)),
+                default: #default,
                 doc: #doc,
                 cosmetic: #cosmetic,
             });));

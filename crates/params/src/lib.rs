@@ -7,15 +7,18 @@
 //! unit-only enum into an enum parameter (its variants in snake case), so a choice is never
 //! spelled twice and has no fallback arm.
 //!
-//! The crate has no dependencies (the derive aside) and knows nothing of the engine: the
-//! algorithm crates (vision, render, imaging) derive [`Options`] on their structs, and the engine
-//! turns [`ParamDesc`] into its own parameter specs and its checked values into a [`Source`].
+//! The crate has no dependencies (the derive aside; serde behind the `serde` feature) and knows
+//! nothing of the engine: the algorithm crates (vision, render, imaging) derive [`Options`] on
+//! their structs, and the engine declares its nodes' parameters with these same types
+//! ([`ParamDesc`], [`Kind`], [`Value`], [`PathRole`]), checks graph values with
+//! [`Kind::check`] and reads options structs back through its [`Source`].
 //! COLMAP's option manager binds command-line names to the fields of its option structs the same
 //! way; Meshroom's node descriptions list each parameter once.
 //!
 //! Field types: integers (`Option<usize>` is an int whose −1 is `None`), `f64`, `f32`
 //! (`Option<f64>` and `Option<f32>` are floats whose 0 is `None`: off), `bool`,
-//! `String`, `Vec<f64>` and `[f64; N]` (float lists), and `#[derive(Choice)]` enums.
+//! `String`, `Vec<f64>` and `[f64; N]` (float lists), `Vec<String>` (path lists) and
+//! `#[derive(Choice)]` enums.
 //!
 //! Field attributes (`#[param(...)]`, comma-separated):
 //! - `range = MIN..=MAX`: the numeric range (either side may be omitted: `0.0..=`).
@@ -29,20 +32,24 @@
 //!   other fields.
 //! - `path = "input"` / `path = "output"` (on a `String` field): a file path the caller resolves
 //!   (the engine: against the graph file, an input's content entering the cache key); its
-//!   default is `Default`'s (usually empty: no file).
+//!   default is `Default`'s (usually empty: no file). On a `Vec<String>` field: a list of paths.
+//! - `required`: the parameter has no default (a graph must give it); `Default`'s value of the
+//!   field is not a parameter default (the struct still needs `Default`, for its other fields).
 //! - `cosmetic`: does not enter the cache key (labels, verbosity).
 //!
 //! Struct attribute `#[param(check)]`: [`Options::read`] ends with the struct's inherent
 //! `fn check(&self) -> Result<(), String>`.
+
+use std::fmt;
 
 pub use vfxgraph_params_derive::{Choice, Options};
 
 /// Whether a path parameter names a file the node reads or one it writes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum PathRole {
-    /// Read (hashed into the cache key).
+    /// Read: the engine hashes the file's content into the cache key.
     Input,
-    /// Written.
+    /// Written: the engine records the written file's digest and reruns if it is gone or changed.
     Output,
 }
 
@@ -58,7 +65,7 @@ pub enum Kind {
         /// Largest allowed.
         max: i64,
     },
-    /// A finite float in `[min, max]`.
+    /// A finite float in `[min, max]` (integers are accepted).
     Float {
         /// Smallest allowed.
         min: f64,
@@ -69,11 +76,14 @@ pub enum Kind {
     Str,
     /// One of the listed strings.
     Enum(&'static [&'static str]),
-    /// A file path.
+    /// A file path, relative to the graph file's folder. Per-frame nodes may use a frame
+    /// pattern (`%04d` or `####`).
     Path(PathRole),
-    /// A list of file paths.
+    /// A list of file paths (e.g. the photographs of an exposure stack), each relative to the
+    /// graph file's folder; input lists are hashed file by file like [`Kind::Path`]. No
+    /// frame patterns.
     PathList(PathRole),
-    /// A list of floats, of a fixed length or any.
+    /// A list of floats (e.g. a 3-vector or a matrix in rows), of a fixed length or any.
     FloatList {
         /// Required length, if fixed.
         len: Option<usize>,
@@ -108,6 +118,187 @@ pub struct ParamDesc {
     pub doc: &'static str,
     /// True for params that must not enter the cache key.
     pub cosmetic: bool,
+}
+
+impl ParamDesc {
+    /// A required parameter (no default), affecting the output.
+    pub fn required(name: &'static str, kind: Kind, doc: &'static str) -> Self {
+        ParamDesc {
+            name,
+            kind,
+            default: None,
+            doc,
+            cosmetic: false,
+        }
+    }
+
+    /// A parameter with a default, affecting the output.
+    pub fn optional(name: &'static str, kind: Kind, default: Value, doc: &'static str) -> Self {
+        ParamDesc {
+            default: Some(default),
+            ..ParamDesc::required(name, kind, doc)
+        }
+    }
+
+    /// The same parameter, cosmetic: it does not enter the cache key.
+    pub fn cosmetic(self) -> Self {
+        ParamDesc {
+            cosmetic: true,
+            ..self
+        }
+    }
+}
+
+impl fmt::Display for Value {
+    /// As a graph file would write it: strings quoted, lists in brackets.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Value::Bool(b) => write!(f, "{b}"),
+            Value::Int(i) => write!(f, "{i}"),
+            Value::Float(x) => write!(f, "{x}"),
+            Value::Str(s) => write!(f, "{s:?}"),
+            Value::List(l) => {
+                write!(f, "[")?;
+                for (i, v) in l.iter().enumerate() {
+                    if i > 0 {
+                        write!(f, ", ")?;
+                    }
+                    write!(f, "{v}")?;
+                }
+                write!(f, "]")
+            }
+        }
+    }
+}
+
+impl Value {
+    /// What kind of value it is, with its article ("an integer").
+    pub fn kind_name(&self) -> &'static str {
+        match self {
+            Value::Bool(_) => "a boolean",
+            Value::Int(_) => "an integer",
+            Value::Float(_) => "a float",
+            Value::Str(_) => "a string",
+            Value::List(_) => "a list",
+        }
+    }
+}
+
+impl fmt::Display for Kind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Kind::Bool => write!(f, "bool"),
+            Kind::Int { min, max } => {
+                write!(f, "int")?;
+                if *min != i64::MIN || *max != i64::MAX {
+                    write!(
+                        f,
+                        " in [{}, {}]",
+                        bound(*min, i64::MIN),
+                        bound(*max, i64::MAX)
+                    )?;
+                }
+                Ok(())
+            }
+            Kind::Float { min, max } => {
+                write!(f, "float")?;
+                if min.is_finite() || max.is_finite() {
+                    write!(f, " in [{min}, {max}]")?;
+                }
+                Ok(())
+            }
+            Kind::Str => write!(f, "string"),
+            Kind::Enum(c) => write!(f, "one of {}", c.join(" | ")),
+            Kind::Path(PathRole::Input) => write!(f, "input path"),
+            Kind::Path(PathRole::Output) => write!(f, "output path"),
+            Kind::PathList(PathRole::Input) => write!(f, "list of input paths"),
+            Kind::PathList(PathRole::Output) => write!(f, "list of output paths"),
+            Kind::FloatList { len: Some(n) } => write!(f, "list of {n} floats"),
+            Kind::FloatList { len: None } => write!(f, "list of floats"),
+        }
+    }
+}
+
+fn bound(v: i64, inf: i64) -> String {
+    if v == inf {
+        if v < 0 { "-inf" } else { "inf" }.to_string()
+    } else {
+        v.to_string()
+    }
+}
+
+/// Why a value does not fit a parameter's type.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ParamCheck {
+    /// Wrong kind of value.
+    Type(String),
+    /// Right kind, outside the range or choices.
+    Range(String),
+}
+
+impl Kind {
+    /// Checks `v` and normalizes it (an integer given to a float parameter becomes a float).
+    /// A path is any string here; its caller checks what a path may hold (the engine: frame
+    /// patterns).
+    pub fn check(&self, v: Value) -> Result<Value, ParamCheck> {
+        let wrong = |v: &Value, want: &str| {
+            ParamCheck::Type(format!("expected {want}, found {} `{v}`", v.kind_name()))
+        };
+        match (self, v) {
+            (Kind::Bool, v @ Value::Bool(_)) => Ok(v),
+            (Kind::Int { min, max }, Value::Int(i)) => {
+                if i < *min || i > *max {
+                    Err(ParamCheck::Range(format!("{i} is outside {self}")))
+                } else {
+                    Ok(Value::Int(i))
+                }
+            }
+            (Kind::Float { .. }, Value::Int(i)) => self.check(Value::Float(i as f64)),
+            (Kind::Float { min, max }, Value::Float(x)) => {
+                if !x.is_finite() {
+                    Err(ParamCheck::Range(format!("{x} is not a finite number")))
+                } else if x < *min || x > *max {
+                    Err(ParamCheck::Range(format!("{x} is outside {self}")))
+                } else {
+                    Ok(Value::Float(x))
+                }
+            }
+            (Kind::Path(_) | Kind::Str, v @ Value::Str(_)) => Ok(v),
+            (Kind::Enum(choices), Value::Str(s)) => {
+                if choices.contains(&s.as_str()) {
+                    Ok(Value::Str(s))
+                } else {
+                    Err(ParamCheck::Range(format!("`{s}` is not {self}")))
+                }
+            }
+            (Kind::PathList(_), Value::List(items)) => {
+                for it in &items {
+                    if !matches!(it, Value::Str(_)) {
+                        return Err(wrong(it, "a path (string) in the list"));
+                    }
+                }
+                Ok(Value::List(items))
+            }
+            (Kind::FloatList { len }, Value::List(items)) => {
+                let mut out = Vec::with_capacity(items.len());
+                for it in items {
+                    match it {
+                        Value::Int(i) => out.push(Value::Float(i as f64)),
+                        Value::Float(x) if x.is_finite() => out.push(Value::Float(x)),
+                        other => return Err(wrong(&other, "a finite number in the list")),
+                    }
+                }
+                match len {
+                    Some(n) if *n != out.len() => Err(ParamCheck::Range(format!(
+                        "expected {n} numbers, found {}",
+                        out.len()
+                    ))),
+                    _ => Ok(Value::List(out)),
+                }
+            }
+            (t, v) => Err(wrong(&v, &t.to_string())),
+        }
+    }
 }
 
 /// Checked parameter values by name (the engine's are one).
@@ -253,6 +444,23 @@ impl Field for String {
     fn from_value(v: Value) -> Option<Self> {
         match v {
             Value::Str(s) => Some(s),
+            _ => None,
+        }
+    }
+}
+
+/// A list of paths: only with `#[param(path = "input")]` or `"output"` (its kind is then a path
+/// list of that role).
+impl Field for Vec<String> {
+    fn kind(_: Option<f64>, _: Option<f64>) -> Kind {
+        Kind::PathList(PathRole::Input)
+    }
+    fn to_value(&self) -> Value {
+        Value::List(self.iter().map(|s| Value::Str(s.clone())).collect())
+    }
+    fn from_value(v: Value) -> Option<Self> {
+        match v {
+            Value::List(items) => items.into_iter().map(String::from_value).collect(),
             _ => None,
         }
     }

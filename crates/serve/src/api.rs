@@ -176,7 +176,7 @@ async fn params(State(s): S, body: Result<Json<ParamEdit>, JsonRejection>) -> Ap
     let node = g
         .index_of(&edit.node)
         .ok_or_else(|| ApiError::bad(format!("no node `{}` in the graph", edit.node)))?;
-    if g.nodes[node].spec().param_spec(&edit.param).is_none() {
+    if g.nodes[node].spec().param_desc(&edit.param).is_none() {
         return Err(ApiError::bad(format!(
             "node `{}` ({}) has no param `{}`",
             edit.node,

@@ -23,7 +23,7 @@ use serde_json::{json, Value as Json};
 use tokio::sync::broadcast;
 use vfxgraph_engine::exec::{self, RunOptions};
 use vfxgraph_engine::graph::{self, LoadError, Overrides};
-use vfxgraph_engine::{Diagnostics, Graph, ParamType, PlanReport, Registry, RunReport, Status};
+use vfxgraph_engine::{Diagnostics, Graph, Kind, PlanReport, Registry, RunReport, Status};
 
 use crate::events::Publisher;
 
@@ -258,14 +258,13 @@ impl Studio {
         node: &str,
         param: &str,
     ) -> Result<(), Vec<DiagnosticLine>> {
-        use vfxgraph_engine::ParamType;
         let Some(i) = g.index_of(node) else {
             return Ok(());
         };
         let n = &g.nodes[i];
-        let texts = match n.spec().param_spec(param).map(|p| &p.ty) {
-            Some(ParamType::Path(_)) => vec![n.params.str(param)],
-            Some(ParamType::PathList(_)) => n.params.strs(param),
+        let texts = match n.spec().param_desc(param).map(|p| &p.kind) {
+            Some(Kind::Path(_)) => vec![n.params.str(param)],
+            Some(Kind::PathList(_)) => n.params.strs(param),
             _ => return Ok(()),
         };
         let roots = [g.dir.clone(), self.cache_dir.clone()];
@@ -547,9 +546,9 @@ fn graph_json(g: &Graph, registry: &Registry) -> Json {
                 .params
                 .iter()
                 .map(|p| {
-                    let (min, max, choices) = match &p.ty {
-                        ParamType::Int { min, max } => (json!(min), json!(max), Json::Null),
-                        ParamType::Float { min, max } => (
+                    let (min, max, choices) = match &p.kind {
+                        Kind::Int { min, max } => (json!(min), json!(max), Json::Null),
+                        Kind::Float { min, max } => (
                             if min.is_finite() {
                                 json!(min)
                             } else {
@@ -562,17 +561,17 @@ fn graph_json(g: &Graph, registry: &Registry) -> Json {
                             },
                             Json::Null,
                         ),
-                        ParamType::Enum(c) => (Json::Null, Json::Null, json!(c)),
+                        Kind::Enum(c) => (Json::Null, Json::Null, json!(c)),
                         _ => (Json::Null, Json::Null, Json::Null),
                     };
                     json!({
                         "name": p.name,
-                        "type": p.ty.to_string(),
-                        "kind": param_kind(&p.ty),
+                        "type": p.kind.to_string(),
+                        "kind": param_kind(&p.kind),
                         "value": n.params.get(p.name).map(|v| v.to_string()),
                         "default": p.default.as_ref().map(|v| v.to_string()),
                         "doc": p.doc,
-                        "affects_output": p.affects_output,
+                        "affects_output": !p.cosmetic,
                         "min": min, "max": max, "choices": choices,
                     })
                 })
@@ -610,15 +609,15 @@ fn graph_json(g: &Graph, registry: &Registry) -> Json {
     })
 }
 
-fn param_kind(t: &ParamType) -> &'static str {
+fn param_kind(t: &Kind) -> &'static str {
     match t {
-        ParamType::Bool => "bool",
-        ParamType::Int { .. } => "int",
-        ParamType::Float { .. } => "float",
-        ParamType::Enum(_) => "enum",
-        ParamType::Str => "string",
-        ParamType::Path(_) => "path",
-        ParamType::PathList(_) => "paths",
-        ParamType::FloatList { .. } => "floats",
+        Kind::Bool => "bool",
+        Kind::Int { .. } => "int",
+        Kind::Float { .. } => "float",
+        Kind::Enum(_) => "enum",
+        Kind::Str => "string",
+        Kind::Path(_) => "path",
+        Kind::PathList(_) => "paths",
+        Kind::FloatList { .. } => "floats",
     }
 }

@@ -14,7 +14,7 @@ use std::time::Instant;
 
 use vfxgraph_imaging::read_image;
 use vfxgraph_vision::klt::{
-    good_features_to_track, track_points, CornerParams, GrayImage, LkParams, Pyramid,
+    good_features_to_track, track_points, CornerOptions, GrayImage, LkOptions, Pyramid,
 };
 
 fn main() {
@@ -45,18 +45,18 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         })
         .collect();
     let features: usize = a[3].parse()?;
-    let lk = LkParams {
+    let lk = LkOptions {
         window: a[4].parse()?,
         levels: a[5].parse()?,
         max_iterations: a[6].parse()?,
         epsilon: match a.get(8) {
             Some(e) => e.parse()?,
-            None => LkParams::default().epsilon,
+            None => LkOptions::default().epsilon,
         },
-        ..LkParams::default()
+        ..LkOptions::default()
     };
     let repeat: usize = a[7].parse()?;
-    let cp = CornerParams {
+    let cp = CornerOptions {
         max_corners: features,
         quality: 0.01,
         min_distance: 10.0,

@@ -19,7 +19,7 @@ use std::time::Instant;
 use nalgebra::{Matrix3, Matrix3x4, Point2, Vector3};
 use vfxgraph_imaging::read_image;
 use vfxgraph_vision::camera::Intrinsics;
-use vfxgraph_vision::klt::{track_sequence, GrayImage, TrackerParams};
+use vfxgraph_vision::klt::{track_sequence, GrayImage, TrackerOptions};
 use vfxgraph_vision::lens::Distortion;
 use vfxgraph_vision::two_view::triangulation::triangulate;
 
@@ -33,7 +33,7 @@ fn main() {
 fn run() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let dir = std::path::PathBuf::from(args.first().ok_or("usage: DIR [FEATURES] [k=v …]")?);
-    let mut params = TrackerParams::default();
+    let mut params = TrackerOptions::default();
     let mut nframes = usize::MAX;
     let mut show_bad = false;
     let mut oracle: Option<(std::path::PathBuf, f64)> = None;

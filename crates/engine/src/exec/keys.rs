@@ -172,10 +172,10 @@ fn hash_node(h: &mut blake3::Hasher, spec: &NodeSpec, gn: &GraphNode) {
     h.update(&[0]);
     h.update(&spec.version.to_le_bytes());
     let mut buf = Vec::new();
-    for p in spec.params.iter().filter(|p| p.affects_output) {
+    for p in spec.params.iter().filter(|p| !p.cosmetic) {
         if let Some(v) = gn.params.get(p.name) {
             buf.clear();
-            v.canonical(&mut buf);
+            crate::param::canonical(v, &mut buf);
             h.update(p.name.as_bytes());
             h.update(&[0]);
             h.update(&buf);

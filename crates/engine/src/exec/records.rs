@@ -112,7 +112,7 @@ impl Common<'_> {
         gn.spec()
             .params
             .iter()
-            .filter(|p| p.affects_output)
+            .filter(|p| !p.cosmetic)
             .filter_map(|p| {
                 gn.params
                     .get(p.name)

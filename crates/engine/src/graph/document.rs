@@ -5,7 +5,7 @@ use super::Overrides;
 use crate::diagnostic::Span;
 use crate::diagnostic::{suggest, Diagnostics, ErrorKind};
 use crate::frames::FrameSet;
-use crate::param::ParamValue;
+use crate::param::{self, ParamValue};
 use crate::yaml::{resolve_scalar, Scalar, Yaml};
 
 /// The checked top level of a graph file.
@@ -117,7 +117,7 @@ fn defaults(y: Option<&Yaml>, d: &mut Diagnostics) -> Vec<(String, ParamValue, S
     let mut out = Vec::new();
     for (k, v) in m {
         let name = k.as_str().unwrap_or("");
-        match ParamValue::from_yaml(v) {
+        match param::from_yaml(v) {
             Ok(pv) => out.push((name.to_string(), pv, v.span)),
             Err(e) => d.push(
                 ErrorKind::ParamType,

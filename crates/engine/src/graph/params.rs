@@ -7,7 +7,7 @@ use std::collections::{BTreeMap, HashMap};
 use super::nodes::Raw;
 use crate::diagnostic::{suggest, Diagnostics, ErrorKind, Span};
 use crate::node::NodeSpec;
-use crate::param::{ParamCheck, ParamType, ParamValue};
+use crate::param::{self, Kind, ParamCheck, ParamValue};
 use crate::yaml::Yaml;
 
 /// Reads and checks the params of `raw` (of type `spec`) from its `params:` value.
@@ -26,8 +26,8 @@ pub(super) fn read(raw: &mut Raw, spec: &NodeSpec, params_y: Option<&Yaml>, d: &
         }
     }
     for (pname, (v, span)) in given {
-        let ps = spec.param_spec(&pname).expect("checked above");
-        check_param(d, id, &pname, &ps.ty, v, span, &mut raw.params);
+        let ps = spec.param_desc(&pname).expect("checked above");
+        check_param(d, id, &pname, &ps.kind, v, span, &mut raw.params);
     }
 }
 
@@ -41,7 +41,7 @@ fn given_params(
 ) {
     for (pk, pv) in m {
         let pname = pk.as_str().unwrap_or("");
-        let Some(ps) = spec.param_spec(pname) else {
+        let Some(ps) = spec.param_desc(pname) else {
             d.push_help(
                 ErrorKind::UnknownParam,
                 Some(pk.span),
@@ -50,7 +50,7 @@ fn given_params(
             );
             continue;
         };
-        match ParamValue::from_yaml(pv) {
+        match param::from_yaml(pv) {
             Ok(v) => {
                 given.insert(ps.name.to_string(), (v, Some(pv.span)));
             }
@@ -67,12 +67,12 @@ fn check_param(
     d: &mut Diagnostics,
     id: &str,
     pname: &str,
-    ty: &ParamType,
+    ty: &Kind,
     v: ParamValue,
     span: Option<Span>,
     out: &mut BTreeMap<String, ParamValue>,
 ) {
-    match ty.check(v) {
+    match param::check(ty, v) {
         Ok(v) => {
             out.insert(pname.to_string(), v);
         }
@@ -123,7 +123,7 @@ fn apply_set(raws: &mut [Raw], s: &str, ids: &HashMap<String, Span>, d: &mut Dia
     };
     let Some(node) = &raw.node else { return };
     let spec = node.spec();
-    let Some(ps) = spec.param_spec(pname) else {
+    let Some(ps) = spec.param_desc(pname) else {
         d.push_help(
             ErrorKind::Override,
             None,
@@ -135,8 +135,8 @@ fn apply_set(raws: &mut [Raw], s: &str, ids: &HashMap<String, Span>, d: &mut Dia
         );
         return;
     };
-    match ParamValue::parse_cli(value) {
-        Ok(v) => match ps.ty.check(v) {
+    match param::parse_cli(value) {
+        Ok(v) => match param::check(&ps.kind, v) {
             Ok(v) => {
                 raw.params.insert(pname.to_string(), v);
             }
@@ -180,7 +180,7 @@ pub(super) fn fill_defaults(
             }
             if let Some((name, v)) = command_line.iter().find(|(n, _)| n == ps.name) {
                 let id = raw.id.clone();
-                check_param(d, &id, name, &ps.ty, v.clone(), None, &mut raw.params);
+                check_param(d, &id, name, &ps.kind, v.clone(), None, &mut raw.params);
                 continue;
             }
             if let Some((_, (name, v, span))) = given {
@@ -189,7 +189,7 @@ pub(super) fn fill_defaults(
                     d,
                     &id,
                     name,
-                    &ps.ty,
+                    &ps.kind,
                     v.clone(),
                     Some(*span),
                     &mut raw.params,
@@ -208,7 +208,7 @@ pub(super) fn fill_defaults(
                         raw.id,
                         node.spec().name,
                         ps.name,
-                        ps.ty
+                        ps.kind
                     ),
                 ),
             }

@@ -7,7 +7,7 @@ use super::nodes::Raw;
 use crate::diagnostic::{Diagnostics, ErrorKind, Span};
 use crate::frames::FrameSet;
 use crate::node::{has_frame_pattern, Mode, NodeSpec};
-use crate::param::{ParamType, ParamValue};
+use crate::param::{Kind, ParamValue};
 
 /// Per node: whether it runs per frame (nodes without a type or on a cycle: false).
 pub(super) fn resolve(
@@ -50,7 +50,7 @@ fn inferred(raw: &Raw, spec: &NodeSpec, edges: &Edges, per_frame: &[bool], i: us
     edges[i]
         .iter()
         .any(|(e, _)| !e.whole_sequence && per_frame[e.from]) || spec.params.iter().any(|p| {
-        matches!(p.ty, ParamType::Path(_))
+        matches!(p.kind, Kind::Path(_))
             && matches!(raw.params.get(p.name), Some(ParamValue::Str(s)) if has_frame_pattern(s))
     })
 }

@@ -6,7 +6,7 @@ use std::sync::{Condvar, Mutex};
 use std::time::Duration;
 
 use vfxgraph_engine::{
-    exec, graph, Context, Graph, Mode, Node, NodeError, NodeSpec, Overrides, ParamSpec, ParamType,
+    exec, graph, Context, Graph, Kind, Mode, Node, NodeError, NodeSpec, Overrides, ParamDesc,
     ParamValue, PathRole, PortSpec, Registry, RunOptions, RunReport,
 };
 
@@ -240,18 +240,18 @@ impl Node for Rendezvous {
 }
 
 pub fn registry() -> Registry {
-    let f = || ParamType::Float {
+    let f = || Kind::Float {
         min: -1e9,
         max: 1e9,
     };
     let mut r = Registry::new();
     r.register_node(Num(NodeSpec::new("num", "a constant")
         .mode(Mode::Once)
-        .param(ParamSpec::required("value", f(), "the value"))
+        .param(ParamDesc::required("value", f(), "the value"))
         .param(
-            ParamSpec::optional(
+            ParamDesc::optional(
                 "label",
-                ParamType::Str,
+                Kind::Str,
                 ParamValue::Str(String::new()),
                 "cosmetic",
             )
@@ -259,15 +259,15 @@ pub fn registry() -> Registry {
         )
         .output(PortSpec::one("out", "float", ""))));
     r.register_node(Add(NodeSpec::new("add", "a + b + offset")
-        .param(ParamSpec::optional(
+        .param(ParamDesc::optional(
             "offset",
             f(),
             ParamValue::Float(0.0),
             "",
         ))
-        .param(ParamSpec::optional(
+        .param(ParamDesc::optional(
             "count",
-            ParamType::Int { min: 0, max: 10 },
+            Kind::Int { min: 0, max: 10 },
             ParamValue::Int(1),
             "",
         ))
@@ -282,7 +282,7 @@ pub fn registry() -> Registry {
     r.register_node(Ramp(
         NodeSpec::new("ramp", "frame × scale")
             .mode(Mode::PerFrame)
-            .param(ParamSpec::optional(
+            .param(ParamDesc::optional(
                 "scale",
                 f(),
                 ParamValue::Float(1.0),
@@ -327,19 +327,15 @@ pub fn registry() -> Registry {
     r.register_node(SumListed(
         NodeSpec::new("sum_listed", "sum of the numbers in the files a list names")
             .mode(Mode::Once)
-            .param(ParamSpec::required(
-                "list",
-                ParamType::Path(PathRole::Input),
-                "",
-            ))
+            .param(ParamDesc::required("list", Kind::Path(PathRole::Input), ""))
             .output(PortSpec::one("out", "float", "")),
     ));
     r.register_node(SumPaths(
         NodeSpec::new("sum_paths", "sum of the numbers in the listed files")
             .mode(Mode::Once)
-            .param(ParamSpec::required(
+            .param(ParamDesc::required(
                 "paths",
-                ParamType::PathList(PathRole::Input),
+                Kind::PathList(PathRole::Input),
                 "",
             ))
             .output(PortSpec::one("out", "float", "")),
@@ -347,9 +343,9 @@ pub fn registry() -> Registry {
     for (name, note) in [("write_num", false), ("write_num_note", true)] {
         r.register_node(WriteNum(
             NodeSpec::new(name, "a number to a text file (and a note beside it)")
-                .param(ParamSpec::required(
+                .param(ParamDesc::required(
                     "path",
-                    ParamType::Path(PathRole::Output),
+                    Kind::Path(PathRole::Output),
                     "",
                 ))
                 .input(PortSpec::one("a", "float", "")),
@@ -369,9 +365,9 @@ pub fn registry() -> Registry {
     r.register_node(Rendezvous(
         NodeSpec::new("rendezvous", "waits for a partner")
             .mode(Mode::Once)
-            .param(ParamSpec::optional(
+            .param(ParamDesc::optional(
                 "name",
-                ParamType::Str,
+                Kind::Str,
                 ParamValue::Str(String::new()),
                 "",
             ))

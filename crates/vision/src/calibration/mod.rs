@@ -69,7 +69,7 @@ impl Default for CalibrationOptions {
 /// The `calibrate_camera` node's params: [`CalibrationOptions`] as numbers a graph can hold,
 /// and the RANSAC seed.
 #[derive(Clone, Debug, PartialEq, vfxgraph_params::Options)]
-pub struct CalibrateParams {
+pub struct CalibrateCameraOptions {
     /// calibration model
     pub method: CalibrationMethod,
     /// [u0, v0] for tsai (pixels)
@@ -82,9 +82,9 @@ pub struct CalibrateParams {
     pub seed: u64,
 }
 
-impl Default for CalibrateParams {
+impl Default for CalibrateCameraOptions {
     fn default() -> Self {
-        CalibrateParams {
+        CalibrateCameraOptions {
             method: CalibrationMethod::Restricted,
             principal_point: Vec::new(),
             ransac_threshold_px: None,
@@ -93,7 +93,7 @@ impl Default for CalibrateParams {
     }
 }
 
-impl CalibrateParams {
+impl CalibrateCameraOptions {
     /// The options of [`calibrate_camera`]; an error when `principal_point` is not `[u0, v0]`
     /// (or empty for a method that does not need it).
     pub fn options(&self) -> Result<CalibrationOptions> {

@@ -22,7 +22,7 @@ use super::KltError;
 /// As the tracker's params (`klt_track`): `features` (the tracker's slots, 0 = from the frame
 /// size), `min_distance`, `quality`.
 #[derive(Clone, Debug, PartialEq, vfxgraph_params::Options)]
-pub struct CornerParams {
+pub struct CornerOptions {
     /// Maximum number of corners returned.
     #[param(
         name = "features",
@@ -43,9 +43,9 @@ pub struct CornerParams {
     pub block_size: usize,
 }
 
-impl Default for CornerParams {
+impl Default for CornerOptions {
     fn default() -> Self {
-        CornerParams {
+        CornerOptions {
             max_corners: 150,
             quality: 1e-5,
             min_distance: 10.0,
@@ -409,7 +409,7 @@ pub fn min_eigen_map(img: &GrayImage, block_size: usize) -> Vec<f32> {
 /// minimum-distance pass needs.
 pub fn good_features_to_track(
     img: &GrayImage,
-    params: &CornerParams,
+    params: &CornerOptions,
     mask: Option<&[bool]>,
     existing: &[[f32; 2]],
 ) -> Result<Vec<Corner>, KltError> {
@@ -568,7 +568,7 @@ mod tests {
 
     #[test]
     fn finds_the_four_corners_of_a_square() {
-        let p = CornerParams {
+        let p = CornerOptions {
             max_corners: 4,
             quality: 0.1,
             min_distance: 5.0,
@@ -592,7 +592,7 @@ mod tests {
         let img = GrayImage::from_fn(80, 80, |x, y| {
             (((x / 4) + (y / 4)) % 2) as f32 * 200.0 + ((x * 7 + y * 13) % 5) as f32
         });
-        let p = CornerParams {
+        let p = CornerOptions {
             max_corners: 1000,
             quality: 0.01,
             min_distance: 9.0,
@@ -686,7 +686,7 @@ mod tests {
     #[test]
     fn corners_match_a_brute_force_reference() {
         let img = noise(150, 97, 7);
-        let p = CornerParams {
+        let p = CornerOptions {
             max_corners: 120,
             quality: 0.05,
             min_distance: 6.0,
@@ -748,7 +748,7 @@ mod tests {
 
     #[test]
     fn flat_and_tiny_images_have_no_corners() {
-        let p = CornerParams::default();
+        let p = CornerOptions::default();
         let flat = GrayImage::from_fn(30, 30, |_, _| 9.0);
         assert!(good_features_to_track(&flat, &p, None, &[])
             .unwrap()

@@ -23,7 +23,7 @@ use super::KltError;
 /// `calcOpticalFlowPyrLK`: a 21×21 window, 3 pyramid levels above the image, 30 iterations or
 /// a step below 0.01 px.
 #[derive(Clone, Debug, PartialEq, vfxgraph_params::Options)]
-pub struct LkParams {
+pub struct LkOptions {
     /// LK window side, pixels (odd)
     ///
     /// Side of the square window in pixels (an even value is used as the next odd one).
@@ -46,9 +46,9 @@ pub struct LkParams {
     pub min_eigen: f32,
 }
 
-impl Default for LkParams {
+impl Default for LkOptions {
     fn default() -> Self {
-        LkParams {
+        LkOptions {
             window: 21,
             levels: 3,
             max_iterations: 30,
@@ -58,7 +58,7 @@ impl Default for LkParams {
     }
 }
 
-impl LkParams {
+impl LkOptions {
     /// Half the window side: the window spans `[-half, half]` around the feature.
     pub fn half_window(&self) -> usize {
         self.window.max(3) / 2
@@ -132,7 +132,7 @@ pub(crate) struct Window {
 }
 
 impl Window {
-    pub(crate) fn new(params: &LkParams) -> Window {
+    pub(crate) fn new(params: &LkOptions) -> Window {
         let win = 2 * params.half_window() + 1;
         let ws = win.div_ceil(8) * 8;
         let pw = ws + 8;
@@ -538,7 +538,7 @@ pub fn track_point(
     next: &Pyramid,
     p: [f32; 2],
     guess: Option<[f32; 2]>,
-    params: &LkParams,
+    params: &LkOptions,
 ) -> LkResult {
     track_point_in(&mut Window::new(params), prev, next, p, guess, params)
 }
@@ -550,7 +550,7 @@ fn track_point_in(
     next: &Pyramid,
     p: [f32; 2],
     guess: Option<[f32; 2]>,
-    params: &LkParams,
+    params: &LkOptions,
 ) -> LkResult {
     let half = params.half_window();
     let win = t.win;
@@ -656,7 +656,7 @@ pub fn track_points(
     next: &Pyramid,
     points: &[[f32; 2]],
     guesses: Option<&[[f32; 2]]>,
-    params: &LkParams,
+    params: &LkOptions,
 ) -> Result<Vec<LkResult>, KltError> {
     params.validate()?;
     if prev.size() != next.size() {
@@ -707,7 +707,7 @@ mod tests {
             let (x, y) = (x as f32, y as f32);
             120.0 + 50.0 * (0.31 * x).sin() * (0.23 * y).cos() + 30.0 * (0.07 * x * y).sin()
         });
-        let params = LkParams::default();
+        let params = LkOptions::default();
         let pyr = Pyramid::new(&img, 1, params.pad()).unwrap();
         let l = &pyr.levels[0];
         let mut a = Window::new(&params);

@@ -19,12 +19,12 @@ pub mod pyramid;
 pub mod tracker;
 pub mod tracks;
 
-pub use corners::{good_features_to_track, min_eigen_map, Corner, CornerParams};
-pub use lucas_kanade::{track_point, track_points, LkParams, LkResult};
+pub use corners::{good_features_to_track, min_eigen_map, Corner, CornerOptions};
+pub use lucas_kanade::{track_point, track_points, LkOptions, LkResult};
 pub use noise::noise_sigma;
 pub use overlay::{draw_tracks, DrawTracksOptions, TracksFormat, WriteTracksOptions};
 pub use pyramid::{pyr_down, GrayImage, Level, Pyramid};
-pub use tracker::{track_loaded, track_sequence, Tracker, TrackerParams};
+pub use tracker::{track_loaded, track_sequence, Tracker, TrackerOptions};
 pub use tracks::{LostReason, Track, TrackEnd, Tracks};
 
 /// Errors of the KLT module (book chapter 6).

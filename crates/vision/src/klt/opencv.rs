@@ -9,7 +9,7 @@
 //! refill. Frames are tracked as 8-bit gray: the luminance on a 0–255 sRGB-encoded scale,
 //! rounded (OpenCV's LK takes 8-bit images).
 //!
-//! [`TrackerParams`], as OpenCV takes them:
+//! [`TrackerOptions`], as OpenCV takes them:
 //! - `features` → `maxCorners` (of the free slots), `quality` → `qualityLevel`,
 //!   `min_distance` → `minDistance` (and the mask discs), block size 3, no Harris.
 //! - `window` → `winSize` (window × window; an even value is used as the next odd one, as in
@@ -36,7 +36,7 @@ use opencv::imgproc;
 use opencv::prelude::*;
 use opencv::video;
 
-use super::{GrayImage, LostReason, TrackerParams, Tracks};
+use super::{GrayImage, LostReason, TrackerOptions, Tracks};
 
 /// An 8-bit single-channel OpenCV image of a gray image (0–255, rounded).
 fn to_mat(img: &GrayImage) -> Result<Mat, String> {
@@ -59,7 +59,7 @@ type LkOut = (Vector<Point2f>, Vector<u8>, Vector<f32>);
 
 /// The book's sequence tracker (6.2–6.5) with OpenCV's corners and LK.
 struct CvTracker {
-    params: TrackerParams,
+    params: TrackerOptions,
     prev: Option<Mat>,
     size: (usize, usize),
     tracks: Tracks,
@@ -69,7 +69,7 @@ struct CvTracker {
 }
 
 impl CvTracker {
-    fn new(params: TrackerParams) -> Result<CvTracker, String> {
+    fn new(params: TrackerOptions) -> Result<CvTracker, String> {
         params.lk.validate().map_err(|e| e.to_string())?;
         if params.max_residual.is_nan()
             || params.fb_threshold.is_some_and(|t| t.is_nan() || t < 0.0)
@@ -286,7 +286,7 @@ impl CvTracker {
 /// [`track_sequence`](super::track_sequence) does with ours.
 pub fn track_sequence_opencv(
     frames: &[(i64, &GrayImage)],
-    params: &TrackerParams,
+    params: &TrackerOptions,
     mut progress: impl FnMut(f32),
 ) -> Result<Tracks, String> {
     let mut t = CvTracker::new(params.clone())?;

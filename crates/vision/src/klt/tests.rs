@@ -136,13 +136,13 @@ fn median(v: &mut [f32]) -> f32 {
 }
 
 fn track_pair(a: &GrayImage, b: &GrayImage, m: Affine, c: [f32; 2], n: usize) -> Figures {
-    let cp = CornerParams {
+    let cp = CornerOptions {
         max_corners: n,
         quality: 0.01,
         min_distance: 10.0,
         block_size: 3,
     };
-    let lk = LkParams::default();
+    let lk = LkOptions::default();
     let corners = good_features_to_track(a, &cp, None, &[]).unwrap();
     let pts: Vec<[f32; 2]> = corners.iter().map(|k| [k.x, k.y]).collect();
     let pa = Pyramid::new(a, lk.levels, lk.pad()).unwrap();
@@ -227,13 +227,13 @@ fn rubberwhale_ground_truth_flow() {
     let flow = crate::formats::flo::read_flo(&flo)
         .unwrap_or_else(|e| panic!("test data does not decode: {e}"));
     assert_eq!((flow.width, flow.height), (a.width, a.height));
-    let cp = CornerParams {
+    let cp = CornerOptions {
         max_corners: 500,
         quality: 0.01,
         min_distance: 10.0,
         block_size: 3,
     };
-    let lk = LkParams::default();
+    let lk = LkOptions::default();
     let corners = good_features_to_track(&a, &cp, None, &[]).unwrap();
     let pts: Vec<[f32; 2]> = corners.iter().map(|k| [k.x, k.y]).collect();
     let pa = Pyramid::new(&a, lk.levels, lk.pad()).unwrap();
@@ -303,14 +303,14 @@ fn features_leaving_the_frame_or_occluded_are_lost_not_dragged() {
             };
         }
     }
-    let params = TrackerParams {
-        corners: CornerParams {
+    let params = TrackerOptions {
+        corners: CornerOptions {
             max_corners: 200,
             quality: 0.01,
             min_distance: 8.0,
             block_size: 3,
         },
-        ..TrackerParams::default()
+        ..TrackerOptions::default()
     };
     let seq = numbered(&frames);
     let tracks = track_sequence(&seq, &params, |_| {}).unwrap();
@@ -388,9 +388,9 @@ fn identical_tracks_with_one_and_many_threads() {
         })
         .collect();
     let seq = numbered(&frames);
-    let params = TrackerParams {
+    let params = TrackerOptions {
         fb_threshold: Some(1.0),
-        ..TrackerParams::default()
+        ..TrackerOptions::default()
     };
     let pool = |threads: usize| {
         rayon::ThreadPoolBuilder::new()
@@ -417,7 +417,7 @@ fn identical_tracks_with_one_and_many_threads() {
 
 #[test]
 fn bad_input_is_an_error_not_a_panic() {
-    let p = TrackerParams::default();
+    let p = TrackerOptions::default();
     let empty: Vec<(i64, &GrayImage)> = Vec::new();
     let t = track_sequence(&empty, &p, |_| {}).unwrap();
     assert!(t.frames.is_empty() && t.tracks.is_empty());
@@ -432,12 +432,12 @@ fn bad_input_is_an_error_not_a_panic() {
     assert_eq!(t.frames.len(), 2);
     let empty_img = GrayImage::new(0, 0, vec![]).unwrap();
     assert!(track_sequence(&[(0, &empty_img)], &p, |_| {}).is_err());
-    let bad = TrackerParams {
-        lk: LkParams {
+    let bad = TrackerOptions {
+        lk: LkOptions {
             window: 1,
-            ..LkParams::default()
+            ..LkOptions::default()
         },
-        ..TrackerParams::default()
+        ..TrackerOptions::default()
     };
     assert!(Tracker::new(bad).is_err());
 }
@@ -446,9 +446,9 @@ fn bad_input_is_an_error_not_a_panic() {
 /// translated by a sub-pixel step every frame and slowly zoomed, with noise of `sigma` gray
 /// levels, frame to frame and with drift correction ([`super::drift`]).
 fn drift_sequence_errors(sigma: f32) -> (f64, f64) {
-    let (plain, corrected, _) = noisy_sequence(sigma, 15, |drift| TrackerParams {
+    let (plain, corrected, _) = noisy_sequence(sigma, 15, |drift| TrackerOptions {
         drift_correction: drift,
-        ..TrackerParams::default()
+        ..TrackerOptions::default()
     });
     (plain, corrected)
 }
@@ -505,14 +505,14 @@ fn noisy_frames(sigma: f32) -> Vec<GrayImage> {
 fn noisy_sequence(
     sigma: f32,
     min_lasting: usize,
-    params: impl Fn(Option<f32>) -> TrackerParams,
+    params: impl Fn(Option<f32>) -> TrackerOptions,
 ) -> (f64, f64, usize) {
     let ((w, h), step, zoom, n) = (SEQ_SIZE, SEQ_STEP, SEQ_ZOOM, SEQ_FRAMES);
     let frames = noisy_frames(sigma);
     let seq = numbered(&frames);
     let end_error = |drift: Option<f32>| {
-        let params = TrackerParams {
-            corners: CornerParams {
+        let params = TrackerOptions {
+            corners: CornerOptions {
                 max_corners: 40,
                 quality: 0.01,
                 min_distance: 12.0,
@@ -590,11 +590,11 @@ fn drift_correction_on_grainy_footage() {
 #[test]
 fn noisy_footage_is_tracked_with_the_noisy_window_and_spread() {
     let params = |noisy_window: usize, spread_factor: f32| {
-        move |drift| TrackerParams {
+        move |drift| TrackerOptions {
             drift_correction: drift,
             noisy_window,
             spread_factor,
-            ..TrackerParams::default()
+            ..TrackerOptions::default()
         }
     };
     let (_, _, fixed) = noisy_sequence(45.0, 0, params(0, 0.0));
@@ -605,17 +605,17 @@ fn noisy_footage_is_tracked_with_the_noisy_window_and_spread() {
     assert_eq!(fixed, 0);
     assert!(spread >= 2 && both > spread, "{spread}, {both}");
     assert!(error < 0.8, "{error}");
-    let track = |p: TrackerParams| {
+    let track = |p: TrackerOptions| {
         let frames = noisy_frames(2.0);
         let t = track_sequence(&numbered(&frames), &p, |_| {}).unwrap();
         t.tracks.into_iter().map(|t| t.points).collect::<Vec<_>>()
     };
-    let fixed_clean = TrackerParams {
+    let fixed_clean = TrackerOptions {
         noisy_window: 0,
         spread_factor: 0.0,
-        ..TrackerParams::default()
+        ..TrackerOptions::default()
     };
-    assert!(track(TrackerParams::default()) == track(fixed_clean));
+    assert!(track(TrackerOptions::default()) == track(fixed_clean));
 }
 
 /// Frames numbered 0, 1, … for [`track_sequence`].
@@ -659,14 +659,14 @@ fn features_sliding_on_an_occluding_edge_end_as_drift() {
         })
     };
     let frames: Vec<GrayImage> = (0..16).map(frame).collect();
-    let params = TrackerParams {
-        corners: CornerParams {
+    let params = TrackerOptions {
+        corners: CornerOptions {
             max_corners: 120,
             quality: 0.01,
             min_distance: 8.0,
             block_size: 3,
         },
-        ..TrackerParams::default()
+        ..TrackerOptions::default()
     };
     let tracks = track_sequence(&numbered(&frames), &params, |_| {}).unwrap();
     let (mut worst, mut drift_on_rim) = (0.0f64, 0);

@@ -8,9 +8,9 @@
 //! Pyramids are built once per frame; features are tracked in parallel (rayon). The result
 //! does not depend on the number of threads.
 
-use super::corners::{good_features_to_track, CornerParams};
+use super::corners::{good_features_to_track, CornerOptions};
 use super::drift::{AlignFailure, Template};
-use super::lucas_kanade::{track_points, LkParams, LkResult};
+use super::lucas_kanade::{track_points, LkOptions, LkResult};
 use super::pyramid::{GrayImage, Pyramid};
 use super::tracks::{LostReason, Tracks};
 use super::KltError;
@@ -20,16 +20,16 @@ use rayon::prelude::*;
 /// size (the book's 150 for frames up to 440 × 440 px), minimum distance 10, quality 1e-5, OpenCV's LK defaults, a residual threshold of 12 gray
 /// levels RMS raised to 3 × the frame pair's measured noise, lost features replaced, and —
 /// not in the book, so that grainy footage tracks as well as clean — a 1 px forward–backward
-/// check and 1 px drift correction. [`TrackerParams::book`] is the book's tracker.
+/// check and 1 px drift correction. [`TrackerOptions::book`] is the book's tracker.
 #[derive(Clone, Debug, PartialEq, vfxgraph_params::Options)]
-pub struct TrackerParams {
+pub struct TrackerOptions {
     /// Corner detection; `max_corners` is the number of feature slots (the book's N), 0 = from
-    /// the frame size ([`TrackerParams::feature_slots`]).
+    /// the frame size ([`TrackerOptions::feature_slots`]).
     #[param(flatten)]
-    pub corners: CornerParams,
+    pub corners: CornerOptions,
     /// Pyramidal Lucas–Kanade.
     #[param(flatten)]
-    pub lk: LkParams,
+    pub lk: LkOptions,
     /// a feature whose window RMS residual (0–255 gray levels) exceeds this is lost
     ///
     /// Book 6.5; infinity disables the test.
@@ -91,14 +91,14 @@ pub struct TrackerParams {
     pub spread_factor: f32,
 }
 
-impl Default for TrackerParams {
+impl Default for TrackerOptions {
     fn default() -> Self {
-        TrackerParams {
-            corners: CornerParams {
+        TrackerOptions {
+            corners: CornerOptions {
                 max_corners: 0,
-                ..CornerParams::default()
+                ..CornerOptions::default()
             },
-            lk: LkParams::default(),
+            lk: LkOptions::default(),
             max_residual: 12.0,
             noise_factor: 3.0,
             fb_threshold: Some(1.0),
@@ -111,18 +111,18 @@ impl Default for TrackerParams {
     }
 }
 
-impl TrackerParams {
+impl TrackerOptions {
     /// The book's tracker (6.7): 150 features, the fixed residual threshold of 12 gray levels,
     /// frame-to-frame LK only (no forward–backward check, no drift correction).
-    pub fn book() -> TrackerParams {
-        TrackerParams {
-            corners: CornerParams::default(),
+    pub fn book() -> TrackerOptions {
+        TrackerOptions {
+            corners: CornerOptions::default(),
             noise_factor: 0.0,
             fb_threshold: None,
             drift_correction: None,
             noisy_window: 0,
             spread_factor: 0.0,
-            ..TrackerParams::default()
+            ..TrackerOptions::default()
         }
     }
 
@@ -152,7 +152,7 @@ impl TrackerParams {
 }
 
 /// Frame area per feature when the feature count is chosen from the frame size
-/// ([`TrackerParams::feature_slots`]).
+/// ([`TrackerOptions::feature_slots`]).
 pub const AUTO_FEATURE_AREA: usize = 36 * 36;
 
 /// Footage whose first frame's measured noise ([`super::noise::noise_sigma`], 0–255 gray
@@ -163,7 +163,7 @@ pub const AUTO_FEATURE_AREA: usize = 36 * 36;
 /// 0.103° smoothed against 0.057°).
 pub const GRAINY_SIGMA: f32 = 5.0;
 
-/// The default [`TrackerParams::spread_factor`]: on noisy footage a feature is lost by the
+/// The default [`TrackerOptions::spread_factor`]: on noisy footage a feature is lost by the
 /// forward–backward check or drift correction only beyond this many times the frame pair's
 /// median forward–backward distance (or median drift-correction move) when that exceeds the
 /// fixed bound. The median measures how precisely the footage tracks on the features
@@ -176,7 +176,7 @@ pub const SPREAD_FACTOR: f32 = 3.0;
 
 /// The median over the first [`NOISY_PAIRS`] frame pairs of each pair's median
 /// forward–backward distance (px) above which footage is noisy: tracked with
-/// [`TrackerParams::noisy_window`] and [`TrackerParams::spread_factor`]. Clean renders track to 0.01–0.05 px with the 21 px window,
+/// [`TrackerOptions::noisy_window`] and [`TrackerOptions::spread_factor`]. Clean renders track to 0.01–0.05 px with the 21 px window,
 /// the Cycles grain of the Blender dev plate (σ ≈ 10 gray levels) to 0.14 px, where the larger
 /// window solves worse (its windows straddle more depth and perspective: 0.069° against
 /// 0.037°); 4-sample renders of a dark room corner (σ ≈ 25) to 0.25–0.6 px, where it solves
@@ -189,7 +189,7 @@ pub const NOISY_PAIRS: usize = 3;
 
 /// Incremental tracker: push frames in order, then [`Tracker::finish`] (book 6.2–6.5).
 pub struct Tracker {
-    params: TrackerParams,
+    params: TrackerOptions,
     prev: Option<Pyramid>,
     /// The pyramid of two frames ago, whose memory the next frame reuses.
     spare: Option<Pyramid>,
@@ -216,7 +216,7 @@ pub struct Tracker {
 
 impl Tracker {
     /// A tracker with these parameters (checked).
-    pub fn new(params: TrackerParams) -> Result<Tracker, KltError> {
+    pub fn new(params: TrackerOptions) -> Result<Tracker, KltError> {
         params.lk.validate()?;
         if params.max_residual.is_nan()
             || !(params.noise_factor >= 0.0 && params.noise_factor < 1e6)
@@ -276,7 +276,7 @@ impl Tracker {
             return Ok(());
         }
         let existing = self.live_points();
-        let cp = CornerParams {
+        let cp = CornerOptions {
             max_corners: free.len(),
             ..self.params.corners.clone()
         };
@@ -484,7 +484,7 @@ impl Tracker {
         Ok(())
     }
 
-    /// A forward–backward or drift `bound` raised to [`TrackerParams::spread_factor`] × the
+    /// A forward–backward or drift `bound` raised to [`TrackerOptions::spread_factor`] × the
     /// frame pair's median distance `spread`, on noisy footage only.
     fn spread_bound(&self, bound: f32, spread: f32) -> f32 {
         if self.noisy {
@@ -495,7 +495,7 @@ impl Tracker {
     }
 
     /// Whether the first frame pairs are still being measured for the switch to
-    /// [`TrackerParams::noisy_window`].
+    /// [`TrackerOptions::noisy_window`].
     fn watch_noise(&self) -> bool {
         !self.noisy
             && (self.params.noisy_window > self.params.lk.window || self.params.spread_factor > 0.0)
@@ -504,7 +504,7 @@ impl Tracker {
     }
 
     /// Tracks the shot again from its first frame as noisy footage (with
-    /// [`TrackerParams::noisy_window`] and [`TrackerParams::spread_factor`]); `img`
+    /// [`TrackerOptions::noisy_window`] and [`TrackerOptions::spread_factor`]); `img`
     /// is the frame after the first [`NOISY_PAIRS`] pairs, which were tracked and measured to
     /// decide it.
     fn restart_as_noisy(&mut self, frame: i64, img: &GrayImage) -> Result<(), KltError> {
@@ -534,7 +534,7 @@ impl Tracker {
 /// called with the fraction done after each frame. An empty sequence gives empty tracks.
 pub fn track_sequence(
     frames: &[(i64, &GrayImage)],
-    params: &TrackerParams,
+    params: &TrackerOptions,
     mut progress: impl FnMut(f32),
 ) -> Result<Tracks, KltError> {
     let mut t = Tracker::new(params.clone())?;
@@ -551,7 +551,7 @@ pub fn track_sequence(
 pub fn track_loaded<E: From<KltError> + Send>(
     n: usize,
     load: impl Fn(usize) -> Result<(i64, GrayImage), E> + Sync,
-    params: &TrackerParams,
+    params: &TrackerOptions,
     mut progress: impl FnMut(f32),
 ) -> Result<Tracks, E> {
     let mut t = Tracker::new(params.clone())?;

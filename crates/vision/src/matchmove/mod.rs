@@ -440,7 +440,7 @@ impl Default for Score {
 
 /// The params of [`adjust_path`] (the `global_bundle_adjust` node).
 #[derive(Debug, Default, PartialEq, Options)]
-pub struct GlobalParams {
+pub struct GlobalPathOptions {
     /// Scoring.
     #[param(flatten)]
     pub score: Score,
@@ -451,7 +451,7 @@ pub struct GlobalParams {
 
 /// The params of [`relax_path`] (the `relax` node).
 #[derive(Debug, Default, PartialEq, Options)]
-pub struct RelaxParams {
+pub struct RelaxPathOptions {
     /// The relaxation.
     #[param(flatten)]
     pub relax: RelaxOptions,

@@ -41,7 +41,7 @@ use crate::rotation::{axis_angle_to_r, r_to_axis_angle};
 /// The `two_view` node's params: [`TwoViewOptions`]' RANSAC threshold and residual, and the
 /// RANSAC seed.
 #[derive(Clone, Debug, PartialEq, vfxgraph_params::Options)]
-pub struct TwoViewParams {
+pub struct TwoViewRansacOptions {
     /// RANSAC inlier threshold (Sampson distance, pixels)
     #[param(range = 0.0..=1e6)]
     pub ransac_threshold_px: Option<f64>,
@@ -52,9 +52,9 @@ pub struct TwoViewParams {
     pub seed: u64,
 }
 
-impl Default for TwoViewParams {
+impl Default for TwoViewRansacOptions {
     fn default() -> Self {
-        TwoViewParams {
+        TwoViewRansacOptions {
             ransac_threshold_px: Some(1.0),
             residual: EpipolarResidual::Sampson,
             seed: 0,
@@ -62,7 +62,7 @@ impl Default for TwoViewParams {
     }
 }
 
-impl TwoViewParams {
+impl TwoViewRansacOptions {
     /// The options of [`reconstruct_two_view`] (a threshold of 0: the default RANSAC).
     pub fn options(&self) -> TwoViewOptions {
         let d = TwoViewOptions::default();
