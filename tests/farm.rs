@@ -564,8 +564,9 @@ fn a_killed_task_leaves_no_half_entry_and_resubmission_runs_only_what_is_missing
     if !slurm_up() {
         return;
     }
-    // Heavier renders so a task is caught running: 4 frames per chunk.
-    let set = ["plate.spp=64"];
+    // Heavier renders so a task is caught running, and killed before its chunk's last frame
+    // is stored (at 64 samples an idle machine rendered all 4 between `status` and the kill).
+    let set = ["plate.spp=256"];
     let tmp = tempfile::tempdir().unwrap();
     let r = reference(&tmp.path().join("local"), &set);
     let g = shot(&tmp.path().join("farm"));
