@@ -196,7 +196,8 @@ struct ReducedCovariance {
     intrinsics: Vec<[usize; INTRINSICS]>,
     /// σ̂: the RMS residual per coordinate with the degrees of freedom removed.
     sigma: f64,
-    /// Per point, the camera-side gradient `Σ Jcᵀ·r` of its observations, sparse.
+    /// Per point, the camera-side gradient of its observations with the point eliminated,
+    /// sparse ([`eliminate_point`]).
     gradients: Vec<Vec<(usize, f64)>>,
 }
 
@@ -264,24 +265,30 @@ impl ReducedCovariance {
             pose: &pose_index,
             intrinsics: &intr_index,
         };
-        let partials: Vec<(DMatrix<f64>, f64, usize)> = by_point
+        type Partial = (DMatrix<f64>, f64, usize, Vec<Vec<(usize, f64)>>);
+        let partials: Vec<Partial> = by_point
             .par_chunks(per_chunk)
             .enumerate()
             .map(|(ci, points)| {
-                let mut part = (DMatrix::<f64>::zeros(n, n), 0.0, 0usize);
+                let mut part = (DMatrix::<f64>::zeros(n, n), 0.0, 0usize, Vec::new());
                 for (q, obs) in points.iter().enumerate() {
                     let p = ci * per_chunk + q;
-                    part.2 += eliminate_point(problem, p, obs, &index, &mut part.0, &mut part.1);
+                    let (rank, g) =
+                        eliminate_point(problem, p, obs, &index, &mut part.0, &mut part.1);
+                    part.2 += rank;
+                    part.3.push(g);
                 }
                 part
             })
             .collect();
         let mut s = DMatrix::<f64>::zeros(n, n);
         let (mut sq, mut point_params) = (0.0, 0usize);
-        for (ps, psq, pp) in partials {
+        let mut gradients = Vec::with_capacity(problem.points.len());
+        for (ps, psq, pp, pg) in partials {
             s += ps;
             sq += psq;
             point_params += pp;
+            gradients.extend(pg);
         }
         // The priors: residuals like the observations' (their coefficients in the same units).
         for p in &problem.priors {
@@ -312,10 +319,6 @@ impl ReducedCovariance {
                     .into(),
             )
         })?;
-        let gradients = by_point
-            .par_iter()
-            .map(|obs| point_gradient(problem, obs, &index))
-            .collect();
         Ok(ReducedCovariance {
             cholesky: chol,
             pose: pose_index,
@@ -339,7 +342,10 @@ struct Index<'a> {
 
 /// Adds point `p`'s observations `obs` to S — their `Jcᵀ Jc` and, for a free point, minus
 /// `W V⁺ Wᵀ` (W: the free camera columns' `Jcᵀ Jx` stacked over the observations) — and their
-/// squared residuals to `sq`. Returns the rank of V (the point's parameters; 0 when fixed).
+/// squared residuals to `sq`. Returns the rank of V (the point's parameters; 0 when fixed) and
+/// the point's camera-side gradient with the point eliminated, by global index:
+/// `Σ Jcᵀ·r − W·V⁺·Σ Jxᵀ·r` (the cost's gradient with the point moved to its best position as
+/// the cameras move; `Σ Jcᵀ·r` alone at a point's least-squares optimum).
 fn eliminate_point(
     problem: &Problem,
     p: usize,
@@ -347,11 +353,12 @@ fn eliminate_point(
     index: &Index,
     s: &mut DMatrix<f64>,
     sq: &mut f64,
-) -> usize {
+) -> (usize, Vec<(usize, f64)>) {
     let point = &problem.points[p];
-    let mut v = Matrix3::<f64>::zeros();
+    let (mut v, mut gx) = (Matrix3::<f64>::zeros(), Vector3::<f64>::zeros());
     // W's rows: a global index and Jcᵀ·Jx's row of that column.
     let (mut rows, mut w): (Vec<usize>, Vec<Vector3<f64>>) = (Vec::new(), Vec::new());
+    let mut g: Vec<(usize, f64)> = Vec::new();
     for &i in obs {
         let o = &problem.observations[i];
         let cam = &problem.cameras[o.camera];
@@ -359,7 +366,8 @@ fn eliminate_point(
         let (pred, jc, jx) =
             project_with_jacobians(k, &cam.rotation, &cam.translation, &point.position);
         let (jc, jx) = (jc * o.weight, jx * o.weight);
-        *sq += ((pred - o.pixel) * o.weight).norm_squared();
+        let r = (pred - o.pixel) * o.weight;
+        *sq += r.norm_squared();
         let mut idx = [usize::MAX; CC];
         idx[..6].copy_from_slice(&index.pose[o.camera]);
         idx[6..].copy_from_slice(&index.intrinsics[cam.intrinsics]);
@@ -371,9 +379,11 @@ fn eliminate_point(
             for &(a, ga) in &free {
                 s[(ga, gb)] += jc.column(a).dot(&jc.column(b));
             }
+            g.push((gb, jc.column(b).dot(&r)));
         }
         if !point.fixed {
             v += jx.transpose() * jx;
+            gx += jx.transpose() * r;
             let wt = jc.transpose() * jx;
             for &(a, ga) in &free {
                 rows.push(ga);
@@ -381,53 +391,18 @@ fn eliminate_point(
             }
         }
     }
-    if point.fixed || rows.is_empty() {
-        return 0;
-    }
-    let (v_inv, rank) = pseudo_inverse(&v);
-    let t: Vec<Vector3<f64>> = w.iter().map(|r| v_inv * r).collect();
-    for (j, &gj) in rows.iter().enumerate() {
-        for (ti, &gi) in t.iter().zip(&rows) {
-            s[(gi, gj)] -= ti.dot(&w[j]);
-        }
-    }
-    rank
-}
-
-/// The camera-side gradient of a point's observations `obs` with the point eliminated, by
-/// global index: `Σ Jcᵀ·r − W·V⁺·Σ Jxᵀ·r` (the gradient of the cost with the point moved to its
-/// best position as the cameras move; `Σ Jcᵀ·r` alone at a point's least-squares optimum).
-fn point_gradient(problem: &Problem, obs: &[usize], index: &Index) -> Vec<(usize, f64)> {
-    let mut g: Vec<(usize, f64)> = Vec::new();
-    let mut w: Vec<(usize, Vector3<f64>)> = Vec::new();
-    let (mut v, mut gx) = (Matrix3::<f64>::zeros(), Vector3::<f64>::zeros());
-    let mut fixed = true;
-    for &i in obs {
-        let o = &problem.observations[i];
-        let cam = &problem.cameras[o.camera];
-        let k = &problem.intrinsics[cam.intrinsics];
-        let point = &problem.points[o.point];
-        fixed = point.fixed;
-        let (pred, jc, jx) =
-            project_with_jacobians(k, &cam.rotation, &cam.translation, &point.position);
-        let (jc, jx) = (jc * o.weight, jx * o.weight);
-        let r = (pred - o.pixel) * o.weight;
-        v += jx.transpose() * jx;
-        gx += jx.transpose() * r;
-        let wt = jc.transpose() * jx;
-        let mut idx = [usize::MAX; CC];
-        idx[..6].copy_from_slice(&index.pose[o.camera]);
-        idx[6..].copy_from_slice(&index.intrinsics[cam.intrinsics]);
-        for (a, &ga) in idx.iter().enumerate() {
-            if ga != usize::MAX {
-                g.push((ga, jc.column(a).dot(&r)));
-                w.push((ga, wt.row(a).transpose()));
+    let mut rank = 0;
+    if !point.fixed && !rows.is_empty() {
+        let v_inv;
+        (v_inv, rank) = pseudo_inverse(&v);
+        let t: Vec<Vector3<f64>> = w.iter().map(|r| v_inv * r).collect();
+        for (j, &gj) in rows.iter().enumerate() {
+            for (ti, &gi) in t.iter().zip(&rows) {
+                s[(gi, gj)] -= ti.dot(&w[j]);
             }
         }
-    }
-    if !fixed {
-        let dx = pseudo_inverse(&v).0 * gx;
-        g.extend(w.iter().map(|&(ga, row)| (ga, -row.dot(&dx))));
+        let dx = v_inv * gx;
+        g.extend(rows.iter().zip(&w).map(|(&ga, row)| (ga, -row.dot(&dx))));
     }
     g.sort_unstable_by_key(|e| e.0);
     g.dedup_by(|b, a| {
@@ -438,7 +413,7 @@ fn point_gradient(problem: &Problem, obs: &[usize], index: &Index) -> Vec<(usize
             false
         }
     });
-    g
+    (rank, g)
 }
 
 /// The pseudo-inverse of a symmetric positive semi-definite 3×3 block (eigenvalues below
