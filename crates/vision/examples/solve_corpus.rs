@@ -140,12 +140,7 @@ fn solve(spec: &PlateSpec, options: &MatchmoveOptions) -> Outcome {
     };
     out.notes = solve.report.notes.clone();
     out.rms_px = solve.report.overall_rms;
-    out.rotation_sd_max_deg = solve
-        .report
-        .frames
-        .iter()
-        .filter_map(|f| f.rotation_sd_deg)
-        .fold(0.0, f64::max);
+    out.rotation_sd_max_deg = solve.report.largest_rotation_sd_deg();
     if let Some(f) = solve.path.intrinsics.as_ref().map(|k| k.f1) {
         out.focal_error = f / plate.k.f1 - 1.0;
     }

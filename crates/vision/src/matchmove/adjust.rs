@@ -28,15 +28,10 @@ pub(crate) fn bundle_adjust_indexed(
     loss: crate::bundle::Loss,
     max_iterations: usize,
 ) -> Result<crate::bundle::SolverReport> {
-    let mut block = crate::bundle::Intrinsics::pinhole(k.f1, k.u0, k.v0, true);
-    block.model = crate::bundle::CameraModel::Pinhole {
-        aspect: k.f2 / k.f1,
-        skew: k.s,
-    };
     let gauge = crate::bundle::Gauge::FixFirstCameraAndScale;
     adjust_with_block(
         tracks,
-        block,
+        pinhole_block(k),
         gauge,
         poses,
         points,
@@ -206,7 +201,67 @@ pub(crate) fn adjust_with_blocks(
             b.fixed |= p.is_none();
         }
     }
+    let IndexedProblem {
+        mut problem,
+        cam_frame,
+        pt_track,
+    } = indexed_problem(tracks, blocks, priors, gauge, poses, points, weight)?;
+    let problem_cameras = problem.cameras.len();
+    let options = crate::bundle::SolverOptions {
+        max_iterations,
+        loss,
+        // Long tracks couple almost every pair of cameras: the reduced camera system of a shot
+        // is nearly dense, where dense Cholesky beats the sparse one (measured on the book's
+        // 286 frames: 0.54 vs 0.77 s per iteration).
+        linear_solver: if problem_cameras <= 600 {
+            crate::bundle::LinearSolverKind::DenseSchur
+        } else {
+            crate::bundle::LinearSolverKind::Auto
+        },
+        ..Default::default()
+    };
+    let report = crate::bundle::solve(&mut problem, &options)
+        .map_err(|e| VisionError::Degenerate(format!("bundle adjustment: {e}")))?;
+    for (c, &f) in problem.cameras.iter().zip(&cam_frame) {
+        poses[f] = Some(Pose::new(c.rotation_matrix(), c.translation));
+    }
+    for (p, &ti) in problem.points.iter().zip(&pt_track) {
+        points[ti] = Some(p.position);
+    }
+    let cov = covariance.then(|| match crate::bundle::intrinsics_covariance(&problem) {
+        Ok((c, sigma)) => c[0]
+            .map(|c| (c, sigma))
+            .ok_or_else(|| "the lens is held".to_string()),
+        Err(e) => Err(e.to_string()),
+    });
+    Ok((report, problem.intrinsics, cov))
+}
+
+/// A bundle problem ([`crate::bundle::Problem`]) of the posed frames and triangulated tracks,
+/// with the frame of each of its cameras and the track of each of its points.
+pub(crate) struct IndexedProblem {
+    pub problem: crate::bundle::Problem,
+    /// Per camera, its frame index.
+    pub cam_frame: Vec<usize>,
+    /// Per point, its track index.
+    pub pt_track: Vec<usize>,
+}
+
+/// The bundle problem of [`adjust_with_blocks`]: a camera per posed frame (its intrinsics
+/// block the shared one, or its frame's when there is one per frame), a point per
+/// triangulated track with at least two observations of non-zero `weight(track, frame)`.
+/// Errors without two cameras and a point.
+pub(crate) fn indexed_problem(
+    tracks: &Tracks,
+    blocks: Vec<crate::bundle::Intrinsics>,
+    priors: Vec<crate::bundle::Prior>,
+    gauge: crate::bundle::Gauge,
+    poses: &[Option<Pose>],
+    points: &[Option<Vector3<f64>>],
+    weight: &ObservationWeight<'_>,
+) -> Result<IndexedProblem> {
     use crate::bundle::{CameraPose, Observation, Point, Problem};
+    let per_frame = blocks.len() > 1;
     let mut cam_index = vec![usize::MAX; poses.len()];
     let mut cameras = Vec::new();
     let mut cam_frame = Vec::new();
@@ -261,41 +316,26 @@ pub(crate) fn adjust_with_blocks(
             pts.len()
         )));
     }
-    let problem_cameras = cameras.len();
-    let mut problem = Problem {
-        cameras,
-        intrinsics: blocks,
-        points: pts,
-        observations,
-        gauge,
-        priors,
-    };
-    let options = crate::bundle::SolverOptions {
-        max_iterations,
-        loss,
-        // Long tracks couple almost every pair of cameras: the reduced camera system of a shot
-        // is nearly dense, where dense Cholesky beats the sparse one (measured on the book's
-        // 286 frames: 0.54 vs 0.77 s per iteration).
-        linear_solver: if problem_cameras <= 600 {
-            crate::bundle::LinearSolverKind::DenseSchur
-        } else {
-            crate::bundle::LinearSolverKind::Auto
+    Ok(IndexedProblem {
+        problem: Problem {
+            cameras,
+            intrinsics: blocks,
+            points: pts,
+            observations,
+            gauge,
+            priors,
         },
-        ..Default::default()
+        cam_frame,
+        pt_track,
+    })
+}
+
+/// The fixed pinhole block of K (its aspect and skew kept).
+pub(crate) fn pinhole_block(k: &Intrinsics) -> crate::bundle::Intrinsics {
+    let mut block = crate::bundle::Intrinsics::pinhole(k.f1, k.u0, k.v0, true);
+    block.model = crate::bundle::CameraModel::Pinhole {
+        aspect: k.f2 / k.f1,
+        skew: k.s,
     };
-    let report = crate::bundle::solve(&mut problem, &options)
-        .map_err(|e| VisionError::Degenerate(format!("bundle adjustment: {e}")))?;
-    for (c, &f) in problem.cameras.iter().zip(&cam_frame) {
-        poses[f] = Some(Pose::new(c.rotation_matrix(), c.translation));
-    }
-    for (p, &ti) in problem.points.iter().zip(&pt_track) {
-        points[ti] = Some(p.position);
-    }
-    let cov = covariance.then(|| match crate::bundle::intrinsics_covariance(&problem) {
-        Ok((c, sigma)) => c[0]
-            .map(|c| (c, sigma))
-            .ok_or_else(|| "the lens is held".to_string()),
-        Err(e) => Err(e.to_string()),
-    });
-    Ok((report, problem.intrinsics, cov))
+    block
 }

@@ -545,12 +545,7 @@ mod tests {
                 &|_, _, _| {},
             )
             .unwrap();
-            let sd = solve
-                .report
-                .frames
-                .iter()
-                .filter_map(|f| f.rotation_sd_deg)
-                .fold(0.0, f64::max);
+            let sd = solve.report.largest_rotation_sd_deg();
             let poses = poses_by_index(&plate.tracks, &solve.path);
             let sc = score(&plate, &poses, solve.report.rotation_only);
             let warned = solve
@@ -604,12 +599,7 @@ mod tests {
                         let poses = poses_by_index(&plate.tracks, &solve.path);
                         let sc = score(&plate, &poses, solve.report.rotation_only);
                         let warned = !solve.report.warnings.is_empty();
-                        let sd = solve
-                            .report
-                            .frames
-                            .iter()
-                            .filter_map(|f| f.rotation_sd_deg)
-                            .fold(0.0, f64::max);
+                        let sd = solve.report.largest_rotation_sd_deg();
                         (
                             spec.clone(),
                             Some((sc, warned, solve.report.rotation_only, sd)),

@@ -171,64 +171,30 @@ pub fn shot_rotation_sd(
     marks: &[Vec<bool>],
     free_focal: bool,
 ) -> Option<Vec<Option<f64>>> {
-    use crate::bundle::{CameraPose, Gauge, Observation, Point, Problem};
-    let mut cam_index = vec![usize::MAX; poses.len()];
-    let mut cameras = Vec::new();
-    let mut cam_frame = Vec::new();
-    for (f, p) in poses.iter().enumerate() {
-        if let Some(p) = p {
-            cam_index[f] = cameras.len();
-            cam_frame.push(f);
-            cameras.push(CameraPose::from_rt(&p.r, &p.t, 0));
-        }
-    }
-    if cameras.len() < 2 {
-        return None;
-    }
     let rotation_only = poses.iter().flatten().all(|p| p.t == Vector3::zeros());
-    let (mut pts, mut observations) = (Vec::new(), Vec::new());
-    for ((t, x), m) in tracks.tracks.iter().zip(points).zip(marks) {
-        let Some(x) = x else { continue };
-        let before = observations.len();
-        for (j, o) in t.points.iter().enumerate() {
-            let f = t.first + j;
-            if m[j] && f < poses.len() && cam_index[f] != usize::MAX {
-                observations.push(Observation {
-                    camera: cam_index[f],
-                    point: pts.len(),
-                    pixel: nalgebra::Vector2::new(o[0], o[1]),
-                    weight: 1.0,
-                });
-            }
-        }
-        if observations.len() - before < 2 {
-            observations.truncate(before);
-            continue;
-        }
-        pts.push(Point {
-            position: *x,
-            fixed: false,
-        });
-    }
-    let mut block = crate::bundle::Intrinsics::pinhole(k.f1, k.u0, k.v0, !free_focal);
+    let mut block = super::adjust::pinhole_block(k);
+    block.fixed = !free_focal;
     block.held[1] = true;
     block.held[2] = true;
-    block.model = crate::bundle::CameraModel::Pinhole {
-        aspect: k.f2 / k.f1,
-        skew: k.s,
+    let gauge = if rotation_only {
+        crate::bundle::Gauge::RotationOnly
+    } else {
+        crate::bundle::Gauge::FixFirstCameraAndScale
     };
-    let problem = Problem {
-        cameras,
-        intrinsics: vec![block],
-        points: pts,
-        observations,
-        gauge: if rotation_only {
-            Gauge::RotationOnly
-        } else {
-            Gauge::FixFirstCameraAndScale
-        },
-        priors: Vec::new(),
-    };
+    // The solve's inliers, unweighted.
+    let inlier = |t: usize, f: usize| f64::from(u8::from(marks[t][f - tracks.tracks[t].first]));
+    let super::adjust::IndexedProblem {
+        problem, cam_frame, ..
+    } = super::adjust::indexed_problem(
+        tracks,
+        vec![block],
+        Vec::new(),
+        gauge,
+        poses,
+        points,
+        &inlier,
+    )
+    .ok()?;
     let cov = crate::bundle::covariance::rotation_covariance(&problem).ok()?;
     let reference = rotation_only.then_some(0);
     let white = crate::bundle::covariance::aligned_rotation_sd(&cov.white, reference);
@@ -242,6 +208,14 @@ pub fn shot_rotation_sd(
 }
 
 impl SolveReport {
+    /// The largest of the frames' `rotation_sd_deg` (0 when none has one).
+    pub fn largest_rotation_sd_deg(&self) -> f64 {
+        self.frames
+            .iter()
+            .filter_map(|f| f.rotation_sd_deg)
+            .fold(0.0, f64::max)
+    }
+
     /// Recomputes the frames' `rotation_sd_deg` from the shot's covariance with the focal
     /// length free ([`shot_rotation_sd`]), for a solve that estimated it; `tracks`, `k`,
     /// `poses`, `points` and `inlier_tolerance` as given to [`solve_report`]. Left as it is
