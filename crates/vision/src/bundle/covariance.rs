@@ -440,6 +440,46 @@ mod tests {
     use nalgebra::{Vector2, Vector3};
     use rand::{Rng, SeedableRng};
 
+    /// Adds an observation of every point in every camera, its pixel off by Gaussian noise σ.
+    fn observe_with_noise(p: &mut Problem, sigma: f64, rng: &mut rand_pcg::Pcg64) {
+        for c in 0..p.cameras.len() {
+            for j in 0..p.points.len() {
+                let q = super::super::residual::project(
+                    &p.intrinsics[0],
+                    &p.cameras[c].rotation,
+                    &p.cameras[c].translation,
+                    &p.points[j].position,
+                );
+                let e = Vector2::new(
+                    crate::synthetic::gaussian(rng),
+                    crate::synthetic::gaussian(rng),
+                );
+                p.observations.push(Observation {
+                    camera: c,
+                    point: j,
+                    pixel: q + sigma * e,
+                    weight: 1.0,
+                });
+            }
+        }
+    }
+
+    /// Every camera's world-frame rotation error of `est` against `truth`, their mean removed
+    /// (as [`aligned_rotation_covariances`] with no reference camera).
+    fn aligned_rotation_errors(truth: &Problem, est: &Problem) -> Vec<Vector3<f64>> {
+        let w: Vec<Vector3<f64>> = truth
+            .cameras
+            .iter()
+            .zip(&est.cameras)
+            .map(|(t, e)| {
+                let r = t.rotation_matrix().transpose() * e.rotation_matrix();
+                super::super::rotation::matrix_to_angle_axis(&r)
+            })
+            .collect();
+        let mean = w.iter().sum::<Vector3<f64>>() / w.len() as f64;
+        w.iter().map(|x| x - mean).collect()
+    }
+
     /// A crane over a shallow scene (its depth a twelfth of its distance), observed with
     /// Gaussian noise σ: the
     /// predicted rotation errors after removing their mean ([`aligned_rotation_covariances`]
@@ -497,41 +537,15 @@ mod tests {
             for seed in 0..draws {
                 let mut rng = rand_pcg::Pcg64::seed_from_u64(1000 + seed);
                 let mut p = truth.clone();
-                for c in 0..n {
-                    for j in 0..p.points.len() {
-                        let q = super::super::residual::project(
-                            &p.intrinsics[0],
-                            &p.cameras[c].rotation,
-                            &p.cameras[c].translation,
-                            &p.points[j].position,
-                        );
-                        let e = Vector2::new(
-                            crate::synthetic::gaussian(&mut rng),
-                            crate::synthetic::gaussian(&mut rng),
-                        );
-                        p.observations.push(Observation {
-                            camera: c,
-                            point: j,
-                            pixel: q + sigma * e,
-                            weight: 1.0,
-                        });
-                    }
-                }
+                observe_with_noise(&mut p, sigma, &mut rng);
                 super::super::solve(&mut p, &Default::default()).unwrap();
                 let cov = rotation_covariance(&p).unwrap();
                 let aligned = aligned_rotation_covariances(&cov.white, None);
                 let sandwich = aligned_rotation_covariances(&cov.tracks, None);
                 // The world-frame errors, their mean removed.
-                let w: Vec<Vector3<f64>> = (0..n)
-                    .map(|c| {
-                        let rt = truth.cameras[c].rotation_matrix();
-                        let re = p.cameras[c].rotation_matrix();
-                        super::super::rotation::matrix_to_angle_axis(&(rt.transpose() * re))
-                    })
-                    .collect();
-                let mean = w.iter().sum::<Vector3<f64>>() / n as f64;
+                let e = aligned_rotation_errors(&truth, &p);
                 for c in 0..n {
-                    measured[c] += (w[c] - mean).norm_squared() / draws as f64;
+                    measured[c] += e[c].norm_squared() / draws as f64;
                     predicted[c] += aligned[c].trace() / draws as f64;
                     by_tracks[c] += sandwich[c].trace() / draws as f64;
                 }
@@ -638,18 +652,11 @@ mod tests {
             }
             super::super::solve(&mut p, &Default::default()).unwrap();
             let cov = rotation_covariance(&p).unwrap();
-            let w: Vec<Vector3<f64>> = (0..n)
-                .map(|c| {
-                    let rt = truth.cameras[c].rotation_matrix();
-                    let re = p.cameras[c].rotation_matrix();
-                    super::super::rotation::matrix_to_angle_axis(&(rt.transpose() * re))
-                })
-                .collect();
-            let mean = w.iter().sum::<Vector3<f64>>() / n as f64;
+            let e = aligned_rotation_errors(&truth, &p);
             let a = aligned_rotation_covariances(&cov.white, None);
             let b = aligned_rotation_covariances(&cov.tracks, None);
             for c in 0..n {
-                measured += (w[c] - mean).norm_squared();
+                measured += e[c].norm_squared();
                 white += a[c].trace();
                 tracks += b[c].trace();
             }
@@ -706,26 +713,7 @@ mod tests {
         let draw = |seed: u64| {
             let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
             let mut p = truth.clone();
-            for c in 0..p.cameras.len() {
-                for j in 0..p.points.len() {
-                    let q = super::super::residual::project(
-                        &p.intrinsics[0],
-                        &p.cameras[c].rotation,
-                        &p.cameras[c].translation,
-                        &p.points[j].position,
-                    );
-                    let n = Vector2::new(
-                        crate::synthetic::gaussian(&mut rng),
-                        crate::synthetic::gaussian(&mut rng),
-                    );
-                    p.observations.push(Observation {
-                        camera: c,
-                        point: j,
-                        pixel: q + sigma * n,
-                        weight: 1.0,
-                    });
-                }
-            }
+            observe_with_noise(&mut p, sigma, &mut rng);
             p
         };
         let mut fs = Vec::new();
