@@ -207,7 +207,7 @@ pub fn run(cmd: BenchCommand, registry: &Registry) -> Result<u8, String> {
 }
 
 /// CPU seconds used by this process so far (user + system, all threads), from /proc.
-fn cpu_seconds() -> Option<f64> {
+pub(crate) fn cpu_seconds() -> Option<f64> {
     let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
     let after = &stat[stat.rfind(')')? + 2..];
     let f: Vec<&str> = after.split_whitespace().collect();

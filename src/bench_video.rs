@@ -19,6 +19,7 @@ fn peak_resident() -> Option<u64> {
 
 pub fn run(file: &Path, frames: Option<usize>, json: bool) -> Result<u8, String> {
     let before = peak_resident();
+    let cpu_before = crate::bench::cpu_seconds();
     let t = Instant::now();
     let reader = vfxgraph_video::open_shared(file, vfxgraph_video::Backend::Auto)
         .map_err(|e| e.to_string())?;
@@ -39,6 +40,9 @@ pub fn run(file: &Path, frames: Option<usize>, json: bool) -> Result<u8, String>
         }
     }
     let ours = t.elapsed().as_secs_f64();
+    let cpu = crate::bench::cpu_seconds()
+        .zip(cpu_before)
+        .map_or(f64::NAN, |(a, b)| a - b);
     let peak = peak_resident();
     let mut ffmpeg = Command::new("ffmpeg");
     ffmpeg.args(["-v", "error", "-nostdin", "-i"]).arg(file);
@@ -64,6 +68,7 @@ pub fn run(file: &Path, frames: Option<usize>, json: bool) -> Result<u8, String>
                 "width": size.0,
                 "height": size.1,
                 "seconds": ours,
+                "own_cpu_seconds": cpu,
                 "ffmpeg_null_seconds": theirs,
                 "ratio": ours / theirs,
                 "peak_resident_mib": mb(peak),
@@ -82,6 +87,10 @@ pub fn run(file: &Path, frames: Option<usize>, json: bool) -> Result<u8, String>
             "read into the graph  {ours:8.2} s  ({:.1} fps), peak resident {:.0} MiB",
             count as f64 / ours,
             mb(peak)
+        );
+        println!(
+            "  of which this process's CPU time (the conversion; FFmpeg's decode is a child's) \
+             {cpu:.2} s"
         );
         println!(
             "ffmpeg -f null       {theirs:8.2} s  ({:.1} fps)",

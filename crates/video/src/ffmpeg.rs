@@ -145,6 +145,9 @@ pub struct FfmpegVideo {
     start: f64,
     /// The decoder reading on, and the frame it delivers next.
     cursor: Mutex<Option<(usize, Decoder)>>,
+    /// Raw frame buffers done with, kept for the next reads (a 4K frame is 25 MB: a fresh
+    /// buffer a frame is that much memory mapped, faulted in and unmapped again).
+    spare: Mutex<Vec<Vec<u8>>>,
 }
 
 /// A running `ffmpeg` writing raw frames to its standard output.
@@ -340,6 +343,7 @@ impl FfmpegVideo {
             times,
             start,
             cursor: Mutex::new(None),
+            spare: Mutex::new(Vec::new()),
         })
     }
 
@@ -416,7 +420,9 @@ impl FfmpegVideo {
             Some((next, d)) if next == i => d,
             _ => self.start(i)?,
         };
-        let mut buf = vec![0u8; bytes];
+        let spare = self.spare.lock().unwrap_or_else(|p| p.into_inner()).pop();
+        let mut buf = spare.unwrap_or_default();
+        buf.resize(bytes, 0);
         if let Err(e) = dec.out.read_exact(&mut buf) {
             return Err(VideoError::Decode {
                 path: self.path.clone(),
@@ -426,7 +432,13 @@ impl FfmpegVideo {
         }
         *cursor = Some((i + 1, dec));
         drop(cursor);
-        Ok(self.convert(&buf))
+        // Converted with the decoder free: another thread reads the next frame meanwhile.
+        let img = self.convert(&buf);
+        let mut spare = self.spare.lock().unwrap_or_else(|p| p.into_inner());
+        if spare.len() < 2 {
+            spare.push(buf);
+        }
+        Ok(img)
     }
 
     /// One raw frame as delivered, to linear RGB.
@@ -438,16 +450,9 @@ impl FfmpegVideo {
                 half_width,
                 half_height,
             } => {
-                let samples: Vec<u16> = if bits > 8 {
-                    buf.chunks_exact(2)
-                        .map(|b| u16::from_le_bytes([b[0], b[1]]))
-                        .collect()
-                } else {
-                    buf.iter().map(|&b| b as u16).collect()
-                };
                 let (cw, ch) = Planar::chroma_size(w, h, half_width, half_height);
-                let (y, rest) = samples.split_at(w * h);
-                let (u, v) = rest.split_at(cw * ch);
+                let (y, rest) = buf.split_at(Planar::plane_bytes(w * h, bits));
+                let (u, v) = rest.split_at(Planar::plane_bytes(cw * ch, bits));
                 Planar {
                     width: w,
                     height: h,

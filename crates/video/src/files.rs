@@ -41,7 +41,7 @@ pub enum Reader {
     /// [`Video`].
     Native(Video),
     /// [`crate::ffmpeg::FfmpegVideo`].
-    Ffmpeg(crate::ffmpeg::FfmpegVideo),
+    Ffmpeg(Box<crate::ffmpeg::FfmpegVideo>),
     /// OpenCV's VideoCapture.
     #[cfg(feature = "opencv")]
     OpenCv(crate::capture::Capture),
@@ -58,7 +58,7 @@ impl Reader {
                     VideoError::Unsupported { message, .. } | VideoError::Container { message, .. },
                 ) => {
                     if crate::ffmpeg::available() {
-                        crate::ffmpeg::FfmpegVideo::open(path).map(Reader::Ffmpeg)
+                        crate::ffmpeg::FfmpegVideo::open(path).map(|v| Reader::Ffmpeg(Box::new(v)))
                     } else {
                         Err(crate::ffmpeg::missing(
                             path,
@@ -69,7 +69,9 @@ impl Reader {
                 Err(e) => Err(e),
             },
             Backend::Native => Video::open(path).map(Reader::Native),
-            Backend::Ffmpeg => crate::ffmpeg::FfmpegVideo::open(path).map(Reader::Ffmpeg),
+            Backend::Ffmpeg => {
+                crate::ffmpeg::FfmpegVideo::open(path).map(|v| Reader::Ffmpeg(Box::new(v)))
+            }
             #[cfg(feature = "opencv")]
             Backend::OpenCv => crate::capture::Capture::open(path).map(Reader::OpenCv),
             #[cfg(not(feature = "opencv"))]

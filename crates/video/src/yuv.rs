@@ -60,15 +60,16 @@ pub fn to_image(p: &Planes<'_>, c: &ColorInfo) -> Image {
             y_stride: p.y_stride,
             uv_stride: p.uv_stride,
         },
-        [p.y, p.u, p.v],
-        |v| v,
-        |v| v,
+        [Bytes(p.y), Bytes(p.u), Bytes(p.v)],
+        (1.0, 0.0),
+        (1.0, 0.0),
         c,
     )
 }
 
-/// One decoded picture of any planar Y'CbCr layout FFmpeg delivers: 8 to 16 bits a sample
-/// (held in `u16`), chroma full size or halved across (4:2:2) or across and down (4:2:0).
+/// One decoded picture of any planar Y'CbCr layout FFmpeg delivers: 8 to 16 bits a sample,
+/// chroma full size or halved across (4:2:2) or across and down (4:2:0). The planes are the
+/// bytes as delivered: one a sample at 8 bits, two (little-endian) above.
 pub struct Planar<'a> {
     /// Width of the picture (the luma plane).
     pub width: usize,
@@ -80,12 +81,12 @@ pub struct Planar<'a> {
     pub half_width: bool,
     /// Chroma halved vertically (4:2:0).
     pub half_height: bool,
-    /// Luma, `width` × `height`.
-    pub y: &'a [u16],
-    /// Cb, [`Planar::chroma_size`].
-    pub u: &'a [u16],
-    /// Cr, [`Planar::chroma_size`].
-    pub v: &'a [u16],
+    /// Luma, `width` × `height` samples.
+    pub y: &'a [u8],
+    /// Cb, [`Planar::chroma_size`] samples.
+    pub u: &'a [u8],
+    /// Cr, [`Planar::chroma_size`] samples.
+    pub v: &'a [u8],
 }
 
 impl Planar<'_> {
@@ -106,6 +107,15 @@ impl Planar<'_> {
         )
     }
 
+    /// Bytes of a plane of `samples` samples at `bits` bits.
+    pub fn plane_bytes(samples: usize, bits: u32) -> usize {
+        if bits > 8 {
+            2 * samples
+        } else {
+            samples
+        }
+    }
+
     /// Converts the picture to a linear-light RGB [`Image`] as [`to_image`] does: n-bit code
     /// values brought to the 8-bit scale of [`ycbcr_to_rgb`] (limited range: divided by
     /// 2ⁿ⁻⁸, as BT.709/BT.2100 define the levels; full range: by (2ⁿ − 1)/255 about the
@@ -115,28 +125,31 @@ impl Planar<'_> {
         let max = ((1u32 << self.bits) - 1) as f32;
         let half = (1u32 << (self.bits - 1)) as f32;
         let scale = (1u32 << (self.bits - 8)) as f32;
-        let full = c.full_range;
+        // Code value → 8-bit scale, as (factor, offset).
+        let (luma, chroma) = if c.full_range {
+            (
+                (255.0 / max, 0.0),
+                (255.0 / max, 128.0 - half * 255.0 / max),
+            )
+        } else {
+            ((1.0 / scale, 0.0), (1.0 / scale, 0.0))
+        };
         let (cw, _) = Self::chroma_size(self.width, self.height, self.half_width, self.half_height);
-        convert(
-            Layout {
-                width: self.width,
-                height: self.height,
-                half_width: self.half_width,
-                half_height: self.half_height,
-                y_stride: self.width,
-                uv_stride: cw,
-            },
-            [self.y, self.u, self.v],
-            |v| if full { v * 255.0 / max } else { v / scale },
-            |v| {
-                if full {
-                    128.0 + (v - half) * 255.0 / max
-                } else {
-                    v / scale
-                }
-            },
-            c,
-        )
+        let layout = Layout {
+            width: self.width,
+            height: self.height,
+            half_width: self.half_width,
+            half_height: self.half_height,
+            y_stride: self.width,
+            uv_stride: cw,
+        };
+        if self.bits > 8 {
+            let planes = [Le16(self.y), Le16(self.u), Le16(self.v)];
+            convert(layout, planes, luma, chroma, c)
+        } else {
+            let planes = [Bytes(self.y), Bytes(self.u), Bytes(self.v)];
+            convert(layout, planes, luma, chroma, c)
+        }
     }
 }
 
@@ -150,32 +163,179 @@ struct Layout {
     uv_stride: usize,
 }
 
-/// The conversion both pictures share: Y', Cb, Cr `planes` of samples brought to 8-bit code
-/// values by `luma` and `chroma`, chroma upsampled bilinearly from its sample position
-/// (co-sited with even luma columns; half-way between luma rows when halved vertically),
-/// [`ycbcr_to_rgb`], clamped to 0–1 and decoded with the sRGB curve through a fine table.
-fn convert<S: Copy + Into<f32> + Sync>(
+/// A plane's samples, read as code values.
+trait Plane: Copy + Sync {
+    /// Samples `start..start + out.len()`, each `code · factor + offset`.
+    fn read(self, start: usize, out: &mut [f32], factor: f32, offset: f32);
+}
+
+/// One byte a sample.
+#[derive(Clone, Copy)]
+struct Bytes<'a>(&'a [u8]);
+
+impl Plane for Bytes<'_> {
+    fn read(self, start: usize, out: &mut [f32], factor: f32, offset: f32) {
+        let bytes = &self.0[start..start + out.len()];
+        for (v, &b) in out.iter_mut().zip(bytes) {
+            *v = b as f32 * factor + offset;
+        }
+    }
+}
+
+/// Two bytes a sample, little-endian (FFmpeg's `…le` formats).
+#[derive(Clone, Copy)]
+struct Le16<'a>(&'a [u8]);
+
+impl Plane for Le16<'_> {
+    fn read(self, start: usize, out: &mut [f32], factor: f32, offset: f32) {
+        let bytes = &self.0[2 * start..2 * (start + out.len())];
+        for (v, b) in out.iter_mut().zip(bytes.chunks_exact(2)) {
+            *v = u16::from_le_bytes([b[0], b[1]]) as f32 * factor + offset;
+        }
+    }
+}
+
+/// The sRGB decoding through a fine table: 4096 cells, each its value and slope, linearly
+/// interpolated (within 3·10⁻⁸ of the curve); the input clamped to 0–1, as a display would.
+struct Decode {
+    value: Vec<f32>,
+    slope: Vec<f32>,
+}
+
+impl Decode {
+    const N: usize = 4096;
+
+    fn new() -> Decode {
+        let at = |i: usize| srgb_to_linear(i as f32 / Self::N as f32);
+        Decode {
+            value: (0..Self::N).map(at).collect(),
+            slope: (0..Self::N).map(|i| at(i + 1) - at(i)).collect(),
+        }
+    }
+
+    #[inline(always)]
+    fn decode(&self, v: f32) -> f32 {
+        let t = v.clamp(0.0, 1.0) * Self::N as f32;
+        let i = (t as usize).min(Self::N - 1);
+        self.value[i] + self.slope[i] * (t - i as f32)
+    }
+
+    /// One row: `out` (interleaved RGB) from the luma `y` and the per-pixel chroma terms
+    /// `terms` (R', G', B' each `y + term`), through [`Decode::decode`].
+    fn row(&self, y: &[f32], terms: [&[f32]; 3], out: &mut [f32], avx2: bool) {
+        let _ = avx2;
+        #[cfg(target_arch = "x86_64")]
+        if avx2 {
+            // SAFETY: `avx2` is true only when the CPU reports AVX2.
+            return unsafe { simd::row_avx2(self, y, terms, out) };
+        }
+        self.row_generic(y, terms, out, 0);
+    }
+
+    /// [`Decode::row`] from pixel `from` on, one pixel at a time.
+    fn row_generic(&self, y: &[f32], [r, g, b]: [&[f32]; 3], out: &mut [f32], from: usize) {
+        let pixels = out[3 * from..]
+            .chunks_exact_mut(3)
+            .zip(&y[from..])
+            .zip(r[from..].iter().zip(&g[from..]).zip(&b[from..]));
+        for ((px, &yy), ((&rt, &gt), &bt)) in pixels {
+            px[0] = self.decode(yy + rt);
+            px[1] = self.decode(yy + gt);
+            px[2] = self.decode(yy + bt);
+        }
+    }
+}
+
+/// [`Decode::row`] with AVX2 (eight pixels a step, the table read by gathers), chosen at run
+/// time. Lane for lane it performs exactly the operations of [`Decode::row_generic`], in the
+/// same order and without FMA, so a frame's values do not depend on the CPU.
+#[cfg(target_arch = "x86_64")]
+mod simd {
+    use std::arch::x86_64::*;
+
+    use super::Decode;
+
+    pub(super) fn has_avx2() -> bool {
+        std::is_x86_feature_detected!("avx2")
+    }
+
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn row_avx2(d: &Decode, y: &[f32], terms: [&[f32]; 3], out: &mut [f32]) {
+        let n = y.len();
+        assert!(terms.iter().all(|t| t.len() >= n) && out.len() >= 3 * n);
+        assert!(d.value.len() == Decode::N && d.slope.len() == Decode::N);
+        let (zero, one) = (_mm256_setzero_ps(), _mm256_set1_ps(1.0));
+        let cells = _mm256_set1_ps(Decode::N as f32);
+        let last = _mm256_set1_epi32(Decode::N as i32 - 1);
+        let (value, slope) = (d.value.as_ptr(), d.slope.as_ptr());
+        let mut x = 0;
+        let mut lanes = [[0.0f32; 8]; 3];
+        while x + 8 <= n {
+            let yy = _mm256_loadu_ps(y.as_ptr().add(x));
+            for (k, t) in terms.iter().enumerate() {
+                let v = _mm256_add_ps(yy, _mm256_loadu_ps(t.as_ptr().add(x)));
+                let t = _mm256_mul_ps(_mm256_min_ps(_mm256_max_ps(v, zero), one), cells);
+                let i = _mm256_min_epi32(_mm256_cvttps_epi32(t), last);
+                let f = _mm256_sub_ps(t, _mm256_cvtepi32_ps(i));
+                let a = _mm256_i32gather_ps::<4>(value, i);
+                let s = _mm256_i32gather_ps::<4>(slope, i);
+                _mm256_storeu_ps(lanes[k].as_mut_ptr(), _mm256_add_ps(a, _mm256_mul_ps(s, f)));
+            }
+            for (j, px) in out[3 * x..3 * x + 24].chunks_exact_mut(3).enumerate() {
+                px[0] = lanes[0][j];
+                px[1] = lanes[1][j];
+                px[2] = lanes[2][j];
+            }
+            x += 8;
+        }
+        d.row_generic(y, terms, out, x);
+    }
+}
+
+/// A zeroed buffer of `n` samples for a frame, which the kernel is asked to back with huge
+/// pages where it can: a 4K frame is 100 MB, as 4 KB pages 24 000 faults a frame, each
+/// clearing its page, as 2 MB pages fifty.
+fn frame_buffer(n: usize) -> Vec<f32> {
+    let v = vec![0.0f32; n];
+    #[cfg(target_os = "linux")]
+    {
+        const HUGE: usize = 2 << 20;
+        let start = v.as_ptr() as usize;
+        let (a, b) = (start.next_multiple_of(HUGE), (start + 4 * n) / HUGE * HUGE);
+        if b > a {
+            // SAFETY: [a, b) lies inside `v`'s allocation, owned here; MADV_HUGEPAGE only
+            // advises how its pages are backed and leaves their contents as they are.
+            unsafe { libc::madvise(a as *mut libc::c_void, b - a, libc::MADV_HUGEPAGE) };
+        }
+    }
+    v
+}
+
+/// The conversion both pictures share: Y', Cb, Cr `planes` brought to 8-bit code values by
+/// the affine maps `luma` and `chroma` (factor, offset), chroma upsampled bilinearly from its
+/// sample position (co-sited with even luma columns; half-way between luma rows when halved
+/// vertically), [`ycbcr_to_rgb`], clamped to 0–1 and decoded with the sRGB curve.
+///
+/// [`ycbcr_to_rgb`]'s arithmetic is rearranged so a pixel costs an add per channel:
+/// R' = Y + r(Cr), B' = Y + b(Cb), G' = Y − (K_R·r + K_B·b)/K_G, the chroma terms computed
+/// once per chroma sample of a row and spread over its pixels, then decoded a row at a time
+/// ([`Decode::row`]).
+fn convert<P: Plane>(
     l: Layout,
-    planes: [&[S]; 3],
-    luma: impl Fn(f32) -> f32 + Sync,
-    chroma: impl Fn(f32) -> f32 + Sync,
+    planes: [P; 3],
+    luma: (f32, f32),
+    chroma: (f32, f32),
     c: &ColorInfo,
 ) -> Image {
     let (w, h) = (l.width, l.height);
     let cw = if l.half_width { w.div_ceil(2) } else { w };
     let ch = if l.half_height { h.div_ceil(2) } else { h };
     let [py, pu, pv] = planes;
-    const N: usize = 4096;
-    let lut: Vec<f32> = (0..=N)
-        .map(|i| srgb_to_linear(i as f32 / N as f32))
-        .collect();
-    let decode = |v: f32| {
-        let t = v.clamp(0.0, 1.0) * N as f32;
-        let i = (t as usize).min(N - 1);
-        let f = t - i as f32;
-        lut[i] + (lut[i + 1] - lut[i]) * f
-    };
-    // ycbcr_to_rgb's arithmetic with the matrix and range taken out of the pixel loop.
+    let decode = Decode::new();
+    #[cfg(target_arch = "x86_64")]
+    let avx2 = simd::has_avx2();
+    #[cfg(not(target_arch = "x86_64"))]
+    let avx2 = false;
     let (kr, kb) = c.matrix.kr_kb();
     let kg = 1.0 - kr - kb;
     let (y0, ys, cs) = if c.full_range {
@@ -183,52 +343,73 @@ fn convert<S: Copy + Into<f32> + Sync>(
     } else {
         (16.0, 1.0 / 219.0, 1.0 / 224.0)
     };
+    // Y = code · ly + lo; chroma term p = (code · cf + co) · cs.
+    let (ly, lo) = (luma.0 * ys, (luma.1 - y0) * ys);
+    let (cf, co) = (chroma.0, chroma.1 - 128.0);
     let (rcr, bcb, inv_kg) = (2.0 * (1.0 - kr), 2.0 * (1.0 - kb), 1.0 / kg);
-    let mut data = vec![0.0f32; w * h * 3];
-    data.par_chunks_mut(w * 3).enumerate().for_each(|(y, row)| {
-        let (cy0, cy1, fy) = if l.half_height {
-            // Chroma row position of this luma row: (y − 0.5) / 2.
-            let cy = (y as f32 - 0.5) * 0.5;
-            let cy0 = (cy.floor().max(0.0) as usize).min(ch - 1);
-            (
-                cy0,
-                (cy0 + 1).min(ch - 1),
-                (cy - cy0 as f32).clamp(0.0, 1.0),
-            )
-        } else {
-            (y, y, 0.0)
-        };
-        // This row's chroma, interpolated vertically once per chroma sample and centred
-        // (Pb, Pr before the range's scale).
-        let at = |plane: &[S], cx: usize| {
-            let a: f32 = plane[cy0 * l.uv_stride + cx].into();
-            let b: f32 = plane[cy1 * l.uv_stride + cx].into();
-            chroma(a + (b - a) * fy) - 128.0
-        };
-        let pb: Vec<f32> = (0..cw).map(|cx| at(pu, cx)).collect();
-        let pr: Vec<f32> = (0..cw).map(|cx| at(pv, cx)).collect();
-        let luma_row = &py[y * l.y_stride..y * l.y_stride + w];
-        for (x, (out, &yv)) in row.chunks_exact_mut(3).zip(luma_row).enumerate() {
-            let (cb, cr) = if !l.half_width {
-                (pb[x], pr[x])
+    let mut data = frame_buffer(w * h * 3);
+    // A row's scratch: its luma, its two chroma rows' samples, each chroma sample's three
+    // terms, each pixel's.
+    let scratch = || {
+        (
+            vec![0.0f32; w],
+            [(); 4].map(|_| vec![0.0f32; cw]),
+            [(); 3].map(|_| vec![0.0f32; cw]),
+            [(); 3].map(|_| vec![0.0f32; w]),
+        )
+    };
+    data.par_chunks_mut(w * 3).enumerate().for_each_init(
+        scratch,
+        |(yrow, [u0, u1, v0, v1], sample, pixel), (y, row)| {
+            let (cy0, cy1, fy) = if l.half_height {
+                // Chroma row position of this luma row: (y − 0.5) / 2.
+                let cy = (y as f32 - 0.5) * 0.5;
+                let cy0 = (cy.floor().max(0.0) as usize).min(ch - 1);
+                (
+                    cy0,
+                    (cy0 + 1).min(ch - 1),
+                    (cy - cy0 as f32).clamp(0.0, 1.0),
+                )
             } else {
-                // Co-sited horizontally: even columns on a chroma sample, odd ones half-way.
-                let cx0 = (x / 2).min(cw - 1);
-                if x % 2 == 0 || cx0 + 1 >= cw {
-                    (pb[cx0], pr[cx0])
-                } else {
-                    (0.5 * (pb[cx0] + pb[cx0 + 1]), 0.5 * (pr[cx0] + pr[cx0 + 1]))
-                }
+                (y, y, 0.0)
             };
-            let yy = (luma(yv.into()) - y0) * ys;
-            let r = yy + rcr * (cr * cs);
-            let b = yy + bcb * (cb * cs);
-            let g = (yy - kr * r - kb * b) * inv_kg;
-            out[0] = decode(r);
-            out[1] = decode(g);
-            out[2] = decode(b);
-        }
-    });
+            // Each chroma sample's terms for R', G', B', interpolated vertically once.
+            let (r0, r1) = (cy0 * l.uv_stride, cy1 * l.uv_stride);
+            pu.read(r0, u0, 1.0, 0.0);
+            pu.read(r1, u1, 1.0, 0.0);
+            pv.read(r0, v0, 1.0, 0.0);
+            pv.read(r1, v1, 1.0, 0.0);
+            let [sr, sg, sb] = sample;
+            let chroma_rows = u0.iter().zip(&*u1).zip(v0.iter().zip(&*v1));
+            let terms = sr.iter_mut().zip(sg.iter_mut()).zip(sb.iter_mut());
+            for (((&ua, &ub), (&va, &vb)), ((rt, gt), bt)) in chroma_rows.zip(terms) {
+                let pb = ((ua + (ub - ua) * fy) * cf + co) * cs;
+                let pr = ((va + (vb - va) * fy) * cf + co) * cs;
+                *rt = rcr * pr;
+                *bt = bcb * pb;
+                *gt = -(kr * *rt + kb * *bt) * inv_kg;
+            }
+            for (s, p) in [&*sr, &*sg, &*sb].into_iter().zip(pixel.iter_mut()) {
+                if !l.half_width {
+                    p.copy_from_slice(s);
+                } else {
+                    // Co-sited horizontally: even columns on a chroma sample, odd ones
+                    // half-way to the next (the last, on it).
+                    for (pair, next) in p.chunks_exact_mut(2).zip(s.windows(2)) {
+                        pair[0] = next[0];
+                        pair[1] = 0.5 * (next[0] + next[1]);
+                    }
+                    let done = 2 * (cw - 1);
+                    for q in &mut p[done..] {
+                        *q = s[cw - 1];
+                    }
+                }
+            }
+            py.read(y * l.y_stride, yrow, ly, lo);
+            let [pr, pg, pb] = &*pixel;
+            decode.row(yrow, [pr, pg, pb], row, avx2);
+        },
+    );
     Image {
         width: w,
         height: h,
@@ -241,6 +422,111 @@ fn convert<S: Copy + Into<f32> + Sync>(
 mod tests {
     use super::*;
     use crate::sps::Matrix;
+
+    /// Samples as FFmpeg's `…le` formats deliver them.
+    fn le(samples: &[u16]) -> Vec<u8> {
+        samples.iter().flat_map(|s| s.to_le_bytes()).collect()
+    }
+
+    /// The conversion against [`ycbcr_to_rgb`] and the sRGB curve applied pixel by pixel,
+    /// the chroma interpolated at each pixel's own position, on pictures of odd sizes in
+    /// every subsampling, bit depth and range.
+    #[test]
+    fn every_pixel_is_the_matrix_and_curve_of_its_interpolated_chroma() {
+        // Two eight-pixel steps of the vector path and five pixels after them.
+        let (w, h) = (21, 5);
+        let mut seed = 12345u32;
+        let mut next = |bits: u32| {
+            seed = seed.wrapping_mul(1664525).wrapping_add(1013904223);
+            ((seed >> 8) % (1 << bits)) as u16
+        };
+        for bits in [8, 10, 12] {
+            for (hw, hh) in [(true, true), (true, false), (false, false)] {
+                for full_range in [false, true] {
+                    let c = ColorInfo {
+                        matrix: Matrix::Bt2020,
+                        full_range,
+                        matrix_from_stream: true,
+                    };
+                    let (cw, ch) = Planar::chroma_size(w, h, hw, hh);
+                    let y: Vec<u16> = (0..w * h).map(|_| next(bits)).collect();
+                    let u: Vec<u16> = (0..cw * ch).map(|_| next(bits)).collect();
+                    let v: Vec<u16> = (0..cw * ch).map(|_| next(bits)).collect();
+                    let bytes = |p: &[u16]| {
+                        if bits > 8 {
+                            le(p)
+                        } else {
+                            p.iter().map(|&s| s as u8).collect()
+                        }
+                    };
+                    let img = Planar {
+                        width: w,
+                        height: h,
+                        bits,
+                        half_width: hw,
+                        half_height: hh,
+                        y: &bytes(&y),
+                        u: &bytes(&u),
+                        v: &bytes(&v),
+                    }
+                    .to_image(&c);
+                    // Code values on the 8-bit scale.
+                    let max = ((1u32 << bits) - 1) as f32;
+                    let to8 = |s: u16, centre: bool| {
+                        if full_range {
+                            let v = s as f32 * 255.0 / max;
+                            if centre {
+                                128.0 + (s as f32 - (1 << (bits - 1)) as f32) * 255.0 / max
+                            } else {
+                                v
+                            }
+                        } else {
+                            s as f32 / (1u32 << (bits - 8)) as f32
+                        }
+                    };
+                    // A chroma plane at a luma pixel's position.
+                    let sample = |p: &[u16], x: usize, y: usize| {
+                        let (fx, fy) = (
+                            if hw { x as f32 / 2.0 } else { x as f32 },
+                            if hh {
+                                ((y as f32 - 0.5) / 2.0).max(0.0)
+                            } else {
+                                y as f32
+                            },
+                        );
+                        let (x0, y0) = (fx.floor() as usize, fy.floor() as usize);
+                        let (x1, y1) = ((x0 + 1).min(cw - 1), (y0 + 1).min(ch - 1));
+                        let (ax, ay) = (fx - x0 as f32, (fy - y0 as f32).min(1.0));
+                        let at = |x: usize, y: usize| to8(p[y * cw + x], true);
+                        let top = at(x0, y0) + (at(x1, y0) - at(x0, y0)) * ax;
+                        let bottom = at(x0, y1) + (at(x1, y1) - at(x0, y1)) * ax;
+                        top + (bottom - top) * ay
+                    };
+                    for py in 0..h {
+                        for px in 0..w {
+                            let rgb = ycbcr_to_rgb(
+                                to8(y[py * w + px], false),
+                                sample(&u, px, py),
+                                sample(&v, px, py),
+                                &c,
+                            )
+                            .map(|v| srgb_to_linear(v.clamp(0.0, 1.0)));
+                            let got = &img.data[3 * (py * w + px)..][..3];
+                            for k in 0..3 {
+                                assert!(
+                                    (got[k] - rgb[k]).abs() < 2e-5,
+                                    "{bits} bits, halves {hw} {hh}, full {full_range}, \
+                                     ({px}, {py}) channel {k}: {} against {}",
+                                    got[k],
+                                    rgb[k]
+                                );
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
 
     #[test]
     fn limited_range_black_white_and_primaries() {
@@ -270,6 +556,38 @@ mod tests {
         assert!(close(ycbcr_to_rgb(255.0, 128.0, 128.0, &full), [1.0; 3]));
     }
 
+    /// The vector row and the portable one give the same bits, over the whole 0–1 range,
+    /// past both ends of it, and on the cells' edges.
+    #[test]
+    fn the_vector_row_is_the_portable_row_bit_for_bit() {
+        let d = Decode::new();
+        let n = 1000;
+        let y: Vec<f32> = (0..n).map(|i| -0.1 + 1.2 * i as f32 / n as f32).collect();
+        let edges: Vec<f32> = (0..n).map(|i| (i % 40) as f32 / 4096.0 - 0.2).collect();
+        let terms = [
+            vec![0.0f32; n],
+            edges,
+            (0..n).map(|i| 1e-3 * ((i * 7919) % 13) as f32).collect(),
+        ];
+        let terms = [&terms[0][..], &terms[1][..], &terms[2][..]];
+        let mut portable = vec![0.0f32; 3 * n];
+        d.row(&y, terms, &mut portable, false);
+        #[cfg(target_arch = "x86_64")]
+        let avx2 = simd::has_avx2();
+        #[cfg(not(target_arch = "x86_64"))]
+        let avx2 = false;
+        if !avx2 {
+            eprintln!("no AVX2 on this CPU: the portable row only");
+        }
+        let mut vector = vec![0.0f32; 3 * n];
+        d.row(&y, terms, &mut vector, avx2);
+        assert!(portable
+            .iter()
+            .zip(&vector)
+            .all(|(a, b)| a.to_bits() == b.to_bits()));
+        assert!(portable.iter().all(|v| (0.0..=1.0).contains(v)));
+    }
+
     /// 10-bit 4:2:0 limited range is the 8-bit picture at 4× the code values; 4:2:2 and
     /// 4:4:4 of flat colour give that colour; full range 10-bit reaches white at 1023.
     #[test]
@@ -296,7 +614,7 @@ mod tests {
             },
             &c,
         );
-        let up = |p: &[u8]| p.iter().map(|&v| 4 * v as u16).collect::<Vec<u16>>();
+        let up = |p: &[u8]| le(&p.iter().map(|&v| 4 * v as u16).collect::<Vec<u16>>());
         let ten = Planar {
             width: w,
             height: h,
@@ -318,9 +636,9 @@ mod tests {
                 bits: 10,
                 half_width: hw,
                 half_height: hh,
-                y: &vec![4 * 120; w * h],
-                u: &vec![4 * 140; cw * ch],
-                v: &vec![4 * 110; cw * ch],
+                y: &le(&vec![4 * 120; w * h]),
+                u: &le(&vec![4 * 140; cw * ch]),
+                v: &le(&vec![4 * 110; cw * ch]),
             }
             .to_image(&c);
             let want = ycbcr_to_rgb(120.0, 140.0, 110.0, &c).map(srgb_to_linear);
@@ -338,9 +656,9 @@ mod tests {
             bits: 10,
             half_width: true,
             half_height: true,
-            y: &[1023; 4],
-            u: &[512],
-            v: &[512],
+            y: &le(&[1023; 4]),
+            u: &le(&[512]),
+            v: &le(&[512]),
         }
         .to_image(&full);
         assert!(white.data.iter().all(|v| (v - 1.0).abs() < 1e-5));
