@@ -65,6 +65,26 @@ async function refresh() {
   if (s.running && s.run_started_at) studio.runStart = s.run_started_at;
   renderAll();
   if (studio.readyAt === null) studio.readyAt = performance.now();
+  if (!studio.displays) loadDisplays();
+}
+
+// The display/view transforms of the graph's OpenColorIO config, offered beside the sRGB
+// curve: the previews then come through the chosen view (GET /api/colour, /api/image?display=).
+async function loadDisplays() {
+  studio.displays = [];
+  let c;
+  try { c = await api('GET', '/api/colour'); } catch (e) { studio.displays = null; return; }
+  const sel = $('display');
+  sel.title = `OpenColorIO: ${c.config}; the values are ${c.working_space}`;
+  for (const d of c.displays) {
+    for (const v of d.views) {
+      const o = document.createElement('option');
+      o.value = JSON.stringify([d.display, v]);
+      o.textContent = `${d.display} / ${v}`;
+      sel.appendChild(o);
+      studio.displays.push([d.display, v]);
+    }
+  }
 }
 
 function connect() {
@@ -696,6 +716,11 @@ async function drawTracksOnBlack(c, f, tok) {
 function imageUrl(sel, frame, opts = {}) {
   const [node, port] = sel.split('.');
   const q = new URLSearchParams({ node, port, exposure: $('exposure').value, srgb: $('srgb').checked });
+  if ($('display').value) {
+    const [display, view] = JSON.parse($('display').value);
+    q.set('display', display);
+    q.set('view', view);
+  }
   if (frame !== undefined) q.set('frame', frame);
   if ($('jpeg').checked && !opts.png) q.set('fmt', 'jpg');
   const layer = $('layer').value;
@@ -1810,7 +1835,7 @@ function wire() {
   $('reload').addEventListener('click', () => api('POST', '/api/reload').catch((e) => ($('status').textContent = e.message)));
   $('scrub').addEventListener('input', () => setFrameIdx(Number($('scrub').value)));
   $('def-scrub').addEventListener('input', () => setFrameIdx(Number($('def-scrub').value)));
-  for (const id of ['exposure', 'srgb', 'jpeg', 'layer', 'wipe', 'out-b', 'tracks', 'reproj', 'track-colour', 'trail']) $(id).addEventListener('input', () => { $('exposure-label').textContent = $('exposure').value; drawViewer(); warmSoon(); });
+  for (const id of ['exposure', 'srgb', 'display', 'jpeg', 'layer', 'wipe', 'out-b', 'tracks', 'reproj', 'track-colour', 'trail']) $(id).addEventListener('input', () => { $('exposure-label').textContent = $('exposure').value; drawViewer(); warmSoon(); });
   $('out-a').addEventListener('input', () => loadLayers().then(drawViewer).then(warmSoon));
   $('play').addEventListener('click', play);
   $('viewer').addEventListener('mousemove', hoverPixel);

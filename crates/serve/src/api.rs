@@ -9,7 +9,8 @@
 //! | `POST /api/run`, `POST /api/cancel`, `POST /api/reload` | run (409 while one runs), stop, re-read the file |
 //! | `POST /api/params` | `{node, param, value}` (YAML text, as `--set`; `null` resets) |
 //! | `POST /api/params/save` | `{node, param}`: the edit written into the graph file (only that value's text) |
-//! | `GET /api/image` | `node, port, frame, layer, exposure, srgb, fmt` → PNG/JPEG preview |
+//! | `GET /api/image` | `node, port, frame, layer, exposure, srgb, display, view, fmt` → PNG/JPEG preview |
+//! | `GET /api/colour` | `node` (optional) → the OpenColorIO config, the working space, the displays and their views |
 //! | `GET /api/warm` | same query as `/api/image`: encodes every frame's preview in the background; progress |
 //! | `GET /api/pixel` | `node, port, frame, layer, x, y` → linear values |
 //! | `GET /api/artifact` | `node, port, frame` → a JSON artifact as stored, or an image's size and layers |
@@ -55,6 +56,7 @@ pub fn router(studio: Arc<Studio>, access: crate::access::Access) -> Router {
         .route("/api/params", post(params))
         .route("/api/params/save", post(save_param))
         .route("/api/image", get(image))
+        .route("/api/colour", get(colour))
         .route("/api/warm", get(warm))
         .route("/api/pixel", get(pixel))
         .route("/api/refine", post(refine))
@@ -240,6 +242,8 @@ struct OutputQuery {
     exposure: f32,
     #[serde(default = "yes")]
     srgb: bool,
+    display: Option<String>,
+    view: Option<String>,
     fmt: Option<String>,
     x: Option<i64>,
     y: Option<i64>,
@@ -258,7 +262,7 @@ fn loaded(s: &Studio) -> Result<(Arc<Graph>, Store), ApiError> {
     Ok((g, store))
 }
 
-fn view_of(q: &OutputQuery) -> Result<View, ApiError> {
+fn view_of(s: &Studio, q: &OutputQuery) -> Result<View, ApiError> {
     if !(q.exposure.is_finite() && q.exposure.abs() <= 32.0) {
         return Err(ApiError::bad("exposure must be within ±32 stops"));
     }
@@ -271,16 +275,69 @@ fn view_of(q: &OutputQuery) -> Result<View, ApiError> {
             )))
         }
     };
+    let display = match q.display.as_deref().filter(|d| !d.is_empty()) {
+        None => None,
+        Some(display) => {
+            let g = s
+                .graph()
+                .ok_or_else(|| ApiError::conflict("the graph does not load"))?;
+            let node = g
+                .index_of(&q.node)
+                .ok_or_else(|| ApiError::not_found(format!("no node `{}` in the graph", q.node)))?;
+            let (config, space) = preview::output_colour(&g, node)?;
+            let view = q.view.as_deref().filter(|v| !v.is_empty());
+            Some(s.previews.display_view(&config, space, display, view)?)
+        }
+    };
     Ok(View {
         exposure: q.exposure,
         srgb: q.srgb,
         jpeg,
+        display,
     })
+}
+
+#[derive(Deserialize)]
+struct ColourQuery {
+    node: Option<String>,
+}
+
+/// The colour management the previews of `node`'s outputs (default: the graph's first node)
+/// can use: the OpenColorIO config, the space the values are in, every display and its views.
+async fn colour(State(s): S, q: Result<Query<ColourQuery>, QueryRejection>) -> ApiResult {
+    let Query(q) = q.map_err(query_rejection)?;
+    let r = blocking(move || {
+        let g = s
+            .graph()
+            .ok_or_else(|| ApiError::conflict("the graph does not load"))?;
+        let node = match &q.node {
+            Some(id) => g
+                .index_of(id)
+                .ok_or_else(|| ApiError::not_found(format!("no node `{id}` in the graph")))?,
+            None => 0,
+        };
+        if g.nodes.is_empty() {
+            return Err(ApiError::conflict("the graph has no nodes"));
+        }
+        let (config, space) = preview::output_colour(&g, node)?;
+        let displays: Vec<Json_> = config
+            .displays()
+            .into_iter()
+            .map(|d| json!({ "display": d, "views": config.views(&d) }))
+            .collect();
+        Ok(json!({
+            "config": config.source(),
+            "working_space": space.name(),
+            "displays": displays,
+        }))
+    })
+    .await?;
+    Ok(Json(r).into_response())
 }
 
 async fn image(State(s): S, q: Result<Query<OutputQuery>, QueryRejection>) -> ApiResult {
     let Query(q) = q.map_err(query_rejection)?;
-    let view = view_of(&q)?;
+    let view = view_of(&s, &q)?;
     let jpeg = view.jpeg;
     let bytes = blocking(move || {
         let (g, store) = loaded(&s)?;
@@ -306,7 +363,7 @@ async fn image(State(s): S, q: Result<Query<OutputQuery>, QueryRejection>) -> Ap
 /// run) replaces it.
 async fn warm(State(s): S, q: Result<Query<OutputQuery>, QueryRejection>) -> ApiResult {
     let Query(q) = q.map_err(query_rejection)?;
-    let view = view_of(&q)?;
+    let view = view_of(&s, &q)?;
     let g = s
         .graph()
         .ok_or_else(|| ApiError::conflict("the graph does not load"))?;
@@ -337,14 +394,12 @@ async fn warm(State(s): S, q: Result<Query<OutputQuery>, QueryRejection>) -> Api
         frames.rotate_left(i);
     }
     let key = format!(
-        "{}|{}|{}|{}|{}|{}|{}",
+        "{}|{}|{}|{}|{}",
         s.runs(),
         q.node,
         q.port,
         q.layer.as_deref().unwrap_or(""),
-        view.exposure,
-        view.srgb,
-        view.jpeg
+        view.key()
     );
     let (w, start) = s.previews.warming(&key, frames.len());
     if start {

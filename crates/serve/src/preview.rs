@@ -5,13 +5,15 @@
 //! the server, JSON-encoded artifacts (cameras, points, tracks, marks, reports) are passed on
 //! as they are stored.
 //!
-//! Previews: exposure (stops) times the linear value, then the sRGB transfer curve or a plain
-//! clamp (linear view), 8 bits per channel, encoded as PNG with fast compression (exact: the
+//! Previews: exposure (stops) times the linear value, then the sRGB transfer curve, a plain
+//! clamp (linear view), or a display/view transform of the graph's OpenColorIO config (the
+//! studio's colour-managed view: [`output_colour`], [`DisplayView`]), 8 bits per channel, encoded as PNG with fast compression (exact: the
 //! page reads pixels back from it) or JPEG (smaller, for scrubbing large plates). Decoded
 //! images and encoded previews are kept in small in-memory LRU caches, so scrubbing frames a
 //! second time costs no decode.
 
-use std::collections::VecDeque;
+use std::collections::{HashMap, VecDeque};
+use std::path::Path;
 use std::sync::{Arc, Mutex};
 
 use image::codecs::jpeg::JpegEncoder;
@@ -22,6 +24,7 @@ use vfxgraph_engine::exec::{last_run_entry, recompute_uncached};
 use vfxgraph_engine::store::Store;
 use vfxgraph_engine::{Digest, Graph, Registry};
 use vfxgraph_imaging::color::linear_to_srgb8;
+use vfxgraph_imaging::colour::{ColourConfig, ColourTransform, WorkingSpace};
 use vfxgraph_imaging::Image;
 use vfxgraph_nodes::artifacts::ImageArt;
 
@@ -90,6 +93,9 @@ pub struct PreviewCache {
     decoded: Mutex<Lru<Arc<dyn DynArtifact>>>,
     encoded: Mutex<Lru<Arc<Vec<u8>>>>,
     warming: Mutex<Option<(String, Arc<Warming>)>>,
+    /// Display/view transforms made (a processor is built once per config, space, display
+    /// and view).
+    displays: Mutex<HashMap<String, Arc<ColourTransform>>>,
 }
 
 /// Most encoded preview bytes kept in memory (a 1280×720 JPEG preview is ~0.1 MB, a PNG ~1 MB).
@@ -101,6 +107,7 @@ impl Default for PreviewCache {
             decoded: Mutex::new(Lru::new(6, usize::MAX)),
             encoded: Mutex::new(Lru::new(4096, ENCODED_BYTES)),
             warming: Mutex::new(None),
+            displays: Mutex::new(HashMap::new()),
         }
     }
 }
@@ -139,6 +146,63 @@ pub struct View {
     pub srgb: bool,
     /// JPEG instead of PNG.
     pub jpeg: bool,
+    /// A display/view transform instead of the sRGB curve or the clamp.
+    pub display: Option<DisplayView>,
+}
+
+impl View {
+    /// What tells two views' previews apart (a part of the previews' cache keys).
+    pub fn key(&self) -> String {
+        let display = self.display.as_ref().map_or("", |d| d.label.as_str());
+        format!("{}|{}|{}|{display}", self.exposure, self.srgb, self.jpeg)
+    }
+}
+
+/// A display/view transform of an OpenColorIO config, from the space an output's values are
+/// in to a display's encoding (the view's tone mapping included, as the config defines it).
+#[derive(Clone, Debug)]
+pub struct DisplayView {
+    /// The config, the source space, the display and the view: the transform's identity.
+    pub label: String,
+    /// The transform.
+    pub transform: Arc<ColourTransform>,
+}
+
+/// The colour of node `node`'s outputs: its own `ocio_config` and `working_space` parameters
+/// when it has them, else those of the first node of the graph that has them (the graph's
+/// `defaults:` put one value in every node that has the parameter), else the built-in config
+/// and linear Rec. 709. A relative config path is the graph folder's, as the nodes read it.
+pub fn output_colour(
+    g: &Graph,
+    node: usize,
+) -> Result<(Arc<ColourConfig>, WorkingSpace), ApiError> {
+    let param = |name: &str| -> Option<String> {
+        let of = |i: usize| {
+            g.nodes[i].params.get(name).and_then(|v| match v {
+                vfxgraph_engine::ParamValue::Str(s) if !s.is_empty() => Some(s.clone()),
+                _ => None,
+            })
+        };
+        of(node).or_else(|| (0..g.nodes.len()).find_map(of))
+    };
+    let space = match param("working_space").as_deref() {
+        None => WorkingSpace::default(),
+        Some(name) => <WorkingSpace as vfxgraph_params::Choice>::from_choice(name)
+            .ok_or_else(|| ApiError::bad(format!("unknown working space `{name}`")))?,
+    };
+    let config = match param("ocio_config") {
+        None => ColourConfig::builtin(),
+        Some(p) => {
+            let path = Path::new(&p);
+            let path = if path.is_absolute() {
+                path.to_path_buf()
+            } else {
+                g.dir.join(path)
+            };
+            ColourConfig::open(&path).map_err(|e| ApiError::bad(e.to_string()))?
+        }
+    };
+    Ok((config, space))
 }
 
 /// One output of the last run: its type and digest.
@@ -216,6 +280,49 @@ pub fn find_output(
 }
 
 impl PreviewCache {
+    /// The display/view transform from `space` to `display`'s `view` (the display's first
+    /// view when `view` is `None`) of `config`; unknown names are errors listing the config's.
+    pub fn display_view(
+        &self,
+        config: &ColourConfig,
+        space: WorkingSpace,
+        display: &str,
+        view: Option<&str>,
+    ) -> Result<DisplayView, ApiError> {
+        let view = match view {
+            Some(v) => v.to_string(),
+            None => config.views(display).into_iter().next().ok_or_else(|| {
+                ApiError::bad(format!(
+                    "no display `{display}` in the OpenColorIO config {} (displays: {})",
+                    config.source(),
+                    config.displays().join(", ")
+                ))
+            })?,
+        };
+        let label = format!("{}|{}|{display}|{view}", config.source(), space.name());
+        let made = self
+            .displays
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .get(&label)
+            .cloned();
+        let transform = match made {
+            Some(t) => t,
+            None => {
+                let t = config
+                    .display_view(space.name(), display, &view)
+                    .map_err(|e| ApiError::bad(e.to_string()))?;
+                let t = Arc::new(t);
+                self.displays
+                    .lock()
+                    .unwrap_or_else(|p| p.into_inner())
+                    .insert(label.clone(), t.clone());
+                t
+            }
+        };
+        Ok(DisplayView { label, transform })
+    }
+
     /// The decoded artifact of `out`: a verified read from the store, or an uncached reader's
     /// output recomputed (checked against the run's digest).
     pub fn artifact(
@@ -264,12 +371,10 @@ impl PreviewCache {
         view: &View,
     ) -> Result<Arc<Vec<u8>>, ApiError> {
         let key = format!(
-            "{}|{}|{}|{}|{}",
+            "{}|{}|{}",
             out.digest.to_hex(),
             layer.unwrap_or(""),
-            view.exposure,
-            view.srgb,
-            view.jpeg
+            view.key()
         );
         if let Some(b) = self
             .encoded
@@ -375,6 +480,36 @@ fn srgb8_fast(v: f32) -> u8 {
 /// 8-bit RGB (or grey) bytes of `img` under `view`.
 pub fn display_bytes(img: &Image, view: &View) -> (Vec<u8>, ExtendedColorType) {
     let gain = 2f32.powf(view.exposure);
+    if let Some(d) = &view.display {
+        // Exposed RGB (a grey image as three equal channels) through the transform, whose
+        // output is the display's code values.
+        let cc = img.color_channels();
+        let mut rgb = Image {
+            width: img.width,
+            height: img.height,
+            channels: 3,
+            data: Vec::with_capacity(img.width * img.height * 3),
+        };
+        for px in img.data.chunks_exact(img.channels.max(1)) {
+            if cc >= 3 {
+                rgb.data.extend(px[..3].iter().map(|v| v * gain));
+            } else {
+                rgb.data.extend([px[0] * gain; 3]);
+            }
+        }
+        d.transform.apply(&mut rgb);
+        let to8 = |v: f32| {
+            if v.is_nan() {
+                0
+            } else {
+                (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
+            }
+        };
+        return (
+            rgb.data.iter().map(|&v| to8(v)).collect(),
+            ExtendedColorType::Rgb8,
+        );
+    }
     let to8 = |v: f32| -> u8 {
         let v = v * gain;
         if view.srgb {
@@ -453,6 +588,7 @@ mod tests {
             exposure: 0.0,
             srgb: false,
             jpeg: false,
+            display: None,
         };
         let (b, _) = display_bytes(&img, &lin);
         assert_eq!(b, vec![64, 128, 255, 0, 255, 0]);
@@ -468,6 +604,80 @@ mod tests {
         assert!(b[0] > 64, "sRGB lifts the mid-tones");
         let png = encode_preview(&img, &srgb).unwrap();
         assert_eq!(&png[1..4], b"PNG");
+    }
+
+    /// The built-in config's un-tone-mapped sRGB view of linear Rec. 709 is the sRGB curve
+    /// (IEC 61966-2-1), and of ACEScg the same after the AP1 → Rec. 709 primaries; the ACES
+    /// 2.0 SDR view tone-maps (highlights above 1 stay below white, mid-grey sits darker than
+    /// the plain curve puts it). Grey images are shown as three equal channels.
+    #[test]
+    fn a_display_view_transform_is_the_configs() {
+        let cache = PreviewCache::default();
+        let config = ColourConfig::builtin();
+        let plain = |space| {
+            cache
+                .display_view(&config, space, "sRGB - Display", Some("Un-tone-mapped"))
+                .unwrap()
+        };
+        let values = [0.0, 0.001, 0.0031, 0.05, 0.18, 0.5, 0.9, 1.0];
+        let img = Image::from_vec(values.len(), 1, 1, values.to_vec()).unwrap();
+        let view = View {
+            exposure: 0.0,
+            srgb: true,
+            jpeg: false,
+            display: Some(plain(WorkingSpace::LinearRec709)),
+        };
+        let (b, ty) = display_bytes(&img, &view);
+        assert_eq!(ty, ExtendedColorType::Rgb8);
+        for (px, &v) in b.chunks(3).zip(&values) {
+            let want = linear_to_srgb8(v) as i32;
+            assert!(
+                px.iter().all(|&c| (c as i32 - want).abs() <= 1),
+                "{v}: {px:?} against the sRGB curve's {want}"
+            );
+        }
+        // A colour in ACEScg: converted to Rec. 709 primaries (the ACEScg → linear Rec. 709
+        // transform, itself checked against PyOpenColorIO), then the curve.
+        let ap1 = [0.3f32, 0.2, 0.1];
+        let mut to709 = Image::from_vec(1, 1, 3, ap1.to_vec()).unwrap();
+        config
+            .transform("ACEScg", vfxgraph_imaging::colour::LINEAR_REC709)
+            .unwrap()
+            .apply(&mut to709);
+        let img = Image::from_vec(1, 1, 3, ap1.to_vec()).unwrap();
+        let view = View {
+            display: Some(plain(WorkingSpace::AcesCg)),
+            ..view
+        };
+        let (b, _) = display_bytes(&img, &view);
+        for (c, &v) in b.iter().zip(&to709.data) {
+            assert!(
+                (*c as i32 - linear_to_srgb8(v) as i32).abs() <= 1,
+                "{b:?} {to709:?}"
+            );
+        }
+        let aces = cache
+            .display_view(&config, WorkingSpace::AcesCg, "sRGB - Display", None)
+            .unwrap();
+        assert!(
+            aces.label.contains("ACES"),
+            "the display's first view: {}",
+            aces.label
+        );
+        let img = Image::from_vec(2, 1, 1, vec![0.18, 4.0]).unwrap();
+        let (b, _) = display_bytes(
+            &img,
+            &View {
+                display: Some(aces),
+                ..view
+            },
+        );
+        assert!(b[0] < linear_to_srgb8(0.18), "{b:?}");
+        assert!(b[3] < 255 && b[3] > b[0], "{b:?}");
+        let e = cache
+            .display_view(&config, WorkingSpace::AcesCg, "Cinema", None)
+            .unwrap_err();
+        assert!(e.message.contains("sRGB - Display"), "{}", e.message);
     }
 
     #[test]

@@ -695,3 +695,92 @@ async fn a_saved_param_changes_only_its_text_in_the_graph_file() {
         .collect();
     assert!(left.is_empty(), "{left:?}");
 }
+
+/// A graph in ACEScg viewed through its OpenColorIO config: `/api/colour` names the config,
+/// the working space and the displays; a preview through `sRGB - Display` / `Un-tone-mapped`
+/// is each pixel's served linear value taken from ACEScg to Rec. 709 and through the sRGB
+/// curve (to a code); an unknown display is refused, naming the config's.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn previews_come_through_the_graphs_display_view() {
+    let dir = tempfile::tempdir().unwrap();
+    let graph = "version: 1
+frames: 1
+defaults: {working_space: acescg}
+nodes:
+  plate:
+    type: read_image_sequence
+    params: {path: plate.%04d.pfm}
+";
+    let s = studio(dir.path(), graph);
+    let img = vfxgraph_imaging::Image::from_fn(4, 3, 3, |x, y, c| {
+        [0.02, 0.18, 0.6][c] * (1.0 + x as f32) / (1.0 + y as f32)
+    });
+    vfxgraph_imaging::write_image(&dir.path().join("plate.0001.pfm"), &img).unwrap();
+    let (st, v) = get_json(&s, "/api/colour").await;
+    assert_eq!(st, StatusCode::OK, "{v}");
+    assert_eq!(v["working_space"], "ACEScg", "{v}");
+    assert!(v["config"].as_str().unwrap().starts_with("ocio://"), "{v}");
+    let srgb = v["displays"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|d| d["display"] == "sRGB - Display")
+        .unwrap_or_else(|| panic!("{v}"));
+    assert!(
+        srgb["views"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|w| w == "Un-tone-mapped"),
+        "{v}"
+    );
+    let (st, _) = post_json(&s, "/api/run", json!({})).await;
+    assert_eq!(st, StatusCode::ACCEPTED);
+    let s2 = s.clone();
+    tokio::task::spawn_blocking(move || wait_idle(&s2))
+        .await
+        .unwrap();
+    let (st, png) = call(
+        &s,
+        "GET",
+        "/api/image?node=plate&port=sequence&frame=1&display=sRGB%20-%20Display&view=Un-tone-mapped",
+        None,
+    )
+    .await;
+    assert_eq!(st, StatusCode::OK, "{}", String::from_utf8_lossy(&png));
+    let shown = vfxgraph_imaging::decode(&png, vfxgraph_imaging::Format::Png).unwrap();
+    let config = vfxgraph_imaging::colour::ColourConfig::builtin();
+    let to709 = config
+        .transform("ACEScg", vfxgraph_imaging::colour::LINEAR_REC709)
+        .unwrap();
+    let mut worst = 0i32;
+    for (x, y) in [(0, 0), (3, 0), (1, 1), (3, 2)] {
+        let (st, v) = get_json(
+            &s,
+            &format!("/api/pixel?node=plate&port=sequence&frame=1&x={x}&y={y}"),
+        )
+        .await;
+        assert_eq!(st, StatusCode::OK, "{v}");
+        let lin: Vec<f32> = (0..3)
+            .map(|c| v["value"][c].as_f64().unwrap() as f32)
+            .collect();
+        let rgb = to709.apply_rgb([lin[0], lin[1], lin[2]]);
+        for (c, &v) in rgb.iter().enumerate() {
+            let want = vfxgraph_imaging::color::linear_to_srgb8(v) as i32;
+            // The PNG decodes to linear values: back to the 8-bit code it holds.
+            let got = vfxgraph_imaging::color::linear_to_srgb8(shown.get(x, y, c)) as i32;
+            worst = worst.max((got - want).abs());
+        }
+    }
+    assert!(worst <= 1, "codes off by {worst}");
+    let (st, v) = get_json(
+        &s,
+        "/api/image?node=plate&port=sequence&frame=1&display=Cinema",
+    )
+    .await;
+    assert_eq!(st, StatusCode::BAD_REQUEST, "{v}");
+    assert!(
+        v["error"].as_str().unwrap().contains("sRGB - Display"),
+        "{v}"
+    );
+}
