@@ -90,15 +90,6 @@ impl PortSpec {
         self
     }
 
-    /// A port carrying one `T`.
-    pub fn of<T: ArtifactType>(name: &'static str, doc: &'static str) -> Self {
-        PortSpec::one(name, T::NAME, doc).typed(ArtifactOf::of::<T>())
-    }
-    /// A sequence of `T`.
-    pub fn sequence_of<T: ArtifactType>(name: &'static str, doc: &'static str) -> Self {
-        PortSpec::sequence(name, T::NAME, doc).typed(ArtifactOf::of::<T>())
-    }
-
     /// Marks an input optional.
     pub fn optional(mut self) -> Self {
         self.optional = true;
@@ -269,26 +260,6 @@ impl NodeSpec {
     pub fn output(mut self, p: impl OutputDecl) -> Self {
         self.outputs.push(p.output_spec());
         self
-    }
-    /// Adds an input carrying one `T`.
-    pub fn input_of<T: ArtifactType>(self, name: &'static str, doc: &'static str) -> Self {
-        self.input(crate::port::In::<T>::new(name, doc))
-    }
-    /// Adds an optional input carrying one `T`.
-    pub fn optional_input_of<T: ArtifactType>(self, name: &'static str, doc: &'static str) -> Self {
-        self.input(crate::port::OptIn::<T>::new(name, doc))
-    }
-    /// Adds a sequence input of `T`.
-    pub fn sequence_input_of<T: ArtifactType>(self, name: &'static str, doc: &'static str) -> Self {
-        self.input(crate::port::SeqIn::<T>::new(name, doc))
-    }
-    /// Adds a streamed sequence input of `T`.
-    pub fn streamed_input_of<T: ArtifactType>(self, name: &'static str, doc: &'static str) -> Self {
-        self.input(crate::port::StreamIn::<T>::new(name, doc))
-    }
-    /// Adds an output carrying one `T`.
-    pub fn output_of<T: ArtifactType>(self, name: &'static str, doc: &'static str) -> Self {
-        self.output(Out::<T>::new(name, doc))
     }
     /// Adds a required parameter naming a file the node reads (its content enters the key).
     pub fn input_file_param(self, name: &'static str, doc: &'static str) -> Self {
@@ -543,7 +514,7 @@ impl<'a> Context<'a> {
     }
 
     /// True if input `port` is connected.
-    pub fn connected(&self, port: &str) -> bool {
+    pub(crate) fn connected(&self, port: &str) -> bool {
         self.inputs.contains_key(port)
     }
 

@@ -1,16 +1,24 @@
 //! Typed ports: each port of a node type declared once, as a constant that carries its name,
 //! its documentation and its artifact type.
 //!
-//! ```ignore
-//! const TRACKS: In<TracksArt> = In::new("tracks", "the tracks");
-//! const CAMERAS: Out<CameraPathArt> = Out::new("cameras", "one [R|t] per frame");
+//! ```
+//! use vfxgraph_engine::{Context, In, NodeError, NodeSpec, Out, Registry};
 //!
-//! NodeSpec::new("solve", "…").input(TRACKS).output(CAMERAS);
-//! fn run(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-//!     let tracks = &ctx.get(TRACKS)?.0;
-//!     ctx.set(CAMERAS, CameraPathArt(solve(tracks)?));
+//! const DISTANCE: In<f64> = In::new("distance", "a distance, metres");
+//! const HALF: Out<f64> = Out::new("half", "half of it");
+//!
+//! fn run_halve(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+//!     let d = *ctx.get(DISTANCE)?;
+//!     ctx.set(HALF, d / 2.0);
 //!     Ok(())
 //! }
+//!
+//! let mut r = Registry::new();
+//! r.register_fn(
+//!     NodeSpec::new("halve", "Halves a distance.").input(DISTANCE).output(HALF),
+//!     run_halve,
+//! );
+//! assert_eq!(r.node("halve").unwrap().spec().inputs[0].name, "distance");
 //! ```
 //!
 //! The spec built from a constant is the data the rest of the engine reads ([`PortSpec`]: the
@@ -80,8 +88,6 @@ pub trait InputPort: InputDecl + Copy {
     type Value<'c>;
     /// Reads the port's value from `ctx`.
     fn read<'c>(self, ctx: &'c Context<'_>) -> Result<Self::Value<'c>, NodeError>;
-    /// The port's name.
-    fn name(self) -> &'static str;
 }
 
 macro_rules! port_kind {
@@ -177,9 +183,6 @@ impl<T: ArtifactType> InputPort for In<T> {
     fn read<'c>(self, ctx: &'c Context<'_>) -> Result<&'c T, NodeError> {
         ctx.input(self.name)
     }
-    fn name(self) -> &'static str {
-        self.name
-    }
 }
 
 impl<T: ArtifactType> InputDecl for OptIn<T> {
@@ -193,9 +196,6 @@ impl<T: ArtifactType> InputPort for OptIn<T> {
     fn read<'c>(self, ctx: &'c Context<'_>) -> Result<Option<&'c T>, NodeError> {
         ctx.input_opt(self.name)
     }
-    fn name(self) -> &'static str {
-        self.name
-    }
 }
 
 impl<T: ArtifactType> InputDecl for SeqIn<T> {
@@ -208,9 +208,6 @@ impl<T: ArtifactType> InputPort for SeqIn<T> {
     type Value<'c> = Vec<(i64, &'c T)>;
     fn read<'c>(self, ctx: &'c Context<'_>) -> Result<Vec<(i64, &'c T)>, NodeError> {
         ctx.sequence(self.name)
-    }
-    fn name(self) -> &'static str {
-        self.name
     }
 }
 
@@ -229,9 +226,6 @@ impl<T: ArtifactType> InputPort for OptSeqIn<T> {
             Ok(None)
         }
     }
-    fn name(self) -> &'static str {
-        self.name
-    }
 }
 
 impl<T: ArtifactType> InputDecl for StreamIn<T> {
@@ -244,9 +238,6 @@ impl<T: ArtifactType> InputPort for StreamIn<T> {
     type Value<'c> = Stream<'c, T>;
     fn read<'c>(self, ctx: &'c Context<'_>) -> Result<Stream<'c, T>, NodeError> {
         ctx.stream(self.name)
-    }
-    fn name(self) -> &'static str {
-        self.name
     }
 }
 
