@@ -105,6 +105,19 @@ json_artifact! {
     "A report of figures (errors, inliers, timings) as a JSON document.";
 }
 
+impl ReportArt {
+    /// The report of a typed report struct (its serde form).
+    pub fn of<T: serde::Serialize>(report: &T) -> Result<Self, NodeError> {
+        Ok(ReportArt(serde_json::to_value(report)?))
+    }
+
+    /// The report read back as the typed report `T` it was made from (the fields `T` names,
+    /// checked; others ignored).
+    pub fn parse<T: serde::de::DeserializeOwned>(&self) -> Result<T, String> {
+        T::deserialize(&self.0).map_err(|e| e.to_string())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -434,8 +434,12 @@ mod tests {
         let f_err =
             (cam.intrinsics.f1 - scene.camera.intrinsics.f1).abs() / scene.camera.intrinsics.f1;
         assert!(f_err < 0.005, "focal error {f_err}");
-        let rep = ctx.take_output::<ReportArt>("report").unwrap().0;
-        assert!(rep["rms"].as_f64().unwrap() < 1.0, "{rep}");
+        let rep: vfxgraph_vision::calibration::CalibrationReport = ctx
+            .take_output::<ReportArt>("report")
+            .unwrap()
+            .parse()
+            .unwrap();
+        assert!(rep.rms < 1.0, "{rep:?}");
         // Tsai without a principal point is a clear error.
         let p = params(&s, &[("method", ParamValue::Str("tsai".into()))]);
         let mut ctx = Context::for_test(

@@ -313,7 +313,7 @@ fn run_align(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let (aligned, shifts) = align_exposures(stack, &o)?;
     let report = align_report(&o, stack.len(), &shifts);
     ctx.set(ALIGNED, StackArt(aligned));
-    ctx.set(REPORT, ReportArt(report));
+    ctx.set(REPORT, ReportArt::of(&report)?);
     Ok(())
 }
 
@@ -649,12 +649,13 @@ mod tests {
         )];
         let mut ctx = Context::for_test(&s, &p, Path::new("."), None, input);
         run_align(&mut ctx).unwrap();
-        let report = ctx.take_output::<ReportArt>("report").unwrap().0;
-        assert_eq!(report["reference"], 1);
-        assert_eq!(
-            report["shifts"],
-            serde_json::json!([[0, 0], [0, 0], [-3, 2]])
-        );
+        let report: vfxgraph_imaging::hdr::AlignReport = ctx
+            .take_output::<ReportArt>("report")
+            .unwrap()
+            .parse()
+            .unwrap();
+        assert_eq!(report.reference, 1);
+        assert_eq!(report.shifts, [[0, 0], [0, 0], [-3, 2]]);
         let aligned = ctx.take_output::<StackArt>("stack").unwrap().0;
         assert!(aligned.is_masked(w - 1) && !aligned.is_masked(w * 10 + 10));
         let p = params(&s, &[("reference", ParamValue::Int(3))]);

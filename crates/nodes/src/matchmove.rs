@@ -185,6 +185,7 @@ mod tests {
     use super::*;
     use crate::testing::{params, spec};
     use vfxgraph_engine::{InputValue, ParamValue, Value};
+    use vfxgraph_vision::matchmove::SolveReport;
 
     use vfxgraph_vision::matchmove::synthetic::{synthetic_shot, ShotOptions};
 
@@ -256,11 +257,11 @@ mod tests {
             .iter()
             .chain(f.pose.t.iter())
             .all(|v| v.is_finite())));
-        let report = report.unwrap().0;
-        let rms = report["overall_rms"].as_f64().unwrap();
+        let report: SolveReport = report.unwrap().parse().unwrap();
+        let rms = report.overall_rms;
         assert!(rms < 1.0, "overall RMS {rms}");
-        assert_eq!(report["frames"].as_array().unwrap().len(), 70);
-        assert!(report["score"]["median"].as_f64().unwrap() < 1.0);
+        assert_eq!(report.frames.len(), 70);
+        assert!(report.score.unwrap().median < 1.0);
     }
 
     /// A nodal pan solved as a moving camera (`solve: general`, no parallax) gives a clear
@@ -278,8 +279,8 @@ mod tests {
         });
         let (r, cams, report) = run_node(&s);
         r.unwrap();
-        let report = report.unwrap().0;
-        assert_eq!(report["rotation_only"].as_bool(), Some(true), "{report}");
+        let report: SolveReport = report.unwrap().parse().unwrap();
+        assert!(report.rotation_only, "{report:?}");
         assert!(cams
             .unwrap()
             .0

@@ -4,7 +4,8 @@ use vfxgraph_engine::{In, Mode, NodeSpec, OptIn, Out, Registry};
 use vfxgraph_vision::formats::marked_points::{
     read_marked_points, write_marked_points, MarkedPoints,
 };
-use vfxgraph_vision::modeling::point_cloud_calibrate;
+use vfxgraph_vision::modeling::{point_cloud_calibrate, PointCloudReport};
+use vfxgraph_vision::Points3d;
 
 use crate::artifacts::{json_artifact, CameraPathArt, IntrinsicsArt, Points3dArt, ReportArt};
 
@@ -28,6 +29,16 @@ const REPORT: Out<ReportArt> = Out::new(
     "report",
     "frames used, the pair each point came from, per-point RMS and per-mark errors",
 );
+
+/// `point_cloud_calibrate`'s report: the calibration's figures and the points.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct MeasuredReport {
+    /// Frames used, the pair each point came from, per-point RMS and per-mark errors.
+    #[serde(flatten)]
+    pub figures: PointCloudReport,
+    /// One world point per marked point.
+    pub points: Points3d,
+}
 
 /// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
@@ -78,11 +89,13 @@ pub fn register(r: &mut Registry) {
             let marks = &ctx.get(MARKED)?.0;
             let path = &ctx.get(CAMERAS)?.0;
             let k = ctx.get(INTRINSICS)?.map(|k| k.0.clone());
-            let (points, report) = point_cloud_calibrate(marks, path, k.as_ref())?;
-            let mut rep = serde_json::to_value(&report)?;
-            rep["points"] = serde_json::to_value(&points)?;
+            let (points, figures) = point_cloud_calibrate(marks, path, k.as_ref())?;
+            let report = ReportArt::of(&MeasuredReport {
+                figures,
+                points: points.clone(),
+            })?;
             ctx.set(POINTS3D, Points3dArt(points));
-            ctx.set(REPORT, ReportArt(rep));
+            ctx.set(REPORT, report);
             Ok(())
         },
     );
