@@ -420,10 +420,10 @@ fn calibrate_hdr_camera_graph_recovers_a_known_camera() {
             assert!((cam["R"][i][j].as_f64().unwrap() - r[(i, j)]).abs() < 1e-6);
         }
     }
-    let rep: Json =
+    let rep: vfxgraph_vision::calibration::CalibrationReport =
         serde_json::from_slice(&fs::read(g.join("out/hdr_camera_report.json")).unwrap()).unwrap();
-    assert!(rep["rms"].as_f64().unwrap() < 1e-6, "{rep}");
-    assert_eq!(rep["errors"].as_array().unwrap().len(), 6);
+    assert!(rep.rms < 1e-6, "{rep:?}");
+    assert_eq!(rep.errors.len(), 6);
 }
 
 /// Copies an example graph into a scratch folder with its `../../shared/data` paths pointing at
