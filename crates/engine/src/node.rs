@@ -518,16 +518,6 @@ impl<'a> Context<'a> {
         self.inputs.contains_key(port)
     }
 
-    /// The name of the node's `i`-th declared input port (for nodes shared by several types).
-    pub fn input_port(&self, i: usize) -> &'static str {
-        self.spec.inputs[i].name
-    }
-
-    /// The name of the node's `i`-th declared output port.
-    pub fn output_port(&self, i: usize) -> &'static str {
-        self.spec.outputs[i].name
-    }
-
     /// The value on input `port`, by name: the untyped form of [`Context::get`], for ports
     /// named by data.
     pub fn input<T: ArtifactType>(&self, port: &str) -> Result<&T, NodeError> {
