@@ -41,14 +41,14 @@ pub fn registry() -> Registry {
     image_io::register(&mut r);
     image_ops::register(&mut r);
     lens::register(&mut r);
+    local_scene::register(&mut r);
     matchmove::register(&mut r);
     modeling::register(&mut r);
+    placement::register(&mut r);
     plate::register(&mut r);
     render::register(&mut r);
     shot::register(&mut r);
     tracking::register(&mut r);
-    local_scene::register(&mut r);
-    placement::register(&mut r);
     video::register(&mut r);
     #[cfg(feature = "opencv")]
     tracking_opencv::register(&mut r);
