@@ -420,10 +420,10 @@ fn calibrate_hdr_camera_graph_recovers_a_known_camera() {
             assert!((cam["R"][i][j].as_f64().unwrap() - r[(i, j)]).abs() < 1e-6);
         }
     }
-    let rep: Json =
+    let rep: vfxgraph_vision::calibration::CalibrationReport =
         serde_json::from_slice(&fs::read(g.join("out/hdr_camera_report.json")).unwrap()).unwrap();
-    assert!(rep["rms"].as_f64().unwrap() < 1e-6, "{rep}");
-    assert_eq!(rep["errors"].as_array().unwrap().len(), 6);
+    assert!(rep.rms < 1e-6, "{rep:?}");
+    assert_eq!(rep.errors.len(), 6);
 }
 
 /// Copies an example graph into a scratch folder with its `../../shared/data` paths pointing at
@@ -585,18 +585,14 @@ fn book_matchmove_graph_runs_and_reruns_only_the_relaxation() {
     assert!(json["intrinsics"]["K"][0][0].as_f64().unwrap() > 1228.0);
     let svg = fs::read_to_string(out.join("solve_error.svg")).unwrap();
     assert!(svg.starts_with("<svg"));
-    let report: Json =
+    let report: vfxgraph_vision::matchmove::SolveReport =
         serde_json::from_str(&fs::read_to_string(out.join("solve_report.json")).unwrap()).unwrap();
-    assert_eq!(report["score"]["frames_with_camera"], 286);
+    assert_eq!(report.score.unwrap().frames_with_camera, 286);
     // Chapter 8: the three marked ground points, measured with the relaxed cameras.
-    let ground: Json =
+    let ground: vfxgraph_nodes::modeling::MeasuredReport =
         serde_json::from_str(&fs::read_to_string(out.join("ground_points.json")).unwrap()).unwrap();
-    assert_eq!(ground["points"].as_array().unwrap().len(), 3);
-    assert!(ground["rms"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .all(|r| r.as_f64().unwrap() < 10.0));
+    assert_eq!(ground.points.len(), 3);
+    assert!(ground.figures.rms.iter().all(|r| *r < 10.0));
 
     let args = [
         "book_matchmove.yaml",

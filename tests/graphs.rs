@@ -11,6 +11,8 @@ use std::process::Output;
 use serde_json::Value as Json;
 use vfxgraph_imaging::color::linear_to_srgb8;
 use vfxgraph_imaging::{read_image, Image};
+use vfxgraph_nodes::modeling::MeasuredReport;
+use vfxgraph_vision::matchmove::SolveReport;
 
 fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -181,7 +183,7 @@ fn listing(dir: &Path, keep: impl Fn(&str) -> bool) -> Vec<String> {
     names
 }
 
-fn json_file(path: &Path) -> Json {
+fn json_file<T: serde::de::DeserializeOwned>(path: &Path) -> T {
     let t = fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     serde_json::from_str(&t).unwrap()
 }
@@ -200,19 +202,15 @@ fn code(img: &Image, x: usize, y: usize, c: usize) -> u8 {
 /// The solve both book graphs share, from its report: every one of the book's 286 frames has a
 /// camera, the path is smooth (the bounds of the matchmove's own book test), and the inliers'
 /// RMS is within the final tolerance.
-fn check_book_solve(report: &Json) {
-    let score = &report["score"];
-    assert_eq!(score["frames_with_camera"], 286, "{score}");
-    assert!(
-        score["max_rotation_step_deg"].as_f64().unwrap() < 3.0,
-        "{score}"
-    );
-    assert!(
-        score["translation_step_ratio"].as_f64().unwrap() < 10.0,
-        "{score}"
-    );
-    let rms = report["overall_rms"].as_f64().unwrap();
-    let tol = report["inlier_tolerance"].as_f64().unwrap();
+fn check_book_solve(report: &SolveReport) {
+    let score = report
+        .score
+        .as_ref()
+        .expect("the report has the book's score");
+    assert_eq!(score.frames_with_camera, 286, "{score:?}");
+    assert!(score.max_rotation_step_deg < 3.0, "{score:?}");
+    assert!(score.translation_step_ratio < 10.0, "{score:?}");
+    let (rms, tol) = (report.overall_rms, report.inlier_tolerance);
     assert!(
         rms > 0.0 && rms <= tol,
         "overall RMS {rms} px (tolerance {tol})"
@@ -272,11 +270,11 @@ fn book_scene_and_book_shot_graphs_run_on_a_few_frames() {
     // The three marked ground points, measured with our cameras, reproject onto the marks
     // (the bound of the book_matchmove graph's test), and the book's catcher — built on the
     // same marks — has the measured triangle's shape (the bound of nodes/tests/book_scene.rs).
-    let ground = json_file(&out.join("ground_points.json"));
-    let rms = ground["rms"].as_array().unwrap();
-    assert_eq!(rms.len(), 3, "{ground}");
-    assert!(rms.iter().all(|r| r.as_f64().unwrap() < 10.0), "{ground}");
-    let place = json_file(&out.join("place_report.json"));
+    let ground: MeasuredReport = json_file(&out.join("ground_points.json"));
+    let rms = &ground.figures.rms;
+    assert_eq!(rms.len(), 3, "{ground:?}");
+    assert!(rms.iter().all(|r| *r < 10.0), "{ground:?}");
+    let place: Json = json_file(&out.join("place_report.json"));
     let rel = place["relative_rms"].as_f64().unwrap();
     assert!(
         rel < 0.01,

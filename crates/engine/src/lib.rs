@@ -7,6 +7,7 @@
 //! - [`graph`]: parse and validate a graph file (all errors at once, with line:column).
 //! - [`artifact`] and [`registry`]: value types with canonical encodings and content digests.
 //! - [`node`]: what a node type declares and what it sees when it runs.
+//! - [`port`]: typed port constants, a node's inputs and outputs declared once.
 //! - [`exec`]: instances, cache keys, planning and the scheduler.
 //! - [`store`]: the on-disk cache (objects + actions).
 
@@ -20,6 +21,7 @@ pub mod lease;
 pub mod node;
 pub mod options;
 pub mod param;
+pub mod port;
 pub mod registry;
 pub mod store;
 pub mod stream;
@@ -35,4 +37,5 @@ pub use graph::{load, Graph, LoadError, Overrides};
 pub use node::{Context, InputValue, Memory, Mode, Node, NodeError, NodeSpec, PortSpec, Threads};
 pub use options::OptionsDecl;
 pub use param::{Kind, ParamCheck, ParamDesc, ParamValue, Params, PathRole};
+pub use port::{In, InputPort, OptIn, OptSeqIn, Out, SeqIn, StreamIn};
 pub use registry::{Registry, RunFn};

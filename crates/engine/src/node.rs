@@ -18,6 +18,7 @@ pub use crate::frames::{
 use crate::artifact::{ArtifactType, Digest, Value};
 use crate::options::OptionsDecl;
 use crate::param::{Kind, ParamDesc, Params, PathRole};
+use crate::port::{ArtifactOf, InputDecl, InputPort, Out, OutputDecl};
 use crate::stream::{Deferred, Items, Stream};
 
 /// Whether a node type runs once, once per frame, or either (chosen by the graph).
@@ -50,6 +51,10 @@ pub struct PortSpec {
     pub streamed: bool,
     /// One line of documentation.
     pub doc: &'static str,
+    /// The artifact type, for a port declared by a typed constant ([`crate::port`]): the
+    /// registry registers it with the node. `None` for a port built from names, whose type
+    /// must be registered already.
+    pub artifact: Option<ArtifactOf>,
 }
 
 impl PortSpec {
@@ -62,6 +67,7 @@ impl PortSpec {
             optional: false,
             streamed: false,
             doc,
+            artifact: None,
         }
     }
 
@@ -74,17 +80,14 @@ impl PortSpec {
             optional: false,
             streamed: false,
             doc,
+            artifact: None,
         }
     }
 
-    /// A port carrying one artifact of type `T`: `PortSpec::one(name, T::NAME, doc)`.
-    pub fn of<T: ArtifactType>(name: &'static str, doc: &'static str) -> Self {
-        PortSpec::one(name, T::NAME, doc)
-    }
-
-    /// An input taking a whole sequence of `T`: `PortSpec::sequence(name, T::NAME, doc)`.
-    pub fn sequence_of<T: ArtifactType>(name: &'static str, doc: &'static str) -> Self {
-        PortSpec::sequence(name, T::NAME, doc)
+    /// The port with its artifact type attached (see [`PortSpec::artifact`]).
+    pub(crate) fn typed(mut self, artifact: ArtifactOf) -> Self {
+        self.artifact = Some(artifact);
+        self
     }
 
     /// Marks an input optional.
@@ -246,38 +249,17 @@ impl NodeSpec {
         self.cache_outputs = false;
         self
     }
-    /// Adds an input.
-    pub fn input(mut self, p: PortSpec) -> Self {
-        self.inputs.push(p);
+    /// Adds an input: a typed constant ([`crate::port::In`], [`crate::port::OptIn`],
+    /// [`crate::port::SeqIn`], [`crate::port::OptSeqIn`], [`crate::port::StreamIn`]), or a
+    /// [`PortSpec`] built from names.
+    pub fn input(mut self, p: impl InputDecl) -> Self {
+        self.inputs.push(p.input_spec());
         self
     }
-    /// Adds an output.
-    pub fn output(mut self, p: PortSpec) -> Self {
-        self.outputs.push(p);
+    /// Adds an output: an [`Out`] constant, or a [`PortSpec`] built from names.
+    pub fn output(mut self, p: impl OutputDecl) -> Self {
+        self.outputs.push(p.output_spec());
         self
-    }
-    /// Adds an input carrying one `T` (the typed short form of
-    /// `.input(PortSpec::one(name, T::NAME, doc))`).
-    pub fn input_of<T: ArtifactType>(self, name: &'static str, doc: &'static str) -> Self {
-        self.input(PortSpec::of::<T>(name, doc))
-    }
-    /// Adds an optional input carrying one `T` (may be left unconnected).
-    pub fn optional_input_of<T: ArtifactType>(self, name: &'static str, doc: &'static str) -> Self {
-        self.input(PortSpec::of::<T>(name, doc).optional())
-    }
-    /// Adds an input taking the whole sequence of `T` of a per-frame producer.
-    pub fn sequence_input_of<T: ArtifactType>(self, name: &'static str, doc: &'static str) -> Self {
-        self.input(PortSpec::sequence_of::<T>(name, doc))
-    }
-    /// Adds a streamed sequence input of `T`: the node reads its frames one at a time with
-    /// [`Context::stream`].
-    pub fn streamed_input_of<T: ArtifactType>(self, name: &'static str, doc: &'static str) -> Self {
-        self.input(PortSpec::sequence_of::<T>(name, doc).streamed())
-    }
-    /// Adds an output carrying one `T` (the typed short form of
-    /// `.output(PortSpec::one(name, T::NAME, doc))`).
-    pub fn output_of<T: ArtifactType>(self, name: &'static str, doc: &'static str) -> Self {
-        self.output(PortSpec::of::<T>(name, doc))
     }
     /// Adds a required parameter naming a file the node reads (its content enters the key).
     pub fn input_file_param(self, name: &'static str, doc: &'static str) -> Self {
@@ -518,17 +500,26 @@ impl<'a> Context<'a> {
         &self.written_files
     }
 
-    /// The name of the node's `i`-th declared input port (for nodes shared by several types).
-    pub fn input_port(&self, i: usize) -> &'static str {
-        self.spec.inputs[i].name
+    /// Reads typed input `port`: `&T` for an [`In`](crate::port::In), `Option<&T>` for an
+    /// [`OptIn`](crate::port::OptIn), the frames for a [`SeqIn`](crate::port::SeqIn) or
+    /// [`OptSeqIn`](crate::port::OptSeqIn), a [`Stream`] for a
+    /// [`StreamIn`](crate::port::StreamIn). Errors say which port is missing or holds what.
+    pub fn get<P: InputPort>(&self, port: P) -> Result<P::Value<'_>, NodeError> {
+        port.read(self)
     }
 
-    /// The name of the node's `i`-th declared output port.
-    pub fn output_port(&self, i: usize) -> &'static str {
-        self.spec.outputs[i].name
+    /// Sets typed output `port` (see [`Context::output`]).
+    pub fn set<T: ArtifactType>(&mut self, port: Out<T>, value: T) {
+        self.output(port.name(), value)
     }
 
-    /// The value on input `port`.
+    /// True if input `port` is connected.
+    pub(crate) fn connected(&self, port: &str) -> bool {
+        self.inputs.contains_key(port)
+    }
+
+    /// The value on input `port`, by name: the untyped form of [`Context::get`], for ports
+    /// named by data.
     pub fn input<T: ArtifactType>(&self, port: &str) -> Result<&T, NodeError> {
         self.input_opt(port)?
             .ok_or_else(|| NodeError::msg(format!("input `{port}` is not connected")))
@@ -596,7 +587,7 @@ impl<'a> Context<'a> {
         })
     }
 
-    /// Sets output `port`. Panics if the port is not declared or has another type (a bug in
+    /// Sets output `port`, by name (the untyped form of [`Context::set`]). Panics if the port is not declared or has another type (a bug in
     /// the node, not a user error).
     pub fn output<T: ArtifactType>(&mut self, port: &str, value: T) {
         let spec = self
@@ -634,20 +625,48 @@ impl<'a> Context<'a> {
 mod tests {
     use super::*;
 
-    /// The typed port and file-param builders declare what the long forms declare.
+    use crate::port::{In, OptIn, OptSeqIn, Out, SeqIn, StreamIn};
+
+    const A: In<f64> = In::new("a", "doc a");
+    const B: OptIn<i64> = OptIn::new("b", "doc b");
+    const C: SeqIn<String> = SeqIn::new("c", "doc c");
+    const E: OptSeqIn<f64> = OptSeqIn::new("e", "doc e");
+    const F: StreamIn<f64> = StreamIn::new("f", "doc f");
+    const D: Out<bool> = Out::new("d", "doc d");
+
+    /// What a spec shows of a port, but its artifact type's registration.
+    fn shown(p: &PortSpec) -> String {
+        let PortSpec {
+            name,
+            ty,
+            sequence,
+            optional,
+            streamed,
+            doc,
+            artifact: _,
+        } = p;
+        format!("{name} {ty} {sequence} {optional} {streamed} {doc}")
+    }
+
+    /// Typed port constants and the file-param builders declare what the long forms declare,
+    /// and the typed ports carry their artifact types.
     #[test]
-    fn typed_builders_are_the_long_forms() {
+    fn typed_ports_are_the_long_forms() {
         let short = NodeSpec::new("n", "")
-            .input_of::<f64>("a", "doc a")
-            .optional_input_of::<i64>("b", "doc b")
-            .sequence_input_of::<String>("c", "doc c")
-            .output_of::<bool>("d", "doc d")
+            .input(A)
+            .input(B)
+            .input(C)
+            .input(E)
+            .input(F)
+            .output(D)
             .input_file_param("in", "read")
             .output_file_param("out", "written");
         let long = NodeSpec::new("n", "")
             .input(PortSpec::one("a", "float", "doc a"))
             .input(PortSpec::one("b", "int", "doc b").optional())
             .input(PortSpec::sequence("c", "string", "doc c"))
+            .input(PortSpec::sequence("e", "float", "doc e").optional())
+            .input(PortSpec::sequence("f", "float", "doc f").streamed())
             .output(PortSpec::one("d", "bool", "doc d"))
             .param(ParamDesc::required(
                 "in",
@@ -659,6 +678,62 @@ mod tests {
                 Kind::Path(PathRole::Output),
                 "written",
             ));
-        assert_eq!(format!("{short:?}"), format!("{long:?}"));
+        let ports = |s: &NodeSpec| -> Vec<String> {
+            s.inputs.iter().chain(&s.outputs).map(shown).collect()
+        };
+        assert_eq!(ports(&short), ports(&long));
+        assert_eq!(format!("{:?}", short.params), format!("{:?}", long.params));
+        let types: Vec<&str> = short
+            .inputs
+            .iter()
+            .chain(&short.outputs)
+            .map(|p| (p.artifact.expect("typed").0)().name)
+            .collect();
+        assert_eq!(types, ["float", "int", "string", "float", "float", "bool"]);
+        assert!(long.inputs.iter().all(|p| p.artifact.is_none()));
+    }
+
+    /// `get` reads each kind of typed input as its untyped accessor does; `set` sets an output.
+    #[test]
+    fn get_and_set_typed_ports() {
+        let spec = NodeSpec::new("n", "")
+            .input(A)
+            .input(B)
+            .input(C)
+            .input(E)
+            .input(F)
+            .output(D);
+        let params = Params::default();
+        let seq = || InputValue::Sequence(vec![(3, Value::new(1.5f64)), (4, Value::new(2.5f64))]);
+        let mut ctx = Context::for_test(
+            &spec,
+            &params,
+            Path::new("."),
+            None,
+            vec![
+                ("a", InputValue::One(Value::new(0.5f64))),
+                (
+                    "c",
+                    InputValue::Sequence(vec![(1, Value::new("x".to_string()))]),
+                ),
+                ("f", seq()),
+            ],
+        );
+        assert_eq!(ctx.get(A).unwrap(), &0.5);
+        assert_eq!(ctx.get(B).unwrap(), None);
+        assert_eq!(ctx.get(C).unwrap(), vec![(1, &"x".to_string())]);
+        assert_eq!(ctx.get(E).unwrap(), None);
+        let f = ctx.get(F).unwrap();
+        assert_eq!((f.len(), f.frame(1), *f.get(1).unwrap()), (2, 4, 2.5));
+        ctx.set(D, true);
+        assert_eq!(ctx.take_output::<bool>(D.name()), Some(true));
+        let mut ctx = Context::for_test(&spec, &params, Path::new("."), None, vec![("e", seq())]);
+        assert_eq!(ctx.get(E).unwrap(), Some(vec![(3, &1.5), (4, &2.5)]));
+        assert!(ctx
+            .get(A)
+            .unwrap_err()
+            .message
+            .contains("`a` is not connected"));
+        ctx.set(D, false);
     }
 }

@@ -3,6 +3,7 @@
 //! The engine ships no node types of its own (it knows nothing of images or cameras);
 //! `vfxgraph-nodes` fills a registry at start-up.
 
+use std::any::TypeId;
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
@@ -33,6 +34,19 @@ pub struct ArtifactInfo {
     /// One line of documentation.
     pub doc: &'static str,
     pub(crate) decode: DecodeFn,
+    type_id: TypeId,
+}
+
+impl ArtifactInfo {
+    /// The artifact type `T`.
+    pub fn of<T: ArtifactType>() -> Self {
+        ArtifactInfo {
+            name: T::NAME,
+            doc: T::DOC,
+            decode: decoder::<T>(),
+            type_id: TypeId::of::<T>(),
+        }
+    }
 }
 
 /// Node and artifact types by name.
@@ -56,15 +70,23 @@ impl Registry {
         r
     }
 
-    /// Adds an artifact type. Registering one name twice panics (a programming error).
+    /// Adds an artifact type (again: nothing). Types a typed port carries register with
+    /// their node ([`Registry::register_node`]); this is for types no port declares. Two
+    /// Rust types under one name panic (a programming error).
     pub fn register_artifact<T: ArtifactType>(&mut self) {
-        let info = ArtifactInfo {
-            name: T::NAME,
-            doc: T::DOC,
-            decode: decoder::<T>(),
-        };
-        if self.artifacts.insert(T::NAME, info).is_some() {
-            panic!("artifact type `{}` registered twice", T::NAME);
+        self.add_artifact(ArtifactInfo::of::<T>());
+    }
+
+    fn add_artifact(&mut self, info: ArtifactInfo) {
+        match self.artifacts.get(info.name) {
+            Some(known) => assert!(
+                known.type_id == info.type_id,
+                "two artifact types are named `{}`",
+                info.name
+            ),
+            None => {
+                self.artifacts.insert(info.name, info);
+            }
         }
     }
 
@@ -73,8 +95,10 @@ impl Registry {
         self.register_node(FnNode(spec, run))
     }
 
-    /// Adds a node type. Its ports must name registered artifact types, and a type name may be
-    /// registered once (both programming errors, so they panic at start-up).
+    /// Adds a node type, and the artifact types its typed ports carry
+    /// ([`PortSpec::artifact`](crate::PortSpec::artifact)); so node types register in any
+    /// order. A port built from names must name a registered artifact type, and a node type
+    /// name may be registered once (both programming errors, so they panic at start-up).
     pub fn register_node(&mut self, node: impl Node) {
         let spec = node.spec();
         assert!(
@@ -83,6 +107,9 @@ impl Registry {
             spec.name
         );
         for p in spec.inputs.iter().chain(&spec.outputs) {
+            if let Some(a) = p.artifact {
+                self.add_artifact((a.0)());
+            }
             assert!(
                 self.artifacts.contains_key(p.ty),
                 "node `{}` port `{}` uses unregistered artifact type `{}`",
@@ -142,5 +169,85 @@ impl Registry {
             .get(type_name)
             .ok_or_else(|| format!("unknown artifact type `{type_name}`"))?;
         (info.decode)(bytes)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::artifact::{decode_json, encode_json};
+    use crate::port::{In, Out};
+    use crate::PortSpec;
+
+    #[derive(Debug)]
+    struct Meters(f64);
+
+    impl ArtifactType for Meters {
+        const NAME: &'static str = "meters";
+        fn encode(&self, out: &mut Vec<u8>) {
+            encode_json(&self.0, out)
+        }
+        fn decode(bytes: &[u8]) -> Result<Self, String> {
+            decode_json(bytes).map(Meters)
+        }
+    }
+
+    /// The same name as `Meters`, another type.
+    struct Feet;
+
+    impl ArtifactType for Feet {
+        const NAME: &'static str = "meters";
+        fn encode(&self, _: &mut Vec<u8>) {}
+        fn decode(_: &[u8]) -> Result<Self, String> {
+            Ok(Feet)
+        }
+    }
+
+    const DISTANCE: In<Meters> = In::new("distance", "a distance");
+    const HALF: Out<Meters> = Out::new("half", "half of it");
+
+    fn halve(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+        let d = ctx.get(DISTANCE)?.0;
+        ctx.set(HALF, Meters(d / 2.0));
+        Ok(())
+    }
+
+    /// A node's typed ports register their artifact type, so a consumer may register before
+    /// its producer, and a type registered again (by hand or by another node) is no error.
+    #[test]
+    fn typed_ports_register_their_artifact_types() {
+        let mut r = Registry::new();
+        r.register_fn(
+            NodeSpec::new("halve", "").input(DISTANCE).output(HALF),
+            halve,
+        );
+        assert_eq!(r.artifact("meters").map(|a| a.name), Some("meters"));
+        r.register_artifact::<Meters>();
+        r.register_fn(
+            NodeSpec::new("named", "").input(PortSpec::one("d", "meters", "")),
+            halve,
+        );
+        assert!(r.decode("meters", b"2.5").is_ok());
+    }
+
+    #[test]
+    #[should_panic(expected = "two artifact types are named `meters`")]
+    fn two_types_under_one_name_panic() {
+        let mut r = Registry::new();
+        r.register_fn(
+            NodeSpec::new("halve", "").input(DISTANCE).output(HALF),
+            halve,
+        );
+        r.register_artifact::<Feet>();
+    }
+
+    #[test]
+    #[should_panic(expected = "unregistered artifact type `meters`")]
+    fn a_port_by_name_needs_its_type_registered() {
+        let mut r = Registry::new();
+        r.register_fn(
+            NodeSpec::new("named", "").input(PortSpec::one("d", "meters", "")),
+            halve,
+        );
     }
 }

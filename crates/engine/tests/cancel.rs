@@ -9,9 +9,11 @@ use std::time::{Duration, Instant};
 
 use common::*;
 use vfxgraph_engine::{
-    exec, graph, ArtifactType, Context, Mode, Node, NodeError, NodeSpec, Overrides, PortSpec,
-    Status,
+    exec, graph, Context, In, Mode, Node, NodeError, NodeSpec, Out, Overrides, Status,
 };
+
+const ANY: In<f64> = In::new("a", "any");
+const ZERO: Out<f64> = Out::new("out", "0");
 
 /// Spins until the run is cancelled (gives up after 20 s so a broken flag fails the test
 /// instead of hanging it).
@@ -31,7 +33,7 @@ impl Node for WaitCancel {
             }
             std::thread::sleep(Duration::from_millis(1));
         }
-        ctx.output("out", 0.0f64);
+        ctx.set(ZERO, 0.0);
         Ok(())
     }
 }
@@ -43,8 +45,8 @@ fn registry() -> vfxgraph_engine::Registry {
     r.register_node(WaitCancel(
         NodeSpec::new("wait_cancel", "waits for the cancel flag")
             .mode(Mode::Once)
-            .input(PortSpec::one("a", <f64 as ArtifactType>::NAME, "any"))
-            .output(PortSpec::one("out", <f64 as ArtifactType>::NAME, "0")),
+            .input(ANY)
+            .output(ZERO),
     ));
     r
 }

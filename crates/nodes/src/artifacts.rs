@@ -2,7 +2,7 @@
 //! engine's `ArtifactType` is implemented here so the algorithm crates stay engine-free).
 
 use vfxgraph_engine::artifact::codec::{put_f32s, put_u64, Reader};
-use vfxgraph_engine::{ArtifactType, Context, NodeError, Registry};
+use vfxgraph_engine::{ArtifactType, Context, NodeError, SeqIn};
 use vfxgraph_imaging::Image;
 
 /// A linear-light f32 image (`image`).
@@ -40,15 +40,19 @@ pub(crate) fn put_image(out: &mut Vec<u8>, img: &Image) {
 /// The images of sequence input `port`, with their frame numbers, in frame order.
 pub(crate) fn image_sequence<'a>(
     ctx: &'a Context<'_>,
-    port: &str,
+    port: SeqIn<ImageArt>,
 ) -> Result<Vec<(i64, &'a Image)>, NodeError> {
-    let seq = ctx.sequence::<ImageArt>(port)?;
-    Ok(seq.into_iter().map(|(f, i)| (f, &i.0)).collect())
+    Ok(images(ctx.get(port)?))
+}
+
+/// The images of a sequence of [`ImageArt`], with their frame numbers.
+pub(crate) fn images(seq: Vec<(i64, &ImageArt)>) -> Vec<(i64, &Image)> {
+    seq.into_iter().map(|(f, i)| (f, &i.0)).collect()
 }
 
 /// Newtype artifacts stored as canonical JSON (serde, no hash maps), one per
 /// `Name(Inner), "type name", "type doc"[, check = fn(&Inner) -> Result<(), impl Display>];`
-/// entry, and `register_json_artifacts`, which registers them all.
+/// entry. A type registers with the first node whose ports carry it.
 macro_rules! json_artifact {
     ($($(#[$doc:meta])* $name:ident($inner:ty), $type_name:expr, $type_doc:expr
        $(, check = $check:path)?);+ $(;)?) => {
@@ -70,11 +74,6 @@ macro_rules! json_artifact {
             }
         }
         )+
-
-        /// Registers the artifact types of this module's JSON table.
-        pub(crate) fn register_json_artifacts(r: &mut vfxgraph_engine::Registry) {
-            $(r.register_artifact::<$name>();)+
-        }
     };
 }
 pub(crate) use json_artifact;
@@ -106,10 +105,17 @@ json_artifact! {
     "A report of figures (errors, inliers, timings) as a JSON document.";
 }
 
-/// Registers the artifact types of this crate.
-pub fn register(r: &mut Registry) {
-    r.register_artifact::<ImageArt>();
-    register_json_artifacts(r);
+impl ReportArt {
+    /// The report of a typed report struct (its serde form).
+    pub fn of<T: serde::Serialize>(report: &T) -> Result<Self, NodeError> {
+        Ok(ReportArt(serde_json::to_value(report)?))
+    }
+
+    /// The report read back as the typed report `T` it was made from (the fields `T` names,
+    /// checked; others ignored).
+    pub fn parse<T: serde::de::DeserializeOwned>(&self) -> Result<T, String> {
+        T::deserialize(&self.0).map_err(|e| e.to_string())
+    }
 }
 
 #[cfg(test)]

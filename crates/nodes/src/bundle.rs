@@ -1,11 +1,26 @@
 //! Bundle adjustment nodes (book §7.7): `bundle_adjust`, `read_cameras`.
 
-use vfxgraph_engine::{Mode, NodeSpec, Registry};
+use vfxgraph_engine::{In, Mode, NodeSpec, OptIn, Out, Registry};
 use vfxgraph_vision::bundle::{adjust_sequence, SequenceAdjustOptions};
 use vfxgraph_vision::formats;
 
 use crate::artifacts::{CameraPathArt, IntrinsicsArt, PointCloudArt, ReportArt};
 use crate::tracking::TracksArt;
+
+const CAMERAS: In<CameraPathArt> = In::new("cameras", "initial cameras");
+const POINTS: In<PointCloudArt> = In::new("points", "initial points (with track ids)");
+const TRACKS: In<TracksArt> = In::new("tracks", "the observations");
+const INTRINSICS: In<IntrinsicsArt> = In::new("intrinsics", "K shared by every frame");
+const CAMERAS_OUT: Out<CameraPathArt> = Out::new("cameras", "refined cameras");
+const POINTS_OUT: Out<PointCloudArt> = Out::new("points", "refined points, errors filled in");
+const INTRINSICS_OUT: Out<IntrinsicsArt> = Out::new("intrinsics", "K (refined if asked)");
+const REPORT: Out<ReportArt> = Out::new(
+    "report",
+    "initial/final cost and RMS, iterations, termination, per-camera and per-point error",
+);
+
+const READ_K: OptIn<IntrinsicsArt> = OptIn::new("intrinsics", "K to attach to the path");
+const READ_CAMERAS: Out<CameraPathArt> = Out::new("cameras", "one [R|t] per frame");
 
 /// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
@@ -18,25 +33,22 @@ pub fn register(r: &mut Registry) {
              loss. The first camera and the first baseline's scale fix the gauge.",
         )
         .mode(Mode::Once)
-        .input_of::<CameraPathArt>("cameras", "initial cameras")
-        .input_of::<PointCloudArt>("points", "initial points (with track ids)")
-        .input_of::<crate::tracking::TracksArt>("tracks", "the observations")
-        .input_of::<IntrinsicsArt>("intrinsics", "K shared by every frame")
+        .input(CAMERAS)
+        .input(POINTS)
+        .input(TRACKS)
+        .input(INTRINSICS)
         .options::<SequenceAdjustOptions>()
-        .output_of::<CameraPathArt>("cameras", "refined cameras")
-        .output_of::<PointCloudArt>("points", "refined points, errors filled in")
-        .output_of::<IntrinsicsArt>("intrinsics", "K (refined if asked)")
-        .output_of::<ReportArt>(
-            "report",
-            "initial/final cost and RMS, iterations, termination, per-camera and per-point error",
-        ),
+        .output(CAMERAS_OUT)
+        .output(POINTS_OUT)
+        .output(INTRINSICS_OUT)
+        .output(REPORT),
         |ctx| {
             let o: SequenceAdjustOptions = ctx.options()?;
             let out = adjust_sequence(
-                &ctx.input::<CameraPathArt>("cameras")?.0,
-                &ctx.input::<PointCloudArt>("points")?.0,
-                &ctx.input::<TracksArt>("tracks")?.0,
-                &ctx.input::<IntrinsicsArt>("intrinsics")?.0,
+                &ctx.get(CAMERAS)?.0,
+                &ctx.get(POINTS)?.0,
+                &ctx.get(TRACKS)?.0,
+                &ctx.get(INTRINSICS)?.0,
                 o.refine_intrinsics,
                 &o.solver_options(),
             )?;
@@ -50,10 +62,10 @@ pub fn register(r: &mut Registry) {
             if let Some(o) = report.as_object_mut() {
                 o.remove("steps");
             }
-            ctx.output("cameras", CameraPathArt(out.path));
-            ctx.output("points", PointCloudArt(out.cloud));
-            ctx.output("intrinsics", IntrinsicsArt(out.intrinsics));
-            ctx.output("report", ReportArt(report));
+            ctx.set(CAMERAS_OUT, CameraPathArt(out.path));
+            ctx.set(POINTS_OUT, PointCloudArt(out.cloud));
+            ctx.set(INTRINSICS_OUT, IntrinsicsArt(out.intrinsics));
+            ctx.set(REPORT, ReportArt(report));
             Ok(())
         },
     );
@@ -64,15 +76,15 @@ pub fn register(r: &mut Registry) {
              With `intrinsics` connected, the path carries that K (the book's file has none).",
         )
         .mode(Mode::Once)
-        .optional_input_of::<IntrinsicsArt>("intrinsics", "K to attach to the path")
+        .input(READ_K)
         .input_file_param("path", "cameras file")
-        .output_of::<CameraPathArt>("cameras", "one [R|t] per frame"),
+        .output(READ_CAMERAS),
         |ctx| {
             let mut path = formats::read_cameras(&ctx.path("path"))?;
-            if let Some(k) = ctx.input_opt::<IntrinsicsArt>("intrinsics")? {
+            if let Some(k) = ctx.get(READ_K)? {
                 path.intrinsics = Some(k.0.clone());
             }
-            ctx.output("cameras", CameraPathArt(path));
+            ctx.set(READ_CAMERAS, CameraPathArt(path));
             Ok(())
         },
     );

@@ -2,7 +2,7 @@
 //! `read_points3d`, `calibrate_camera`, `two_view`, `write_camera`, `write_report`, and
 //! `intrinsics_from_metadata` (K from a photograph's EXIF focal length).
 
-use vfxgraph_engine::{ArtifactType, Context, Mode, NodeError, NodeSpec, PortSpec, Registry};
+use vfxgraph_engine::{ArtifactType, Context, In, Mode, NodeError, NodeSpec, Out, Registry};
 use vfxgraph_vision::calibration::{calibrate_camera, CalibrateCameraOptions};
 use vfxgraph_vision::formats;
 use vfxgraph_vision::two_view::{reconstruct_two_view, TwoViewRansacOptions};
@@ -12,21 +12,21 @@ use crate::artifacts::{CameraArt, IndicesArt, IntrinsicsArt, Points2dArt, Points
 /// Reads file param `path` with `read` and sets output `port` to `wrap` of what it read.
 fn read_into<T, A: ArtifactType, E: std::error::Error>(
     ctx: &mut Context<'_>,
-    port: &str,
+    port: Out<A>,
     read: fn(&std::path::Path) -> Result<T, E>,
     wrap: fn(T) -> A,
 ) -> Result<(), NodeError> {
     let value = read(&ctx.path("path"))?;
-    ctx.output(port, wrap(value));
+    ctx.set(port, wrap(value));
     Ok(())
 }
 
 /// A node run once that reads file `path` (documented by `path_doc`) into output `port`.
-fn file_reader(
+fn file_reader<A: ArtifactType>(
     name: &'static str,
     doc: &'static str,
     path_doc: &'static str,
-    port: PortSpec,
+    port: Out<A>,
 ) -> NodeSpec {
     NodeSpec::new(name, doc)
         .mode(Mode::Once)
@@ -50,7 +50,7 @@ fn run_intrinsics_from_metadata(ctx: &mut Context<'_>) -> Result<(), NodeError> 
     let (w, h) = (img.width as f64, img.height as f64);
     let k = vfxgraph_vision::Intrinsics::new(f.pixels, f.pixels, (w - 1.0) / 2.0, (h - 1.0) / 2.0)
         .with_size(img.width as u32, img.height as u32);
-    ctx.output("intrinsics", IntrinsicsArt(k));
+    ctx.set(METADATA_K, IntrinsicsArt(k));
     Ok(())
 }
 
@@ -81,9 +81,29 @@ fn intrinsics_from_movie(ctx: &mut Context<'_>, path: &std::path::Path) -> Resul
     let (wf, hf) = (w as f64, h as f64);
     let k =
         vfxgraph_vision::Intrinsics::new(f, f, (wf - 1.0) / 2.0, (hf - 1.0) / 2.0).with_size(w, h);
-    ctx.output("intrinsics", IntrinsicsArt(k));
+    ctx.set(METADATA_K, IntrinsicsArt(k));
     Ok(())
 }
+
+const METADATA_K: Out<IntrinsicsArt> = Out::new("intrinsics", "K from the metadata");
+const READ_K: Out<IntrinsicsArt> = Out::new("intrinsics", "K");
+const READ_POINTS2D: Out<Points2dArt> = Out::new("points", "pixel coordinates");
+const READ_POINTS3D: Out<Points3dArt> = Out::new("points", "world coordinates");
+const POINTS3D: In<Points3dArt> = In::new("points3d", "world points");
+const POINTS2D: In<Points2dArt> = In::new("points2d", "their projections, same order");
+const CAMERA_OUT: Out<CameraArt> = Out::new("camera", "K[R|t]");
+const CALIBRATION_REPORT: Out<ReportArt> =
+    Out::new("report", "per-point reprojection errors, inliers and RMS");
+const POINTS_A: In<Points2dArt> = In::new("points_a", "points in view a");
+const POINTS_B: In<Points2dArt> = In::new("points_b", "the same points in view b");
+const VIEWS_K: In<IntrinsicsArt> = In::new("intrinsics", "K of both views");
+const CAMERA_B: Out<CameraArt> = Out::new("camera_b", "K[R|t] of view b");
+const POINTS3D_OUT: Out<Points3dArt> = Out::new("points3d", "triangulated inliers");
+const INLIERS: Out<IndicesArt> = Out::new("inliers", "input index of each 3D point");
+const TWO_VIEW_REPORT: Out<ReportArt> = Out::new("report", "figures");
+const CAMERA: In<CameraArt> = In::new("camera", "the camera");
+const INTRINSICS: In<IntrinsicsArt> = In::new("intrinsics", "K");
+const REPORT: In<ReportArt> = In::new("report", "the report");
 
 /// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
@@ -97,7 +117,7 @@ pub fn register(r: &mut Registry) {
              point at the centre, the picture's size.",
             "a photograph or frame of the shot with EXIF (JPEG, TIFF, PNG), or the clip itself \
              (MOV, MP4)",
-            PortSpec::of::<IntrinsicsArt>("intrinsics", "K from the metadata"),
+            METADATA_K,
         )
         .threads(vfxgraph_engine::Threads::One)
         .memory(vfxgraph_engine::Memory::Fixed(512)),
@@ -108,29 +128,29 @@ pub fn register(r: &mut Registry) {
             "read_intrinsics",
             "Reads camera intrinsics K: the book's g7cam.txt (3×3 matrix, rows) or JSON.",
             "g7cam.txt-style K file, or .json",
-            PortSpec::of::<IntrinsicsArt>("intrinsics", "K"),
+            READ_K,
         )
         .threads(vfxgraph_engine::Threads::One)
         .memory(vfxgraph_engine::Memory::Fixed(256)),
-        |ctx| read_into(ctx, "intrinsics", formats::read_intrinsics, IntrinsicsArt),
+        |ctx| read_into(ctx, READ_K, formats::read_intrinsics, IntrinsicsArt),
     );
     r.register_fn(
         file_reader(
             "read_points2d",
             "Reads image points, `u v` per line (the book's calib_projs.txt), or JSON.",
             "points file",
-            PortSpec::of::<Points2dArt>("points", "pixel coordinates"),
+            READ_POINTS2D,
         ),
-        |ctx| read_into(ctx, "points", formats::read_points2d, Points2dArt),
+        |ctx| read_into(ctx, READ_POINTS2D, formats::read_points2d, Points2dArt),
     );
     r.register_fn(
         file_reader(
             "read_points3d",
             "Reads 3D points, `X Y Z` per line, or JSON.",
             "points file",
-            PortSpec::of::<Points3dArt>("points", "world coordinates"),
+            READ_POINTS3D,
         ),
-        |ctx| read_into(ctx, "points", formats::read_points3d, Points3dArt),
+        |ctx| read_into(ctx, READ_POINTS3D, formats::read_points3d, Points3dArt),
     );
     r.register_fn(
         NodeSpec::new(
@@ -140,11 +160,11 @@ pub fn register(r: &mut Registry) {
              or `tsai` (planar target, known principal point, §4.8), optionally inside RANSAC \
              (§4.7, the book's ransac_singlecam).",
         )
-        .input_of::<Points3dArt>("points3d", "world points")
-        .input_of::<Points2dArt>("points2d", "their projections, same order")
+        .input(POINTS3D)
+        .input(POINTS2D)
         .options::<CalibrateCameraOptions>()
-        .output_of::<CameraArt>("camera", "K[R|t]")
-        .output_of::<ReportArt>("report", "per-point reprojection errors, inliers and RMS"),
+        .output(CAMERA_OUT)
+        .output(CALIBRATION_REPORT),
         run_calibrate,
     );
     r.register_fn(
@@ -154,14 +174,14 @@ pub fn register(r: &mut Registry) {
              normalized 8-point F (Sampson distance in pixels, or the book's algebraic error), \
              E = KᵀFK, the four (R, t) and cheirality, triangulation. Camera a is K[I|0]; |t| = 1.",
         )
-        .input_of::<Points2dArt>("points_a", "points in view a")
-        .input_of::<Points2dArt>("points_b", "the same points in view b")
-        .input_of::<IntrinsicsArt>("intrinsics", "K of both views")
+        .input(POINTS_A)
+        .input(POINTS_B)
+        .input(VIEWS_K)
         .options::<TwoViewRansacOptions>()
-        .output_of::<CameraArt>("camera_b", "K[R|t] of view b")
-        .output_of::<Points3dArt>("points3d", "triangulated inliers")
-        .output_of::<IndicesArt>("inliers", "input index of each 3D point")
-        .output_of::<ReportArt>("report", "figures"),
+        .output(CAMERA_B)
+        .output(POINTS3D_OUT)
+        .output(INLIERS)
+        .output(TWO_VIEW_REPORT),
         run_two_view,
     );
     r.register_fn(
@@ -170,10 +190,10 @@ pub fn register(r: &mut Registry) {
             "Writes a camera as JSON {\"K\": [[3×3]], \"R\": [[3×3]], \"t\": [3], \"width\"?, \
              \"height\"?}, rows first, mapping X to K(RX + t).",
         )
-        .input_of::<CameraArt>("camera", "the camera")
+        .input(CAMERA)
         .output_file_param("path", "JSON file"),
         |ctx| {
-            let cam = &ctx.input::<CameraArt>("camera")?.0;
+            let cam = &ctx.get(CAMERA)?.0;
             Ok(formats::write_json(&ctx.path("path"), cam)?)
         },
     );
@@ -183,20 +203,20 @@ pub fn register(r: &mut Registry) {
             "Writes camera intrinsics K as the book's g7cam.txt (3×3, rows), or JSON (with \
              the image size) when the name ends in .json; what `read_intrinsics` reads.",
         )
-        .input_of::<IntrinsicsArt>("intrinsics", "K")
+        .input(INTRINSICS)
         .output_file_param("path", "g7cam.txt-style K file, or .json"),
         |ctx| {
-            let k = &ctx.input::<IntrinsicsArt>("intrinsics")?.0;
+            let k = &ctx.get(INTRINSICS)?.0;
             Ok(formats::write_intrinsics(&ctx.path("path"), k)?)
         },
     );
     r.register_fn(
         NodeSpec::new("write_report", "Writes any report as pretty JSON.")
             .threads(vfxgraph_engine::Threads::One)
-            .input_of::<ReportArt>("report", "the report")
+            .input(REPORT)
             .output_file_param("path", "JSON file"),
         |ctx| {
-            let rep = &ctx.input::<ReportArt>("report")?.0;
+            let rep = &ctx.get(REPORT)?.0;
             Ok(formats::write_json(&ctx.path("path"), rep)?)
         },
     );
@@ -204,24 +224,30 @@ pub fn register(r: &mut Registry) {
 
 fn run_calibrate(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: CalibrateCameraOptions = ctx.options()?;
-    let p3 = &ctx.input::<Points3dArt>("points3d")?.0;
-    let p2 = &ctx.input::<Points2dArt>("points2d")?.0;
+    let p3 = &ctx.get(POINTS3D)?.0;
+    let p2 = &ctx.get(POINTS2D)?.0;
     let (camera, report) = calibrate_camera(&p3.0, &p2.0, &o.options()?, &mut o.rng())?;
-    ctx.output("camera", CameraArt(camera));
-    ctx.output("report", ReportArt(serde_json::to_value(&report)?));
+    ctx.set(CAMERA_OUT, CameraArt(camera));
+    ctx.set(
+        CALIBRATION_REPORT,
+        ReportArt(serde_json::to_value(&report)?),
+    );
     Ok(())
 }
 
 fn run_two_view(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: TwoViewRansacOptions = ctx.options()?;
-    let a = &ctx.input::<Points2dArt>("points_a")?.0;
-    let b = &ctx.input::<Points2dArt>("points_b")?.0;
-    let k = &ctx.input::<IntrinsicsArt>("intrinsics")?.0;
+    let a = &ctx.get(POINTS_A)?.0;
+    let b = &ctx.get(POINTS_B)?.0;
+    let k = &ctx.get(VIEWS_K)?.0;
     let rec = reconstruct_two_view(&a.0, &b.0, k, k, &o.options(), &mut o.rng())?;
-    ctx.output("camera_b", CameraArt(rec.camera_b.clone()));
-    ctx.output("points3d", Points3dArt(rec.points3d.clone()));
-    ctx.output("inliers", IndicesArt(rec.point_indices.clone()));
-    ctx.output("report", ReportArt(serde_json::to_value(&rec.report)?));
+    ctx.set(CAMERA_B, CameraArt(rec.camera_b.clone()));
+    ctx.set(POINTS3D_OUT, Points3dArt(rec.points3d.clone()));
+    ctx.set(INLIERS, IndicesArt(rec.point_indices.clone()));
+    ctx.set(
+        TWO_VIEW_REPORT,
+        ReportArt(serde_json::to_value(&rec.report)?),
+    );
     Ok(())
 }
 
@@ -408,8 +434,12 @@ mod tests {
         let f_err =
             (cam.intrinsics.f1 - scene.camera.intrinsics.f1).abs() / scene.camera.intrinsics.f1;
         assert!(f_err < 0.005, "focal error {f_err}");
-        let rep = ctx.take_output::<ReportArt>("report").unwrap().0;
-        assert!(rep["rms"].as_f64().unwrap() < 1.0, "{rep}");
+        let rep: vfxgraph_vision::calibration::CalibrationReport = ctx
+            .take_output::<ReportArt>("report")
+            .unwrap()
+            .parse()
+            .unwrap();
+        assert!(rep.rms < 1.0, "{rep:?}");
         // Tsai without a principal point is a clear error.
         let p = params(&s, &[("method", ParamValue::Str("tsai".into()))]);
         let mut ctx = Context::for_test(

@@ -2,15 +2,13 @@
 //! `export_cameras` and `import_cameras`. The formats and their conventions live in
 //! `vfxgraph_vision::export`.
 
-use vfxgraph_engine::{Context, Mode, NodeError, NodeSpec, PortSpec, Registry};
+use vfxgraph_engine::{Context, In, Mode, NodeError, NodeSpec, OptIn, OptSeqIn, Out, Registry};
 use vfxgraph_imaging::Image;
 use vfxgraph_params::Options;
 use vfxgraph_vision::export::files::{report, write_with};
 use vfxgraph_vision::export::{read, ExportFormat, ExportOptions, ImportFormat};
 
-use crate::artifacts::{
-    image_sequence, CameraPathArt, ImageArt, IntrinsicsArt, PointCloudArt, ReportArt,
-};
+use crate::artifacts::{images, CameraPathArt, ImageArt, IntrinsicsArt, PointCloudArt, ReportArt};
 use crate::tracking::TracksArt;
 
 /// `export_cameras`' format (its other options, after the file: [`ExportOptions`]).
@@ -47,6 +45,35 @@ impl Default for ImportFormatOptions {
     }
 }
 
+const CAMERAS: In<CameraPathArt> = In::new("cameras", "the solved cameras");
+const INTRINSICS: OptIn<IntrinsicsArt> = OptIn::new(
+    "intrinsics",
+    "K shared by every frame, when the camera path does not carry it (with the image \
+     size, or connect the plate or set width/height)",
+);
+const PLATE: OptSeqIn<ImageArt> = OptSeqIn::new("plate", "the plate: image size and point colours");
+const POINTS: OptIn<PointCloudArt> = OptIn::new("points", "the solved points");
+const TRACKS: OptIn<TracksArt> = OptIn::new(
+    "tracks",
+    "the observations: COLMAP 2-D points and tracks (only those the solve kept as \
+     inliers linked to a point, per the points' inlier marks), per-frame solve error \
+     over the inliers",
+);
+const REPORT: Out<ReportArt> = Out::new(
+    "report",
+    "format, files written, frames, points, image size",
+);
+const BOOK_K: OptIn<IntrinsicsArt> = OptIn::new(
+    "intrinsics",
+    "K of the book's format (ignored for colmap, which carries its own)",
+);
+const CAMERAS_OUT: Out<CameraPathArt> = Out::new("cameras", "one [R|t] per frame");
+const INTRINSICS_OUT: Out<IntrinsicsArt> = Out::new("intrinsics", "K");
+const POINTS_OUT: Out<PointCloudArt> = Out::new(
+    "points",
+    "COLMAP's points (track id = point id), empty for the book's format",
+);
+
 /// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
     r.register_fn(
@@ -64,27 +91,15 @@ pub fn register(r: &mut Registry) {
              such model, with the fit error stated). Writes are atomic.",
         )
         .mode(Mode::Once)
-        .input_of::<CameraPathArt>("cameras", "the solved cameras")
-        .optional_input_of::<IntrinsicsArt>(
-            "intrinsics",
-            "K shared by every frame, when the camera path does not carry it (with the image \
-             size, or connect the plate or set width/height)",
-        )
-        .optional_input_of::<PointCloudArt>("points", "the solved points")
-        .optional_input_of::<TracksArt>(
-            "tracks",
-            "the observations: COLMAP 2-D points and tracks (only those the solve kept as \
-             inliers linked to a point, per the points' inlier marks), per-frame solve error \
-             over the inliers",
-        )
-        .input(
-            PortSpec::sequence_of::<ImageArt>("plate", "the plate: image size and point colours")
-                .optional(),
-        )
+        .input(CAMERAS)
+        .input(INTRINSICS)
+        .input(POINTS)
+        .input(TRACKS)
+        .input(PLATE)
         .options::<ExportFormatOptions>()
         .output_file_param("path", "the file to write (colmap: the model's cameras.txt)")
         .options::<ExportOptions>()
-        .output_of::<ReportArt>("report", "format, files written, frames, points, image size"),
+        .output(REPORT),
         run_export,
     );
     r.register_fn(
@@ -95,18 +110,12 @@ pub fn register(r: &mut Registry) {
              book's cameras file (`Frame i`, R, t; K from the `intrinsics` input).",
         )
         .mode(Mode::Once)
-        .optional_input_of::<IntrinsicsArt>(
-            "intrinsics",
-            "K of the book's format (ignored for colmap, which carries its own)",
-        )
+        .input(BOOK_K)
         .options::<ImportFormatOptions>()
         .input_file_param("path", "COLMAP cameras.txt (images.txt and points3D.txt beside it) or the book's cameras file")
-        .output_of::<CameraPathArt>("cameras", "one [R|t] per frame")
-        .output_of::<IntrinsicsArt>("intrinsics", "K")
-        .output_of::<PointCloudArt>(
-            "points",
-            "COLMAP's points (track id = point id), empty for the book's format",
-        ),
+        .output(CAMERAS_OUT)
+        .output(INTRINSICS_OUT)
+        .output(POINTS_OUT),
         run_import,
     );
 }
@@ -114,22 +123,15 @@ pub fn register(r: &mut Registry) {
 fn run_export(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let ExportFormatOptions { format } = ctx.options()?;
     let o: ExportOptions = ctx.options()?;
-    let path = &ctx.input::<CameraPathArt>("cameras")?.0;
-    let k = crate::intrinsics_or_path_k(ctx, Some(path))?
+    let path = &ctx.get(CAMERAS)?.0;
+    let k = crate::intrinsics_or_path_k(ctx, INTRINSICS, Some(path))?
         .cloned()
         .ok_or_else(|| {
             NodeError::msg("no K: the camera path carries none, so connect `intrinsics`")
         })?;
-    let cloud = ctx
-        .input_opt::<PointCloudArt>("points")?
-        .map(|c| c.0.clone());
-    let tracks = ctx.input_opt::<TracksArt>("tracks")?.map(|t| t.0.clone());
-    // An optional sequence port: `input_opt` is Ok(None) when unconnected, an error when a
-    // sequence is there.
-    let plate: Vec<(i64, &Image)> = match ctx.input_opt::<ImageArt>("plate") {
-        Ok(img) => img.map(|i| vec![(0, &i.0)]).unwrap_or_default(),
-        Err(_) => image_sequence(ctx, "plate")?,
-    };
+    let cloud = ctx.get(POINTS)?.map(|c| c.0.clone());
+    let tracks = ctx.get(TRACKS)?.map(|t| t.0.clone());
+    let plate: Vec<(i64, &Image)> = ctx.get(PLATE)?.map(images).unwrap_or_default();
     let shot = o.shot(k, path.clone(), cloud, tracks, &plate)?;
     // Through the context: every file is recorded as an output (COLMAP's images.txt and
     // points3D.txt, Nuke's film-back note), so deleting one makes the entry stale.
@@ -137,17 +139,17 @@ fn run_export(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let files = write_with(format, &path, &shot, &o.scene, |p, text| {
         ctx.write_file(p, text.as_bytes())
     })?;
-    ctx.output("report", ReportArt(report(format, &shot, &files)));
+    ctx.set(REPORT, ReportArt(report(format, &shot, &files)));
     Ok(())
 }
 
 fn run_import(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let ImportFormatOptions { format } = ctx.options()?;
-    let k = ctx.input_opt::<IntrinsicsArt>("intrinsics")?.map(|k| &k.0);
+    let k = ctx.get(BOOK_K)?.map(|k| &k.0);
     let (cameras, intrinsics, cloud) = read(format, &ctx.path("path"), k)?;
-    ctx.output("cameras", CameraPathArt(cameras));
-    ctx.output("intrinsics", IntrinsicsArt(intrinsics));
-    ctx.output("points", PointCloudArt(cloud));
+    ctx.set(CAMERAS_OUT, CameraPathArt(cameras));
+    ctx.set(INTRINSICS_OUT, IntrinsicsArt(intrinsics));
+    ctx.set(POINTS_OUT, PointCloudArt(cloud));
     Ok(())
 }
 

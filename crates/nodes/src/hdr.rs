@@ -6,7 +6,7 @@
 
 use nalgebra::Vector3;
 use vfxgraph_engine::artifact::codec::{put_bytes, put_f64, put_u64, Reader};
-use vfxgraph_engine::{ArtifactType, Context, Mode, NodeError, NodeSpec, Registry};
+use vfxgraph_engine::{ArtifactType, Context, In, Mode, NodeError, NodeSpec, OptIn, Out, Registry};
 
 use vfxgraph_imaging::draw::{plot_response, PlotOptions};
 use vfxgraph_imaging::hdr::{
@@ -142,11 +142,32 @@ struct ReadStackOptions {
     stack: StackOptions,
 }
 
+const STACK_READ: Out<StackArt> = Out::new("stack", "the exposure stack");
+const STACK: In<StackArt> = In::new("stack", "the exposure stack");
+const ALIGNED: Out<StackArt> = Out::new("stack", "the aligned stack");
+const REPORT: Out<ReportArt> = Out::new(
+    "report",
+    "{\"reference\": r, \"shifts\": [[dx, dy], ...]}: aligned(x, y) = exposure(x - dx, y - dy)",
+);
+const RESPONSE_OUT: Out<ResponseArt> = Out::new("response", "the response curve");
+const RESPONSE: In<ResponseArt> = In::new("response", "the response curve");
+const RADIANCE: Out<ImageArt> = Out::new("image", "the radiance map, linear");
+const HDR_IMAGE: In<ImageArt> = In::new("image", "linear HDR image");
+const PHOTO_RESPONSE: OptIn<ResponseArt> = OptIn::new("response", "response curve");
+const PHOTOGRAPH: Out<ImageArt> = Out::new("image", "the simulated photograph");
+const CURVE: In<ResponseArt> = In::new("response", "the curve");
+const PLOT: Out<ImageArt> = Out::new("image", "the plot (write it as PNG)");
+const PROBE: In<ImageArt> = In::new("image", "the probe photograph, linear");
+const EQUIRECT: Out<ImageArt> = Out::new("image", "equirectangular image");
+const RADIANCE_MAP: In<ImageArt> = In::new("image", "equirectangular radiance map");
+const CAMERA: OptIn<CameraArt> = OptIn::new(
+    "camera",
+    "the camera that photographed the probe (its R orients the dome)",
+);
+const DOME: Out<DomeArt> = Out::new("dome", "the oriented dome");
+
 /// Registers the artifact and node types of this module.
 pub fn register(r: &mut Registry) {
-    r.register_artifact::<StackArt>();
-    r.register_artifact::<ResponseArt>();
-    r.register_artifact::<DomeArt>();
     r.register_fn(
         NodeSpec::new(
             "read_exposure_stack",
@@ -161,7 +182,7 @@ pub fn register(r: &mut Registry) {
         .version(2)
         .mode(Mode::Once)
         .options::<ReadStackOptions>()
-        .output_of::<StackArt>("stack", "the exposure stack"),
+        .output(STACK_READ),
         run_read_stack,
     );
     r.register_fn(
@@ -174,12 +195,9 @@ pub fn register(r: &mut Registry) {
              from outside the frame get code 0 (ignored by the merge) and join the mask.",
         )
         .options::<AlignOptions>()
-        .input_of::<StackArt>("stack", "the exposure stack")
-        .output_of::<StackArt>("stack", "the aligned stack")
-        .output_of::<ReportArt>(
-            "report",
-            "{\"reference\": r, \"shifts\": [[dx, dy], ...]}: aligned(x, y) = exposure(x - dx, y - dy)",
-        ),
+        .input(STACK)
+        .output(ALIGNED)
+        .output(REPORT),
         run_align,
     );
     r.register_fn(
@@ -193,8 +211,8 @@ pub fn register(r: &mut Registry) {
         .mode(Mode::Once)
         .seeded()
         .options::<CalibrateOptions>()
-        .input_of::<StackArt>("stack", "the exposure stack")
-        .output_of::<ResponseArt>("response", "the response curve"),
+        .input(STACK)
+        .output(RESPONSE_OUT),
         run_calibrate,
     );
     r.register_fn(
@@ -204,9 +222,9 @@ pub fn register(r: &mut Registry) {
              pixels clipped in every exposure take the stack's bound; g(128) = 0 per channel \
              keeps the camera's mid-grey white balance.",
         )
-        .input_of::<StackArt>("stack", "the exposure stack")
-        .input_of::<ResponseArt>("response", "the response curve")
-        .output_of::<ImageArt>("image", "the radiance map, linear"),
+        .input(STACK)
+        .input(RESPONSE)
+        .output(RADIANCE),
         run_merge,
     );
     r.register_fn(
@@ -217,9 +235,9 @@ pub fn register(r: &mut Registry) {
              The output, written to PNG/JPEG, stores those codes exactly.",
         )
         .options::<LdrOptions>()
-        .input_of::<ImageArt>("image", "linear HDR image")
-        .optional_input_of::<ResponseArt>("response", "response curve")
-        .output_of::<ImageArt>("image", "the simulated photograph"),
+        .input(HDR_IMAGE)
+        .input(PHOTO_RESPONSE)
+        .output(PHOTOGRAPH),
         run_to_ldr,
     );
     r.register_fn(
@@ -230,8 +248,8 @@ pub fn register(r: &mut Registry) {
              grid at every unit of ln exposure and every 32 codes.",
         )
         .options::<PlotOptions>()
-        .input_of::<ResponseArt>("response", "the curve")
-        .output_of::<ImageArt>("image", "the plot (write it as PNG)"),
+        .input(CURVE)
+        .output(PLOT),
         run_plot,
     );
     r.register_fn(
@@ -242,7 +260,7 @@ pub fn register(r: &mut Registry) {
              layout in RGB order, no header. The write is atomic.",
         )
         .output_file_param("path", "the CSV file")
-        .input_of::<ResponseArt>("response", "the curve"),
+        .input(CURVE),
         run_write_response,
     );
     r.register_fn(
@@ -253,8 +271,8 @@ pub fn register(r: &mut Registry) {
              +y, centre column −z), bilinear (book 10.7). The rim (−z) is singular.",
         )
         .options::<ProbeOptions>()
-        .input_of::<ImageArt>("image", "the probe photograph, linear")
-        .output_of::<ImageArt>("image", "equirectangular image"),
+        .input(PROBE)
+        .output(EQUIRECT),
         run_probe,
     );
     r.register_fn(
@@ -268,12 +286,9 @@ pub fn register(r: &mut Registry) {
         )
         .version(2)
         .options::<DomeOptions>()
-        .input_of::<ImageArt>("image", "equirectangular radiance map")
-        .optional_input_of::<CameraArt>(
-            "camera",
-            "the camera that photographed the probe (its R orients the dome)",
-        )
-        .output_of::<DomeArt>("dome", "the oriented dome"),
+        .input(RADIANCE_MAP)
+        .input(CAMERA)
+        .output(DOME),
         run_dome,
     );
 }
@@ -288,17 +303,17 @@ fn run_read_stack(ctx: &mut Context<'_>) -> Result<(), NodeError> {
         ctx.declare_input_file(path)
             .map_err(|e| NodeError::msg(format!("param `list`: {e}")))?;
     }
-    ctx.output("stack", StackArt(files.read(&o)?));
+    ctx.set(STACK_READ, StackArt(files.read(&o)?));
     Ok(())
 }
 
 fn run_align(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: AlignOptions = ctx.options()?;
-    let stack = &ctx.input::<StackArt>("stack")?.0;
+    let stack = &ctx.get(STACK)?.0;
     let (aligned, shifts) = align_exposures(stack, &o)?;
     let report = align_report(&o, stack.len(), &shifts);
-    ctx.output("stack", StackArt(aligned));
-    ctx.output("report", ReportArt(report));
+    ctx.set(ALIGNED, StackArt(aligned));
+    ctx.set(REPORT, ReportArt::of(&report)?);
     Ok(())
 }
 
@@ -307,30 +322,27 @@ fn run_calibrate(ctx: &mut Context<'_>) -> Result<(), NodeError> {
         seed: ctx.seed(),
         ..ctx.options()?
     };
-    let curve = calibrate_debevec(&ctx.input::<StackArt>("stack")?.0, &o)?;
-    ctx.output("response", ResponseArt(curve));
+    let curve = calibrate_debevec(&ctx.get(STACK)?.0, &o)?;
+    ctx.set(RESPONSE_OUT, ResponseArt(curve));
     Ok(())
 }
 
 fn run_merge(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let img = merge_debevec(
-        &ctx.input::<StackArt>("stack")?.0,
-        &ctx.input::<ResponseArt>("response")?.0,
-    )?;
-    ctx.output("image", ImageArt(img));
+    let img = merge_debevec(&ctx.get(STACK)?.0, &ctx.get(RESPONSE)?.0)?;
+    ctx.set(RADIANCE, ImageArt(img));
     Ok(())
 }
 
 fn run_to_ldr(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: LdrOptions = ctx.options()?;
-    let img = &ctx.input::<ImageArt>("image")?.0;
-    let response = ctx.input_opt::<ResponseArt>("response")?.map(|r| &r.0);
-    ctx.output("image", ImageArt(photograph(img, response, &o)?));
+    let img = &ctx.get(HDR_IMAGE)?.0;
+    let response = ctx.get(PHOTO_RESPONSE)?.map(|r| &r.0);
+    ctx.set(PHOTOGRAPH, ImageArt(photograph(img, response, &o)?));
     Ok(())
 }
 
 fn run_write_response(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let curve = &ctx.input::<ResponseArt>("response")?.0;
+    let curve = &ctx.get(CURVE)?.0;
     let csv = curve.to_csv();
     Ok(vfxgraph_imaging::io::write_atomic(
         &ctx.path("path"),
@@ -340,25 +352,25 @@ fn run_write_response(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 
 fn run_plot(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: PlotOptions = ctx.options()?;
-    let img = plot_response(&ctx.input::<ResponseArt>("response")?.0, &o);
-    ctx.output("image", ImageArt(img));
+    let img = plot_response(&ctx.get(CURVE)?.0, &o);
+    ctx.set(PLOT, ImageArt(img));
     Ok(())
 }
 
 fn run_probe(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: ProbeOptions = ctx.options()?;
-    let img = &ctx.input::<ImageArt>("image")?.0;
+    let img = &ctx.get(PROBE)?.0;
     let out = probe_to_equirect(img, &o.circle_in(img.width, img.height), o.width)?;
-    ctx.output("image", ImageArt(out));
+    ctx.set(EQUIRECT, ImageArt(out));
     Ok(())
 }
 
 fn run_dome(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: DomeOptions = ctx.options()?;
-    let img = &ctx.input::<ImageArt>("image")?.0;
-    let camera = ctx.input_opt::<CameraArt>("camera")?;
+    let img = &ctx.get(RADIANCE_MAP)?.0;
+    let camera = ctx.get(CAMERA)?;
     let dome = Dome::oriented(img, &o, camera.map(|c| &c.0.pose.r))?;
-    ctx.output("dome", DomeArt(dome));
+    ctx.set(DOME, DomeArt(dome));
     Ok(())
 }
 
@@ -637,12 +649,13 @@ mod tests {
         )];
         let mut ctx = Context::for_test(&s, &p, Path::new("."), None, input);
         run_align(&mut ctx).unwrap();
-        let report = ctx.take_output::<ReportArt>("report").unwrap().0;
-        assert_eq!(report["reference"], 1);
-        assert_eq!(
-            report["shifts"],
-            serde_json::json!([[0, 0], [0, 0], [-3, 2]])
-        );
+        let report: vfxgraph_imaging::hdr::AlignReport = ctx
+            .take_output::<ReportArt>("report")
+            .unwrap()
+            .parse()
+            .unwrap();
+        assert_eq!(report.reference, 1);
+        assert_eq!(report.shifts, [[0, 0], [0, 0], [-3, 2]]);
         let aligned = ctx.take_output::<StackArt>("stack").unwrap().0;
         assert!(aligned.is_masked(w - 1) && !aligned.is_masked(w * 10 + 10));
         let p = params(&s, &[("reference", ParamValue::Int(3))]);

@@ -6,12 +6,17 @@
 //! from and to the graph's scene-linear working space.
 
 use vfxgraph_engine::node::has_frame_pattern;
-use vfxgraph_engine::{Context, Mode, NodeError, NodeSpec, Registry, Threads};
+use vfxgraph_engine::{Context, In, Mode, NodeError, NodeSpec, Out, Registry, Threads};
 use vfxgraph_imaging::colour::{KeepPlate, ReadColour, WriteColour};
 
 use crate::artifacts::ImageArt;
 
 const FORMATS: &str = "PNG, JPEG, EXR, PFM or HDR, by extension";
+
+const READ_IMAGE: Out<ImageArt> = Out::new("image", "the image, linear light");
+const IMAGE_TO_WRITE: In<ImageArt> = In::new("image", "the image to write");
+const READ_FRAME: Out<ImageArt> = Out::new("sequence", "the frame's image");
+const FRAME_TO_WRITE: In<ImageArt> = In::new("sequence", "the frame's image");
 
 /// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
@@ -28,8 +33,8 @@ pub fn register(r: &mut Registry) {
         .uncached()
         .input_file_param("path", "the image file, relative to the graph file")
         .options::<ReadColour>()
-        .output_of::<ImageArt>("image", "the image, linear light"),
-        run_read_image,
+        .output(READ_IMAGE),
+        |ctx| read_image(ctx, READ_IMAGE),
     );
     r.register_fn(
         NodeSpec::new(
@@ -43,7 +48,7 @@ pub fn register(r: &mut Registry) {
         .output_file_param("path", FORMATS)
         .options::<WriteColour>()
         .options::<KeepPlate>()
-        .input_of::<ImageArt>("image", "the image to write"),
+        .input(IMAGE_TO_WRITE),
         run_write_image,
     );
     r.register_fn(
@@ -56,8 +61,8 @@ pub fn register(r: &mut Registry) {
         .uncached()
         .input_file_param("path", "file pattern, e.g. plate/frame.%04d.png")
         .options::<ReadColour>()
-        .output_of::<ImageArt>("sequence", "the frame's image"),
-        run_read_image,
+        .output(READ_FRAME),
+        |ctx| read_image(ctx, READ_FRAME),
     );
     r.register_fn(
         NodeSpec::new(
@@ -69,8 +74,8 @@ pub fn register(r: &mut Registry) {
         .output_file_param("path", "file pattern, e.g. out/frame.%04d.exr")
         .options::<WriteColour>()
         .options::<KeepPlate>()
-        .input_of::<ImageArt>("sequence", "the frame's image"),
-        run_write_image,
+        .input(FRAME_TO_WRITE),
+        |ctx| write_image(ctx, FRAME_TO_WRITE),
     );
 }
 
@@ -90,19 +95,24 @@ pub(crate) fn ocio_config(ctx: &Context<'_>) -> Option<std::path::PathBuf> {
     (!ctx.params().str("ocio_config").is_empty()).then(|| ctx.path("ocio_config"))
 }
 
-fn run_read_image(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+/// `read_image` and `read_image_sequence`: the file of param `path` into output `port`.
+fn read_image(ctx: &mut Context<'_>, port: Out<ImageArt>) -> Result<(), NodeError> {
     check_pattern(ctx)?;
     let o: ReadColour = ctx.options()?;
     let img = o.read(&ctx.path("path"), ocio_config(ctx).as_deref())?;
-    let port = ctx.output_port(0);
-    ctx.output(port, ImageArt(img));
+    ctx.set(port, ImageArt(img));
     Ok(())
 }
 
+/// `write_image`.
 pub(crate) fn run_write_image(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+    write_image(ctx, IMAGE_TO_WRITE)
+}
+
+/// `write_image` and `write_image_sequence`: input `port` to the file of param `path`.
+fn write_image(ctx: &mut Context<'_>, port: In<ImageArt>) -> Result<(), NodeError> {
     check_pattern(ctx)?;
-    let port = ctx.input_port(0);
-    let img = &ctx.input::<ImageArt>(port)?.0;
+    let img = &ctx.get(port)?.0;
     let o: WriteColour = ctx.options()?;
     let config = ocio_config(ctx);
     let plate = (!ctx.params().str("plate").is_empty()).then(|| ctx.path("plate"));
@@ -167,7 +177,7 @@ mod tests {
         run_write_image(&mut ctx).unwrap();
         let rs = spec("read_image");
         let mut ctx = Context::for_test(&rs, &p, dir.path(), None, vec![]);
-        run_read_image(&mut ctx).unwrap();
+        read_image(&mut ctx, READ_IMAGE).unwrap();
         assert_eq!(ctx.take_output::<ImageArt>("image").unwrap().0, img);
     }
 
@@ -187,19 +197,19 @@ mod tests {
                     InputValue::One(Value::new(ImageArt(img.clone()))),
                 )],
             );
-            run_write_image(&mut ctx).unwrap();
+            write_image(&mut ctx, FRAME_TO_WRITE).unwrap();
         }
         assert!(dir.path().join("out/f.0003.pfm").is_file());
         assert!(dir.path().join("out/f.0004.pfm").is_file());
         let rs = spec("read_image_sequence");
         let p = params("out/f.%04d.pfm");
         let mut ctx = Context::for_test(&rs, &p, dir.path(), Some(4), vec![]);
-        run_read_image(&mut ctx).unwrap();
+        read_image(&mut ctx, READ_FRAME).unwrap();
         assert_eq!(ctx.take_output::<ImageArt>("sequence").unwrap().0, img);
         // No pattern: a clear error.
         let p = params("out/f.pfm");
         let mut ctx = Context::for_test(&rs, &p, dir.path(), Some(4), vec![]);
-        let e = run_read_image(&mut ctx).unwrap_err();
+        let e = read_image(&mut ctx, READ_FRAME).unwrap_err();
         assert!(e.message.contains("frame pattern"), "{e}");
     }
 
@@ -211,7 +221,7 @@ mod tests {
         for name in ["missing.png", "bad.png"] {
             let p = params(name);
             let mut ctx = Context::for_test(&rs, &p, dir.path(), None, vec![]);
-            let e = run_read_image(&mut ctx).unwrap_err();
+            let e = read_image(&mut ctx, READ_IMAGE).unwrap_err();
             assert!(e.message.contains(name), "{e}");
         }
     }
@@ -235,7 +245,7 @@ mod tests {
         run_write_image(&mut ctx)?;
         let (rs, p) = (spec("read_image"), params_with(file, read));
         let mut ctx = Context::for_test(&rs, &p, dir, None, vec![]);
-        run_read_image(&mut ctx)?;
+        read_image(&mut ctx, READ_IMAGE)?;
         Ok(ctx.take_output::<ImageArt>("image").unwrap().0)
     }
 

@@ -1,12 +1,19 @@
 //! Image operations: `exposure`, `tonemap`, `blur`, and the `constant` image generator.
 
-use vfxgraph_engine::{Context, NodeError, NodeSpec, Registry, Threads};
+use vfxgraph_engine::{Context, In, NodeError, NodeSpec, Out, Registry, Threads};
 use vfxgraph_imaging::{
     blur, constant, exposure, tonemap, BlurOptions, ConstantOptions, ExposureOptions,
     TonemapOptions,
 };
 
 use crate::artifacts::ImageArt;
+
+const LINEAR: In<ImageArt> = In::new("image", "linear image");
+const EXPOSED: Out<ImageArt> = Out::new("image", "exposed image");
+const HDR: In<ImageArt> = In::new("image", "linear HDR image");
+const TONEMAPPED: Out<ImageArt> = Out::new("image", "tone-mapped linear image");
+const BLURRED: Out<ImageArt> = Out::new("image", "blurred image");
+const CONSTANT: Out<ImageArt> = Out::new("image", "the image");
 
 /// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
@@ -17,8 +24,8 @@ pub fn register(r: &mut Registry) {
         )
         .threads(Threads::One)
         .options::<ExposureOptions>()
-        .input_of::<ImageArt>("image", "linear image")
-        .output_of::<ImageArt>("image", "exposed image"),
+        .input(LINEAR)
+        .output(EXPOSED),
         run_exposure,
     );
     r.register_fn(
@@ -30,8 +37,8 @@ pub fn register(r: &mut Registry) {
         )
         .threads(Threads::One)
         .options::<TonemapOptions>()
-        .input_of::<ImageArt>("image", "linear HDR image")
-        .output_of::<ImageArt>("image", "tone-mapped linear image"),
+        .input(HDR)
+        .output(TONEMAPPED),
         run_tonemap,
     );
     r.register_fn(
@@ -41,8 +48,8 @@ pub fn register(r: &mut Registry) {
              a straight streak of `streak` px at `angle` degrees (motion blur); edges repeat.",
         )
         .options::<BlurOptions>()
-        .input_of::<ImageArt>("image", "linear image")
-        .output_of::<ImageArt>("image", "blurred image"),
+        .input(LINEAR)
+        .output(BLURRED),
         run_blur,
     );
     r.register_fn(
@@ -52,39 +59,35 @@ pub fn register(r: &mut Registry) {
              patterns, backgrounds, benchmarks.",
         )
         .options::<ConstantOptions>()
-        .output_of::<ImageArt>("image", "the image"),
+        .output(CONSTANT),
         run_constant,
     );
 }
 
 fn run_exposure(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: ExposureOptions = ctx.options()?;
-    let out = exposure(&ctx.input::<ImageArt>("image")?.0, o.stops as f32);
-    ctx.output("image", ImageArt(out));
+    let out = exposure(&ctx.get(LINEAR)?.0, o.stops as f32);
+    ctx.set(EXPOSED, ImageArt(out));
     Ok(())
 }
 
 fn run_tonemap(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: TonemapOptions = ctx.options()?;
-    let out = tonemap(
-        &ctx.input::<ImageArt>("image")?.0,
-        o.operator,
-        o.exposure as f32,
-    );
-    ctx.output("image", ImageArt(out));
+    let out = tonemap(&ctx.get(HDR)?.0, o.operator, o.exposure as f32);
+    ctx.set(TONEMAPPED, ImageArt(out));
     Ok(())
 }
 
 fn run_blur(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: BlurOptions = ctx.options()?;
-    let out = blur(&ctx.input::<ImageArt>("image")?.0, &o)?;
-    ctx.output("image", ImageArt(out));
+    let out = blur(&ctx.get(LINEAR)?.0, &o)?;
+    ctx.set(BLURRED, ImageArt(out));
     Ok(())
 }
 
 fn run_constant(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: ConstantOptions = ctx.options()?;
-    ctx.output("image", ImageArt(constant(&o)?));
+    ctx.set(CONSTANT, ImageArt(constant(&o)?));
     Ok(())
 }
 

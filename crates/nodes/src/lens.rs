@@ -2,7 +2,7 @@
 //! `write_st_map` (the same warps as Nuke ST-maps). The algorithms and their options live in
 //! `vfxgraph_vision::undistort` and `vfxgraph_vision::st_map`.
 
-use vfxgraph_engine::{Context, Mode, NodeError, NodeSpec, Registry, Threads};
+use vfxgraph_engine::{Context, In, Mode, NodeError, NodeSpec, OptIn, Out, Registry, Threads};
 use vfxgraph_imaging::io::write_image;
 use vfxgraph_vision::st_map::{st_map, StMapOptions};
 use vfxgraph_vision::undistort::{LensWarp, UndistortOptions};
@@ -12,8 +12,8 @@ use crate::artifacts::{CameraPathArt, ImageArt, IntrinsicsArt};
 /// The lens warp of node `node`: K with its lens from the `intrinsics` input, else from the
 /// `cameras` path (a solve's).
 fn warp_of(ctx: &Context<'_>, node: &str, o: &UndistortOptions) -> Result<LensWarp, NodeError> {
-    let path = ctx.input_opt::<CameraPathArt>("cameras")?.map(|p| &p.0);
-    let k = crate::intrinsics_or_path_k(ctx, path)?.ok_or_else(|| match path {
+    let path = ctx.get(CAMERAS)?.map(|p| &p.0);
+    let k = crate::intrinsics_or_path_k(ctx, INTRINSICS, path)?.ok_or_else(|| match path {
         Some(_) => format!("{node}: the `cameras` path carries no K (connect `intrinsics`)"),
         None => format!(
             "{node}: no lens: connect `intrinsics` (K with its lens and image size) or a solved \
@@ -24,24 +24,37 @@ fn warp_of(ctx: &Context<'_>, node: &str, o: &UndistortOptions) -> Result<LensWa
     LensWarp::new(k, o).map_err(|e| NodeError::msg(format!("{node}: {e}")))
 }
 
-/// `undistort` or `redistort` (`node`): the image through the lens warp; `undistort` also
-/// outputs K′.
-fn run_warp(ctx: &mut Context<'_>, node: &str) -> Result<(), NodeError> {
+/// `undistort` or `redistort` (`node`): the image of input `image` through the lens warp, to
+/// output `out`; `undistort` also outputs K′.
+fn run_warp(
+    ctx: &mut Context<'_>,
+    node: &str,
+    image: In<ImageArt>,
+    out: Out<ImageArt>,
+) -> Result<(), NodeError> {
     let o: UndistortOptions = ctx.options()?;
     let warp = warp_of(ctx, node, &o)?;
-    let img = &ctx.input::<ImageArt>("image")?.0;
+    let img = &ctx.get(image)?.0;
     let undistort = node == "undistort";
-    let out = if undistort {
+    let warped = if undistort {
         warp.undistort(img)
     } else {
         warp.redistort(img)
     };
-    let out = out.map_err(|e| NodeError::msg(format!("{node}: {e}")))?;
-    ctx.output("image", ImageArt(out));
+    let warped = warped.map_err(|e| NodeError::msg(format!("{node}: {e}")))?;
+    ctx.set(out, ImageArt(warped));
     if undistort {
-        ctx.output("intrinsics", IntrinsicsArt(warp.pinhole.clone()));
+        ctx.set(INTRINSICS_OUT, IntrinsicsArt(warp.pinhole.clone()));
     }
     Ok(())
+}
+
+fn run_undistort(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+    run_warp(ctx, "undistort", PLATE, UNDISTORTED)
+}
+
+fn run_redistort(ctx: &mut Context<'_>) -> Result<(), NodeError> {
+    run_warp(ctx, "redistort", UNDISTORTED_IN, REDISTORTED)
 }
 
 fn run_write_st_map(ctx: &mut Context<'_>) -> Result<(), NodeError> {
@@ -61,22 +74,37 @@ fn run_write_st_map(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 }
 
 fn lens_ports(spec: NodeSpec) -> NodeSpec {
-    spec.optional_input_of::<IntrinsicsArt>(
-        "intrinsics",
-        "the plate's K with its lens (`distortion`) and image size",
-    )
-    .optional_input_of::<CameraPathArt>(
-        "cameras",
-        "a solved camera path whose K carries the lens (when `intrinsics` is not connected)",
-    )
+    spec.input(INTRINSICS).input(CAMERAS)
 }
 
-/// `undistort` or `redistort`: the lens ports, the image in and out (`docs`), their options.
-fn warp_node(name: &'static str, doc: &'static str, docs: [&'static str; 2]) -> NodeSpec {
-    lens_ports(NodeSpec::new(name, doc).input_of::<ImageArt>("image", docs[0]))
-        .output_of::<ImageArt>("image", docs[1])
+/// `undistort` or `redistort`: the lens ports, the image in and out, their options.
+fn warp_node(
+    name: &'static str,
+    doc: &'static str,
+    image: In<ImageArt>,
+    out: Out<ImageArt>,
+) -> NodeSpec {
+    lens_ports(NodeSpec::new(name, doc).input(image))
+        .output(out)
         .options::<UndistortOptions>()
 }
+
+const INTRINSICS: OptIn<IntrinsicsArt> = OptIn::new(
+    "intrinsics",
+    "the plate's K with its lens (`distortion`) and image size",
+);
+const CAMERAS: OptIn<CameraPathArt> = OptIn::new(
+    "cameras",
+    "a solved camera path whose K carries the lens (when `intrinsics` is not connected)",
+);
+const PLATE: In<ImageArt> = In::new("image", "the plate (the lens's size)");
+const UNDISTORTED: Out<ImageArt> = Out::new("image", "the undistorted image");
+const UNDISTORTED_IN: In<ImageArt> = In::new("image", "the undistorted image (K′'s size)");
+const REDISTORTED: Out<ImageArt> = Out::new("image", "the image through the lens");
+const INTRINSICS_OUT: Out<IntrinsicsArt> = Out::new(
+    "intrinsics",
+    "K′ of the undistorted image: the same focal lengths, no lens, its size",
+);
 
 /// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
@@ -87,13 +115,11 @@ pub fn register(r: &mut Registry) {
              pixel x′ samples the plate (bilinear) at K·distort(K′⁻¹x′). With overscan the \
              output is as large as the plate's undistorted footprint, so nothing is lost; \
              `intrinsics` out is K′ (no lens) with that size.",
-            ["the plate (the lens's size)", "the undistorted image"],
+            PLATE,
+            UNDISTORTED,
         )
-        .output_of::<IntrinsicsArt>(
-            "intrinsics",
-            "K′ of the undistorted image: the same focal lengths, no lens, its size",
-        ),
-        |ctx| run_warp(ctx, "undistort"),
+        .output(INTRINSICS_OUT),
+        run_undistort,
     );
     r.register_fn(
         warp_node(
@@ -101,12 +127,10 @@ pub fn register(r: &mut Registry) {
             "An undistorted image (a pinhole render with `undistort`'s K′, same framing \
              options) seen through the lens again: each plate pixel x samples it at \
              K′·undistort(K⁻¹x). The inverse of `undistort`.",
-            [
-                "the undistorted image (K′'s size)",
-                "the image through the lens",
-            ],
+            UNDISTORTED_IN,
+            REDISTORTED,
         ),
-        |ctx| run_warp(ctx, "redistort"),
+        run_redistort,
     );
     r.register_fn(
         lens_ports(
@@ -170,7 +194,7 @@ mod tests {
             ]
         };
         let mut ctx = Context::for_test(&sp, &ps, dir.path(), None, inputs());
-        run_warp(&mut ctx, "undistort").unwrap();
+        run_undistort(&mut ctx).unwrap();
         let und = ctx.take_output::<ImageArt>("image").unwrap().0;
         let k2 = ctx.take_output::<IntrinsicsArt>("intrinsics").unwrap().0;
         let warp = LensWarp::new(&lens(), &UndistortOptions::default()).unwrap();
@@ -193,7 +217,7 @@ mod tests {
                 ),
             ],
         );
-        run_warp(&mut ctx, "redistort").unwrap();
+        run_redistort(&mut ctx).unwrap();
         let back = ctx.take_output::<ImageArt>("image").unwrap().0;
         assert_eq!((back.width, back.height), (96, 54));
 
@@ -234,7 +258,7 @@ mod tests {
                 InputValue::One(Value::new(ImageArt(plate.clone()))),
             )],
         );
-        let e = run_warp(&mut ctx, "undistort").unwrap_err().to_string();
+        let e = run_undistort(&mut ctx).unwrap_err().to_string();
         assert!(e.contains("undistort: no lens"), "{e}");
     }
 }

@@ -4,7 +4,8 @@
 //! its params and inputs from the engine's [`Context`](vfxgraph_engine::Context), calls the
 //! algorithm crate, and sets its outputs. No algorithm lives here.
 //!
-//! [`registry`] returns every artifact and node type, for the CLI and for tests.
+//! [`registry`] returns every artifact and node type, for the CLI and for tests: a node's
+//! typed ports register their artifact types with it, so the families register in any order.
 
 pub mod artifacts;
 pub mod bundle;
@@ -28,29 +29,26 @@ pub mod tracking;
 pub mod tracking_opencv;
 pub mod video;
 
-use vfxgraph_engine::{Context, NodeError, Registry};
+use vfxgraph_engine::{Context, NodeError, OptIn, Registry};
 
 /// All artifact and node types of vfxgraph.
 pub fn registry() -> Registry {
     let mut r = Registry::new();
-    artifacts::register(&mut r);
+    bundle::register(&mut r);
     calibration::register(&mut r);
+    export::register(&mut r);
+    hdr::register(&mut r);
     image_io::register(&mut r);
     image_ops::register(&mut r);
     lens::register(&mut r);
-    tracking::register(&mut r);
-    // After `tracking`, which registers the `tracks` artifact.
-    bundle::register(&mut r);
-    export::register(&mut r);
+    local_scene::register(&mut r);
     matchmove::register(&mut r);
     modeling::register(&mut r);
-    plate::register(&mut r);
-    hdr::register(&mut r);
-    render::register(&mut r);
-    // After `render`, which registers the `scene` artifact.
-    shot::register(&mut r);
-    local_scene::register(&mut r);
     placement::register(&mut r);
+    plate::register(&mut r);
+    render::register(&mut r);
+    shot::register(&mut r);
+    tracking::register(&mut r);
     video::register(&mut r);
     #[cfg(feature = "opencv")]
     tracking_opencv::register(&mut r);
@@ -63,13 +61,14 @@ pub fn registry() -> Registry {
     r
 }
 
-/// K: the `intrinsics` input, else the K the camera path `path` carries (a solve's, with its
-/// lens).
+/// K: input `port` (a node's `intrinsics`), else the K the camera path `path` carries (a
+/// solve's, with its lens).
 pub(crate) fn intrinsics_or_path_k<'a>(
     ctx: &'a Context<'_>,
+    port: OptIn<artifacts::IntrinsicsArt>,
     path: Option<&'a vfxgraph_vision::formats::CameraPath>,
 ) -> Result<Option<&'a vfxgraph_vision::Intrinsics>, NodeError> {
-    let k = ctx.input_opt::<artifacts::IntrinsicsArt>("intrinsics")?;
+    let k = ctx.get(port)?;
     Ok(k.map(|k| &k.0).or(path.and_then(|p| p.intrinsics.as_ref())))
 }
 

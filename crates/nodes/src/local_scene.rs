@@ -5,7 +5,7 @@
 //! ([`vfxgraph_render::proxy`]); `add_objects` puts the designed CG objects into that local scene last, so the local scene's
 //! nodes never see them and a change of an object reruns only what renders it.
 
-use vfxgraph_engine::{Context, NodeError, NodeSpec, Registry};
+use vfxgraph_engine::{Context, In, NodeError, NodeSpec, Out, Registry, SeqIn};
 use vfxgraph_render::catcher_texture::View;
 use vfxgraph_render::local_scene::{add_objects, texture_local_scene_report, LocalTextureOptions};
 use vfxgraph_render::plate::plate_frames;
@@ -19,20 +19,42 @@ use crate::shot::SHOT_INPUTS;
 
 fn run_proxy_from_points(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: ProxyOptions = ctx.options()?;
-    let art = ctx.input::<SceneArt>("scene")?;
-    let (scene, report) = add_proxies(&art.scene, &measured(ctx)?, &o).map_err(NodeError::msg)?;
-    ctx.output("scene", SceneArt::new(scene, art.dome.clone()));
-    ctx.output("report", ReportArt(report));
+    let art = ctx.get(PLACED_SCENE)?;
+    let (scene, report) =
+        add_proxies(&art.scene, &measured(ctx, POINTS3D)?, &o).map_err(NodeError::msg)?;
+    ctx.set(WITH_PROXIES, SceneArt::new(scene, art.dome.clone()));
+    ctx.set(PROXY_REPORT, ReportArt(report));
     Ok(())
 }
 
 fn run_add_objects(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let local = ctx.input::<SceneArt>("scene")?;
-    let cg = ctx.input::<SceneArt>("objects")?;
+    let local = ctx.get(LOCAL_SCENE)?;
+    let cg = ctx.get(OBJECTS)?;
     let scene = add_objects(&local.scene, &cg.scene).map_err(NodeError::msg)?;
-    ctx.output("scene", SceneArt::new(scene, local.dome.clone()));
+    ctx.set(WITH_OBJECTS, SceneArt::new(scene, local.dome.clone()));
     Ok(())
 }
+
+const LOCAL_SCENE: In<SceneArt> = In::new("scene", "the local scene");
+const OBJECTS: In<SceneArt> = In::new(
+    "objects",
+    "the placed insert (its catchers, camera and dome are not used)",
+);
+const WITH_OBJECTS: Out<SceneArt> = Out::new("scene", "the local scene with the objects");
+const PLACED_SCENE: In<SceneArt> = In::new("scene", "the placed scene");
+const POINTS3D: In<Points3dArt> = In::new("points3d", "the measured points");
+const WITH_PROXIES: Out<SceneArt> =
+    Out::new("scene", "the scene with the proxies' faces as catchers");
+const PROXY_REPORT: Out<ReportArt> = Out::new("report", "proxies made");
+const PLATE: SeqIn<ImageArt> = SeqIn::new("plate", "the plate frames (linear radiance)");
+const TEXTURED: Out<SceneArt> = Out::new("scene", "the scene with the catcher's albedo texture");
+const ALBEDO: Out<ImageArt> = Out::new(
+    "albedo",
+    "the estimated albedo, linear RGB; column i along the map's u edge, row j along v \
+             (see the report's map corners)",
+);
+const SEEN: Out<ImageArt> = Out::new("seen", "frames that saw each texel (one channel)");
+const TEXTURE_REPORT: Out<ReportArt> = Out::new("report", "the estimate");
 
 /// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
@@ -45,12 +67,9 @@ pub fn register(r: &mut Registry) {
              from the set alone and add the objects last: a change of an object's material \
              then reruns only this node and the renders, never the catcher fit or texture.",
         )
-        .input_of::<SceneArt>("scene", "the local scene")
-        .input_of::<SceneArt>(
-            "objects",
-            "the placed insert (its catchers, camera and dome are not used)",
-        )
-        .output_of::<SceneArt>("scene", "the local scene with the objects"),
+        .input(LOCAL_SCENE)
+        .input(OBJECTS)
+        .output(WITH_OBJECTS),
         run_add_objects,
     );
     r.register_fn(
@@ -63,10 +82,10 @@ pub fn register(r: &mut Registry) {
              in their reflections and occludes the dome for their lighting.",
         )
         .options::<ProxyOptions>()
-        .input_of::<SceneArt>("scene", "the placed scene")
-        .input_of::<Points3dArt>("points3d", "the measured points")
-        .output_of::<SceneArt>("scene", "the scene with the proxies' faces as catchers")
-        .output_of::<ReportArt>("report", "proxies made"),
+        .input(PLACED_SCENE)
+        .input(POINTS3D)
+        .output(WITH_PROXIES)
+        .output(PROXY_REPORT),
         run_proxy_from_points,
     );
     r.register_fn(
@@ -95,29 +114,25 @@ pub fn register(r: &mut Registry) {
             .options::<ImageSize>(),
             SHOT_INPUTS,
         )
-        .sequence_input_of::<ImageArt>("plate", "the plate frames (linear radiance)")
-        .output_of::<SceneArt>("scene", "the scene with the catcher's albedo texture")
-        .output_of::<ImageArt>(
-            "albedo",
-            "the estimated albedo, linear RGB; column i along the map's u edge, row j along v \
-             (see the report's map corners)",
-        )
-        .output_of::<ImageArt>("seen", "frames that saw each texel (one channel)")
-        .output_of::<ReportArt>("report", "the estimate"),
+        .input(PLATE)
+        .output(TEXTURED)
+        .output(ALBEDO)
+        .output(SEEN)
+        .output(TEXTURE_REPORT),
         run_catcher_texture,
     );
 }
 
 fn run_catcher_texture(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: LocalTextureOptions = ctx.options()?;
-    let art = ctx.input::<SceneArt>("scene")?;
+    let art = ctx.get(SHOT_INPUTS.scene)?;
     let light = pick_light(ctx, art)?;
     let frames: Vec<i64> = o.frames.iter().map(|&f| f as i64).collect();
-    let plates = plate_frames(&image_sequence(ctx, "plate")?, &frames)
+    let plates = plate_frames(&image_sequence(ctx, PLATE)?, &frames)
         .map_err(|e| NodeError::msg(format!("param `frames`: {e}")))?;
     let cameras = plates
         .iter()
-        .map(|(f, _)| camera_for(ctx, &art.scene, Some(*f)))
+        .map(|(f, _)| camera_for(ctx, SHOT_INPUTS, &art.scene, Some(*f)))
         .collect::<Result<Vec<_>, _>>()?;
     let views: Vec<View> = plates
         .iter()
@@ -132,10 +147,10 @@ fn run_catcher_texture(ctx: &mut Context<'_>) -> Result<(), NodeError> {
         ctx.seed(),
         Some(ctx.cancel_flag()),
     )?;
-    ctx.output("scene", SceneArt::new(out.scene, art.dome.clone()));
-    ctx.output("albedo", ImageArt(out.albedo));
-    ctx.output("seen", ImageArt(out.seen));
-    ctx.output("report", ReportArt(out.report));
+    ctx.set(TEXTURED, SceneArt::new(out.scene, art.dome.clone()));
+    ctx.set(ALBEDO, ImageArt(out.albedo));
+    ctx.set(SEEN, ImageArt(out.seen));
+    ctx.set(TEXTURE_REPORT, ReportArt(out.report));
     Ok(())
 }
 

@@ -2,7 +2,7 @@
 //! `write_cameras`, `plot_solve_error`. The algorithms and their params (the book's values as
 //! defaults) live in `vfxgraph_vision::matchmove`.
 
-use vfxgraph_engine::{Context, Mode, NodeError, NodeSpec, Registry};
+use vfxgraph_engine::{Context, In, Mode, NodeError, NodeSpec, OptIn, Out, Registry};
 use vfxgraph_imaging::draw::svg::solve_error_svg;
 use vfxgraph_vision::formats;
 use vfxgraph_vision::matchmove::{
@@ -16,42 +16,25 @@ use crate::tracking::TracksArt;
 /// A solve node's spec: `matchmove`'s (K optional), or one that refines a solved path
 /// (`cameras_in`: K and the path required).
 fn solve_node(name: &'static str, doc: &'static str, cameras_in: bool) -> NodeSpec {
-    let spec = NodeSpec::new(name, doc)
-        .mode(Mode::Once)
-        .input_of::<TracksArt>("tracks", "the feature tracks");
+    let spec = NodeSpec::new(name, doc).mode(Mode::Once).input(TRACKS);
     let spec = if cameras_in {
-        spec.input_of::<IntrinsicsArt>("intrinsics", "K, shared by every frame")
-            .input_of::<CameraPathArt>(
-                "cameras",
-                "a solved path covering every frame of the tracks",
-            )
+        spec.input(SHARED_K).input(SOLVED)
     } else {
-        spec.optional_input_of::<IntrinsicsArt>(
-            "intrinsics",
-            "K and the lens shared by every frame: exact, or a start (focal: refine); optional \
-             with focal: unknown and the image size",
-        )
+        spec.input(START_K)
     };
-    spec.output_of::<CameraPathArt>("cameras", "K and [R|t] of every frame")
-        .output_of::<PointCloudArt>(
-            "points",
-            "the reconstructed points, with track ids, RMS errors over their inlier observations and \
-             the frames of those (the solve's final inliers, within the report's inlier_tolerance)",
-        )
-        .output_of::<ReportArt>(
-            "report",
-            "per-frame RMS and inliers, per-track error, overall RMS, stage times, the book-style \
-             score over all tracks",
-        )
+    spec.output(CAMERAS_OUT).output(POINTS).output(SOLVE_REPORT)
 }
 
 fn set_solve(ctx: &mut Context<'_>, solve: Solve) -> Result<(), NodeError> {
     for s in &solve.report.stages {
         tracing::info!("{}: {} took {:.3} s", ctx.node_id(), s.stage, s.seconds);
     }
-    ctx.output("report", ReportArt(serde_json::to_value(&solve.report)?));
-    ctx.output("cameras", CameraPathArt(solve.path));
-    ctx.output("points", PointCloudArt(solve.cloud));
+    ctx.set(
+        SOLVE_REPORT,
+        ReportArt(serde_json::to_value(&solve.report)?),
+    );
+    ctx.set(CAMERAS_OUT, CameraPathArt(solve.path));
+    ctx.set(POINTS, PointCloudArt(solve.cloud));
     Ok(())
 }
 
@@ -60,8 +43,8 @@ fn run_matchmove(ctx: &mut Context<'_>) -> Result<(), NodeError> {
         seed: ctx.seed(),
         ..ctx.options()?
     };
-    let tracks = &ctx.input::<TracksArt>("tracks")?.0;
-    let k = ctx.input_opt::<IntrinsicsArt>("intrinsics")?.map(|k| &k.0);
+    let tracks = &ctx.get(TRACKS)?.0;
+    let k = ctx.get(START_K)?.map(|k| &k.0);
     let k = o.lens.initial_intrinsics(k, tracks.image_size)?;
     let solve = matchmove_with_lens(tracks, &k, &o.lens, &o, &|stage, done, total| {
         ctx.progress(solve_progress(stage, done, total))
@@ -76,9 +59,9 @@ fn run_matchmove(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 
 fn run_relax(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: RelaxPathOptions = ctx.options()?;
-    let tracks = &ctx.input::<TracksArt>("tracks")?.0;
-    let k = &ctx.input::<IntrinsicsArt>("intrinsics")?.0;
-    let path = &ctx.input::<CameraPathArt>("cameras")?.0;
+    let tracks = &ctx.get(TRACKS)?.0;
+    let k = &ctx.get(SHARED_K)?.0;
+    let path = &ctx.get(SOLVED)?.0;
     let solve = relax_path(tracks, k, path, &o.relax, o.score.score, &|done, total| {
         ctx.progress(done as f32 / total.max(1) as f32)
     })?;
@@ -87,9 +70,9 @@ fn run_relax(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 
 fn run_global(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: GlobalPathOptions = ctx.options()?;
-    let tracks = &ctx.input::<TracksArt>("tracks")?.0;
-    let k = &ctx.input::<IntrinsicsArt>("intrinsics")?.0;
-    let path = &ctx.input::<CameraPathArt>("cameras")?.0;
+    let tracks = &ctx.get(TRACKS)?.0;
+    let k = &ctx.get(SHARED_K)?.0;
+    let path = &ctx.get(SOLVED)?.0;
     let solve = adjust_path(tracks, k, path, &o.global, o.score.score)?;
     set_solve(ctx, solve)
 }
@@ -97,16 +80,44 @@ fn run_global(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 fn run_write_cameras(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: formats::WriteCamerasOptions = ctx.options()?;
     let path = ctx.path("path");
-    let cams = &ctx.input::<CameraPathArt>("cameras")?.0;
+    let cams = &ctx.get(PATH)?.0;
     formats::write_camera_path(&path, cams, o.format)?;
     Ok(())
 }
 
 fn run_plot(ctx: &mut Context<'_>) -> Result<(), NodeError> {
-    let report = &ctx.input::<ReportArt>("report")?.0;
+    let report = &ctx.get(REPORT)?.0;
     let svg = solve_error_svg(report).map_err(NodeError::msg)?;
     crate::write_output(ctx, "path", svg.as_bytes())
 }
+
+const TRACKS: In<TracksArt> = In::new("tracks", "the feature tracks");
+const SHARED_K: In<IntrinsicsArt> = In::new("intrinsics", "K, shared by every frame");
+const SOLVED: In<CameraPathArt> = In::new(
+    "cameras",
+    "a solved path covering every frame of the tracks",
+);
+const START_K: OptIn<IntrinsicsArt> = OptIn::new(
+    "intrinsics",
+    "K and the lens shared by every frame: exact, or a start (focal: refine); optional \
+             with focal: unknown and the image size",
+);
+const CAMERAS_OUT: Out<CameraPathArt> = Out::new("cameras", "K and [R|t] of every frame");
+const POINTS: Out<PointCloudArt> = Out::new(
+    "points",
+    "the reconstructed points, with track ids, RMS errors over their inlier observations and \
+     the frames of those (the solve's final inliers, within the report's inlier_tolerance)",
+);
+const SOLVE_REPORT: Out<ReportArt> = Out::new(
+    "report",
+    "per-frame RMS and inliers, per-track error, overall RMS, stage times, the book-style \
+     score over all tracks",
+);
+const PATH: In<CameraPathArt> = In::new("cameras", "the path to write");
+const REPORT: In<ReportArt> = In::new(
+    "report",
+    "the report of matchmove, relax or global_bundle_adjust",
+);
 
 /// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
@@ -152,7 +163,7 @@ pub fn register(r: &mut Registry) {
         .mode(Mode::Once)
         .output_file_param("path", "output file")
         .options::<formats::WriteCamerasOptions>()
-        .input_of::<CameraPathArt>("cameras", "the path to write"),
+        .input(PATH),
         run_write_cameras,
     );
 
@@ -164,10 +175,7 @@ pub fn register(r: &mut Registry) {
         )
         .mode(Mode::Once)
         .output_file_param("path", "output .svg file")
-        .input_of::<ReportArt>(
-            "report",
-            "the report of matchmove, relax or global_bundle_adjust",
-        ),
+        .input(REPORT),
         run_plot,
     );
 }
@@ -177,6 +185,7 @@ mod tests {
     use super::*;
     use crate::testing::{params, spec};
     use vfxgraph_engine::{InputValue, ParamValue, Value};
+    use vfxgraph_vision::matchmove::SolveReport;
 
     use vfxgraph_vision::matchmove::synthetic::{synthetic_shot, ShotOptions};
 
@@ -248,11 +257,11 @@ mod tests {
             .iter()
             .chain(f.pose.t.iter())
             .all(|v| v.is_finite())));
-        let report = report.unwrap().0;
-        let rms = report["overall_rms"].as_f64().unwrap();
+        let report: SolveReport = report.unwrap().parse().unwrap();
+        let rms = report.overall_rms;
         assert!(rms < 1.0, "overall RMS {rms}");
-        assert_eq!(report["frames"].as_array().unwrap().len(), 70);
-        assert!(report["score"]["median"].as_f64().unwrap() < 1.0);
+        assert_eq!(report.frames.len(), 70);
+        assert!(report.score.unwrap().median < 1.0);
     }
 
     /// A nodal pan solved as a moving camera (`solve: general`, no parallax) gives a clear
@@ -270,8 +279,8 @@ mod tests {
         });
         let (r, cams, report) = run_node(&s);
         r.unwrap();
-        let report = report.unwrap().0;
-        assert_eq!(report["rotation_only"].as_bool(), Some(true), "{report}");
+        let report: SolveReport = report.unwrap().parse().unwrap();
+        assert!(report.rotation_only, "{report:?}");
         assert!(cams
             .unwrap()
             .0

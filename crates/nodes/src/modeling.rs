@@ -1,10 +1,11 @@
 //! Modeling nodes (book chapter 8): `read_marks`, `point_cloud_calibrate`.
 
-use vfxgraph_engine::{Mode, NodeSpec, Registry};
+use vfxgraph_engine::{In, Mode, NodeSpec, OptIn, Out, Registry};
 use vfxgraph_vision::formats::marked_points::{
     read_marked_points, write_marked_points, MarkedPoints,
 };
-use vfxgraph_vision::modeling::point_cloud_calibrate;
+use vfxgraph_vision::modeling::{point_cloud_calibrate, PointCloudReport};
+use vfxgraph_vision::Points3d;
 
 use crate::artifacts::{json_artifact, CameraPathArt, IntrinsicsArt, Points3dArt, ReportArt};
 
@@ -15,9 +16,32 @@ json_artifact!(
     "The same n scene points marked, in the same order, on several frames (book chapter 8)."
 );
 
-/// Registers the artifact and nodes of this module.
+const MARKS_OUT: Out<MarkedPointsArt> = Out::new("marks", "the marks");
+const MARKS: In<MarkedPointsArt> = In::new("marks", "the marks");
+const MARKED: In<MarkedPointsArt> = In::new("marks", "the marked points");
+const CAMERAS: In<CameraPathArt> = In::new(
+    "cameras",
+    "the solved cameras (K from the path unless `intrinsics` is connected)",
+);
+const INTRINSICS: OptIn<IntrinsicsArt> = OptIn::new("intrinsics", "K, when the path carries none");
+const POINTS3D: Out<Points3dArt> = Out::new("points3d", "one world point per marked point");
+const REPORT: Out<ReportArt> = Out::new(
+    "report",
+    "frames used, the pair each point came from, per-point RMS and per-mark errors",
+);
+
+/// `point_cloud_calibrate`'s report: the calibration's figures and the points.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct MeasuredReport {
+    /// Frames used, the pair each point came from, per-point RMS and per-mark errors.
+    #[serde(flatten)]
+    pub figures: PointCloudReport,
+    /// One world point per marked point.
+    pub points: Points3d,
+}
+
+/// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
-    register_json_artifacts(r);
     r.register_fn(
         NodeSpec::new(
             "read_marks",
@@ -28,10 +52,10 @@ pub fn register(r: &mut Registry) {
         .threads(vfxgraph_engine::Threads::One)
         .memory(vfxgraph_engine::Memory::Fixed(256))
         .input_file_param("path", "marked-points file")
-        .output_of::<MarkedPointsArt>("marks", "the marks"),
+        .output(MARKS_OUT),
         |ctx| {
             let marks = read_marked_points(&ctx.path("path"))?;
-            ctx.output("marks", MarkedPointsArt(marks));
+            ctx.set(MARKS_OUT, MarkedPointsArt(marks));
             Ok(())
         },
     );
@@ -42,9 +66,9 @@ pub fn register(r: &mut Registry) {
              in .json; what `read_marks` reads.",
         )
         .output_file_param("path", "marked-points file")
-        .input_of::<MarkedPointsArt>("marks", "the marks"),
+        .input(MARKS),
         |ctx| {
-            let marks = &ctx.input::<MarkedPointsArt>("marks")?.0;
+            let marks = &ctx.get(MARKS)?.0;
             Ok(write_marked_points(&ctx.path("path"), marks)?)
         },
     );
@@ -56,28 +80,22 @@ pub fn register(r: &mut Registry) {
              Levenberg–Marquardt over all its marks with the cameras fixed.",
         )
         .mode(Mode::Once)
-        .input_of::<MarkedPointsArt>("marks", "the marked points")
-        .input_of::<CameraPathArt>(
-            "cameras",
-            "the solved cameras (K from the path unless `intrinsics` is connected)",
-        )
-        .optional_input_of::<IntrinsicsArt>("intrinsics", "K, when the path carries none")
-        .output_of::<Points3dArt>("points3d", "one world point per marked point")
-        .output_of::<ReportArt>(
-            "report",
-            "frames used, the pair each point came from, per-point RMS and per-mark errors",
-        ),
+        .input(MARKED)
+        .input(CAMERAS)
+        .input(INTRINSICS)
+        .output(POINTS3D)
+        .output(REPORT),
         |ctx| {
-            let marks = &ctx.input::<MarkedPointsArt>("marks")?.0;
-            let path = &ctx.input::<CameraPathArt>("cameras")?.0;
-            let k = ctx
-                .input_opt::<IntrinsicsArt>("intrinsics")?
-                .map(|k| k.0.clone());
-            let (points, report) = point_cloud_calibrate(marks, path, k.as_ref())?;
-            let mut rep = serde_json::to_value(&report)?;
-            rep["points"] = serde_json::to_value(&points)?;
-            ctx.output("points3d", Points3dArt(points));
-            ctx.output("report", ReportArt(rep));
+            let marks = &ctx.get(MARKED)?.0;
+            let path = &ctx.get(CAMERAS)?.0;
+            let k = ctx.get(INTRINSICS)?.map(|k| k.0.clone());
+            let (points, figures) = point_cloud_calibrate(marks, path, k.as_ref())?;
+            let report = ReportArt::of(&MeasuredReport {
+                figures,
+                points: points.clone(),
+            })?;
+            ctx.set(POINTS3D, Points3dArt(points));
+            ctx.set(REPORT, report);
             Ok(())
         },
     );

@@ -5,7 +5,7 @@
 //! the measured ground points and sets objects designed in the catcher's own frame on it. The
 //! algorithms and their options are in the render crate's `placement` module.
 
-use vfxgraph_engine::{Context, Mode, NodeError, NodeSpec, Registry};
+use vfxgraph_engine::{Context, In, Mode, NodeError, NodeSpec, OptIn, Out, Registry};
 use vfxgraph_render::placement::place::{
     catcher_from_points, place_scene, CatcherOptions, Design, PlaceOptions, Viewers,
 };
@@ -15,9 +15,9 @@ use vfxgraph_vision::formats::CameraPath;
 use crate::artifacts::{CameraPathArt, ImageArt, Points3dArt, ReportArt};
 use crate::render::{rows, SceneArt};
 
-/// The `points3d` input as render points.
-pub(crate) fn measured(ctx: &Context<'_>) -> Result<Vec<Vec3>, NodeError> {
-    let pts = &ctx.input::<Points3dArt>("points3d")?.0 .0;
+/// Input `port` (a node's `points3d`) as render points.
+pub(crate) fn measured(ctx: &Context<'_>, port: In<Points3dArt>) -> Result<Vec<Vec3>, NodeError> {
+    let pts = &ctx.get(port)?.0 .0;
     Ok(pts.iter().map(|p| Vec3::new(p.x, p.y, p.z)).collect())
 }
 
@@ -39,6 +39,44 @@ fn viewers(path: &CameraPath, with_view: bool) -> Result<Viewers, NodeError> {
     Ok(Viewers { centres, first })
 }
 
+const DESIGNED: In<SceneArt> = In::new("scene", "the designed scene");
+const MEASURED: In<Points3dArt> =
+    In::new("points3d", "the same points measured in the solve's frame");
+const DOME_IMAGE: OptIn<ImageArt> = OptIn::new(
+    "dome_image",
+    "an equirectangular image for the scene's dome (when its own, e.g. the book's \
+     dome.pfm, is not available)",
+);
+const PLACED: Out<SceneArt> = Out::new("scene", "the scene in the solve's frame");
+const PLACE_REPORT: Out<ReportArt> = Out::new(
+    "report",
+    "the similarity (scale, rotation, angle, translation), anchors, measured points, \
+     residuals and the relative RMS",
+);
+const CATCHER_POINTS: In<Points3dArt> =
+    In::new("points3d", "measured points (point_cloud_calibrate)");
+const DESIGNED_IN_CATCHER: OptIn<SceneArt> = OptIn::new(
+    "scene",
+    "objects (and dome, lights) designed in the catcher's frame (y up, unit |AB|)",
+);
+const CAMERAS: OptIn<CameraPathArt> = OptIn::new(
+    "cameras",
+    "the solved cameras: the ground's normal faces them; the first one is the \
+             output scene's camera when no scene is connected",
+);
+const DESIGN_DOME_IMAGE: OptIn<ImageArt> = OptIn::new(
+    "dome_image",
+    "an equirectangular image for the designed scene's dome",
+);
+const WITH_CATCHER: Out<SceneArt> = Out::new(
+    "scene",
+    "the catcher and the placed objects in the solve's frame",
+);
+const CATCHER_REPORT: Out<ReportArt> = Out::new(
+    "report",
+    "the catcher's corners, frame (origin, axes, unit), planarity and the placed objects",
+);
+
 /// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
     r.register_fn(
@@ -57,19 +95,11 @@ pub fn register(r: &mut Registry) {
         )
         .mode(Mode::Once)
         .options::<PlaceOptions>()
-        .input_of::<SceneArt>("scene", "the designed scene")
-        .input_of::<Points3dArt>("points3d", "the same points measured in the solve's frame")
-        .optional_input_of::<ImageArt>(
-            "dome_image",
-            "an equirectangular image for the scene's dome (when its own, e.g. the book's \
-             dome.pfm, is not available)",
-        )
-        .output_of::<SceneArt>("scene", "the scene in the solve's frame")
-        .output_of::<ReportArt>(
-            "report",
-            "the similarity (scale, rotation, angle, translation), anchors, measured points, \
-             residuals and the relative RMS",
-        ),
+        .input(DESIGNED)
+        .input(MEASURED)
+        .input(DOME_IMAGE)
+        .output(PLACED)
+        .output(PLACE_REPORT),
         run_place_scene,
     );
     r.register_fn(
@@ -86,64 +116,48 @@ pub fn register(r: &mut Registry) {
         )
         .mode(Mode::Once)
         .options::<CatcherOptions>()
-        .input_of::<Points3dArt>("points3d", "measured points (point_cloud_calibrate)")
-        .optional_input_of::<SceneArt>(
-            "scene",
-            "objects (and dome, lights) designed in the catcher's frame (y up, unit |AB|)",
-        )
-        .optional_input_of::<CameraPathArt>(
-            "cameras",
-            "the solved cameras: the ground's normal faces them; the first one is the \
-             output scene's camera when no scene is connected",
-        )
-        .optional_input_of::<ImageArt>(
-            "dome_image",
-            "an equirectangular image for the designed scene's dome",
-        )
-        .output_of::<SceneArt>(
-            "scene",
-            "the catcher and the placed objects in the solve's frame",
-        )
-        .output_of::<ReportArt>(
-            "report",
-            "the catcher's corners, frame (origin, axes, unit), planarity and the placed objects",
-        ),
+        .input(CATCHER_POINTS)
+        .input(DESIGNED_IN_CATCHER)
+        .input(CAMERAS)
+        .input(DESIGN_DOME_IMAGE)
+        .output(WITH_CATCHER)
+        .output(CATCHER_REPORT),
         run_catcher_from_points,
     );
 }
 
 fn run_place_scene(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: PlaceOptions = ctx.options()?;
-    let art = ctx.input::<SceneArt>("scene")?;
+    let art = ctx.get(DESIGNED)?;
     let design = Design {
         scene: &art.scene,
         dome: art.dome.as_ref(),
     };
-    let image = ctx.input_opt::<ImageArt>("dome_image")?.map(|i| &i.0);
-    let p = place_scene(design, image, &measured(ctx)?, &o)
+    let image = ctx.get(DOME_IMAGE)?.map(|i| &i.0);
+    let p = place_scene(design, image, &measured(ctx, MEASURED)?, &o)
         .map_err(|e| NodeError::msg(format!("place_scene: {e}")))?;
-    ctx.output("report", ReportArt(p.report()));
-    ctx.output("scene", SceneArt::new(p.scene, p.dome));
+    ctx.set(PLACE_REPORT, ReportArt(p.report()));
+    ctx.set(PLACED, SceneArt::new(p.scene, p.dome));
     Ok(())
 }
 
 fn run_catcher_from_points(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: CatcherOptions = ctx.options()?;
-    let pts = measured(ctx)?;
-    let art = ctx.input_opt::<SceneArt>("scene")?;
+    let pts = measured(ctx, CATCHER_POINTS)?;
+    let art = ctx.get(DESIGNED_IN_CATCHER)?;
     let design = art.map(|a| Design {
         scene: &a.scene,
         dome: a.dome.as_ref(),
     });
-    let viewers = match ctx.input_opt::<CameraPathArt>("cameras")? {
+    let viewers = match ctx.get(CAMERAS)? {
         Some(path) => viewers(&path.0, design.is_none())?,
         None => Viewers::default(),
     };
-    let image = ctx.input_opt::<ImageArt>("dome_image")?.map(|i| &i.0);
+    let image = ctx.get(DESIGN_DOME_IMAGE)?.map(|i| &i.0);
     let c = catcher_from_points(&pts, &viewers, design, image, &o)
         .map_err(|e| NodeError::msg(format!("catcher_from_points: {e}")))?;
-    ctx.output("report", ReportArt(c.report()));
-    ctx.output("scene", SceneArt::new(c.scene, c.dome));
+    ctx.set(CATCHER_REPORT, ReportArt(c.report()));
+    ctx.set(WITH_CATCHER, SceneArt::new(c.scene, c.dome));
     Ok(())
 }
 

@@ -4,7 +4,7 @@
 //! by projecting known 3-D points with the true cameras and rounding to whole pixels, in the
 //! book's marked-points form of chapter 8).
 
-use vfxgraph_engine::{Context, Mode, NodeError, NodeSpec, Registry, Threads};
+use vfxgraph_engine::{Context, In, Mode, NodeError, NodeSpec, Out, Registry, Threads};
 use vfxgraph_params::Options;
 use vfxgraph_vision::camera_path::{
     project_marks, synthetic_path, ProjectMarksOptions, SyntheticPathOptions,
@@ -26,6 +26,11 @@ struct ProjectMarksNodeOptions {
     marks: ProjectMarksOptions,
 }
 
+const CAMERAS_OUT: Out<CameraPathArt> = Out::new("cameras", "the true cameras, with K");
+const INTRINSICS: Out<IntrinsicsArt> = Out::new("intrinsics", "K and the image size");
+const CAMERAS: In<CameraPathArt> = In::new("cameras", "the true cameras (with K)");
+const MARKS: Out<MarkedPointsArt> = Out::new("marks", "the marks");
+
 /// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
     r.register_fn(
@@ -42,8 +47,8 @@ pub fn register(r: &mut Registry) {
         .threads(Threads::One)
         .mode(Mode::Once)
         .options::<SyntheticPathOptions>()
-        .output_of::<CameraPathArt>("cameras", "the true cameras, with K")
-        .output_of::<IntrinsicsArt>("intrinsics", "K and the image size"),
+        .output(CAMERAS_OUT)
+        .output(INTRINSICS),
         run_synthetic_camera_path,
     );
     r.register_fn(
@@ -55,24 +60,24 @@ pub fn register(r: &mut Registry) {
         )
         .mode(Mode::Once)
         .options::<ProjectMarksNodeOptions>()
-        .input_of::<CameraPathArt>("cameras", "the true cameras (with K)")
-        .output_of::<MarkedPointsArt>("marks", "the marks"),
+        .input(CAMERAS)
+        .output(MARKS),
         run_project_marks,
     );
 }
 
 fn run_synthetic_camera_path(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let (path, k) = synthetic_path(&ctx.options()?)?;
-    ctx.output("cameras", CameraPathArt(path));
-    ctx.output("intrinsics", IntrinsicsArt(k));
+    ctx.set(CAMERAS_OUT, CameraPathArt(path));
+    ctx.set(INTRINSICS, IntrinsicsArt(k));
     Ok(())
 }
 
 fn run_project_marks(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: ProjectMarksNodeOptions = ctx.options()?;
-    let path = &ctx.input::<CameraPathArt>("cameras")?.0;
+    let path = &ctx.get(CAMERAS)?.0;
     let marks = project_marks(path, &o.points, &o.frames, &o.marks)?;
-    ctx.output("marks", MarkedPointsArt(marks));
+    ctx.set(MARKS, MarkedPointsArt(marks));
     Ok(())
 }
 

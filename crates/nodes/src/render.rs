@@ -8,7 +8,9 @@ use nalgebra::Matrix3;
 
 use vfxgraph_engine::artifact::codec::{put_bytes, put_u64, Reader};
 use vfxgraph_engine::artifact::{decode_json, encode_json};
-use vfxgraph_engine::{ArtifactType, Context, Mode, NodeError, NodeSpec, Registry, Threads};
+use vfxgraph_engine::{
+    ArtifactType, Context, In, Mode, NodeError, NodeSpec, OptIn, Out, Registry, Threads,
+};
 use vfxgraph_render::dome::{Dome, Light};
 use vfxgraph_render::{
     camera_for_frame, read_scene_file, render, with_sync_progress, Camera, ImageSize, PathPose,
@@ -73,20 +75,51 @@ impl ArtifactType for SceneArt {
     }
 }
 
-/// The inputs of a node that renders a scene: `scene`, and the optional `dome` (replacing the
-/// scene's light), `cameras` and `intrinsics`; `docs`: those of scene, cameras and intrinsics.
-pub(crate) fn scene_inputs(spec: NodeSpec, docs: [&'static str; 3]) -> NodeSpec {
-    let [scene, cameras, intrinsics] = docs;
-    let dome = "a light dome replacing the scene's dome or background";
-    spec.input_of::<SceneArt>("scene", scene)
-        .optional_input_of::<DomeArt>("dome", dome)
-        .optional_input_of::<CameraPathArt>("cameras", cameras)
-        .optional_input_of::<IntrinsicsArt>("intrinsics", intrinsics)
+/// The inputs of a node that renders a scene, but the `dome` they share ([`DOME`]): each
+/// node documents them its own way.
+#[derive(Clone, Copy)]
+pub(crate) struct SceneInputs {
+    /// The scene.
+    pub scene: In<SceneArt>,
+    /// The solved camera path the frames are seen by.
+    pub cameras: OptIn<CameraPathArt>,
+    /// K replacing the scene camera's (and the path's).
+    pub intrinsics: OptIn<IntrinsicsArt>,
 }
 
-/// Registers the artifact and nodes of this module.
+/// The `dome` input of a node that renders a scene: replaces the scene's light.
+pub(crate) const DOME: OptIn<DomeArt> = OptIn::new(
+    "dome",
+    "a light dome replacing the scene's dome or background",
+);
+
+/// Adds the inputs of a node that renders a scene: `ports.scene`, [`DOME`], `ports.cameras`
+/// and `ports.intrinsics`.
+pub(crate) fn scene_inputs(spec: NodeSpec, ports: SceneInputs) -> NodeSpec {
+    spec.input(ports.scene)
+        .input(DOME)
+        .input(ports.cameras)
+        .input(ports.intrinsics)
+}
+
+const RENDER_INPUTS: SceneInputs = SceneInputs {
+    scene: In::new("scene", "the scene"),
+    cameras: OptIn::new(
+        "cameras",
+        "a solved camera path: frame f renders with that frame's [R|t]",
+    ),
+    intrinsics: OptIn::new(
+        "intrinsics",
+        "K (and image size, if known) replacing the scene camera's",
+    ),
+};
+
+const SCENE: Out<SceneArt> = Out::new("scene", "the scene");
+const IMAGE: Out<ImageArt> = Out::new("image", "radiance, linear RGB");
+const VARIANCE: Out<ImageArt> = Out::new("variance", "per-pixel variance of the mean, linear RGB");
+
+/// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
-    r.register_artifact::<SceneArt>();
     r.register_fn(
         NodeSpec::new(
             "read_scene",
@@ -109,7 +142,7 @@ pub fn register(r: &mut Registry) {
             "path",
             "the .scn or .yaml scene file, relative to the graph file",
         )
-        .output_of::<SceneArt>("scene", "the scene"),
+        .output(SCENE),
         run_read_scene,
     );
     r.register_fn(
@@ -134,14 +167,10 @@ pub fn register(r: &mut Registry) {
                 bytes_per_pixel: 96,
             })
             .options::<RenderOptions>(),
-            [
-                "the scene",
-                "a solved camera path: frame f renders with that frame's [R|t]",
-                "K (and image size, if known) replacing the scene camera's",
-            ],
+            RENDER_INPUTS,
         )
-        .output_of::<ImageArt>("image", "radiance, linear RGB")
-        .output_of::<ImageArt>("variance", "per-pixel variance of the mean, linear RGB"),
+        .output(IMAGE)
+        .output(VARIANCE),
         run_render,
     );
 }
@@ -152,20 +181,21 @@ fn run_read_scene(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     for f in &file.files {
         ctx.declare_input_file(f)?;
     }
-    ctx.output("scene", SceneArt::new(file.scene, file.dome));
+    ctx.set(SCENE, SceneArt::new(file.scene, file.dome));
     Ok(())
 }
 
 /// The camera of frame `frame` (this instance's: `ctx.frame()`): the scene's, or that frame's
-/// pose of `cameras` with K from `intrinsics`, the path's own K, or the scene camera (book §2.8),
-/// then the size override (vfxgraph-render's `camera_for_frame`).
+/// pose of input `ports.cameras` with K from `ports.intrinsics`, the path's own K, or the
+/// scene camera (book §2.8), then the size override (vfxgraph-render's `camera_for_frame`).
 pub(crate) fn camera_for(
     ctx: &Context<'_>,
+    ports: SceneInputs,
     scene: &Scene,
     frame: Option<i64>,
 ) -> Result<Camera, NodeError> {
-    let path = ctx.input_opt::<CameraPathArt>("cameras")?.map(|p| &p.0);
-    let k = crate::intrinsics_or_path_k(ctx, path)?.map(|k| SolvedK {
+    let path = ctx.get(ports.cameras)?.map(|p| &p.0);
+    let k = crate::intrinsics_or_path_k(ctx, ports.intrinsics, path)?.map(|k| SolvedK {
         k: rows(&k.k()),
         size: k.width.zip(k.height).map(|(w, h)| (w as usize, h as usize)),
         distortion: k.distortion,
@@ -204,15 +234,15 @@ pub(crate) fn pick_light<'a>(
     ctx: &'a Context<'_>,
     art: &'a SceneArt,
 ) -> Result<Light<'a>, NodeError> {
-    let input_dome = ctx.input_opt::<DomeArt>("dome")?.map(|d| &d.0);
+    let input_dome = ctx.get(DOME)?.map(|d| &d.0);
     Light::pick(input_dome, art.dome.as_ref(), &art.scene).map_err(NodeError::msg)
 }
 
 fn run_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: RenderOptions = ctx.options()?;
-    let art = ctx.input::<SceneArt>("scene")?;
+    let art = ctx.get(RENDER_INPUTS.scene)?;
     let light = pick_light(ctx, art)?;
-    let camera = camera_for(ctx, &art.scene, ctx.frame())?;
+    let camera = camera_for(ctx, RENDER_INPUTS, &art.scene, ctx.frame())?;
     let (world, settings) = (o.world(&art.scene), o.settings(ctx.seed()));
     let progress = |x| ctx.progress(x);
     let out = with_sync_progress(progress, |progress| {
@@ -220,8 +250,8 @@ fn run_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
         render(&world, light.env(), &camera, &settings, progress, cancel)
     })?;
     RenderError::check_finite(out.stats.nonfinite)?;
-    ctx.output("image", ImageArt(out.image));
-    ctx.output("variance", ImageArt(out.variance));
+    ctx.set(IMAGE, ImageArt(out.image));
+    ctx.set(VARIANCE, ImageArt(out.variance));
     Ok(())
 }
 

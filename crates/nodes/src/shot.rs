@@ -3,7 +3,9 @@
 //! Debevec 1998) and `write_layers` (multi-layer OpenEXR for a compositor).
 
 use vfxgraph_engine::artifact::codec::{put_bytes, put_u64, Reader};
-use vfxgraph_engine::{ArtifactType, Context, Mode, NodeError, NodeSpec, Registry};
+use vfxgraph_engine::{
+    ArtifactType, Context, In, Mode, NodeError, NodeSpec, OptIn, Out, Registry, SeqIn,
+};
 use vfxgraph_imaging::colour::ReadColour;
 use vfxgraph_imaging::io::LayersOptions;
 use vfxgraph_imaging::Image;
@@ -15,7 +17,7 @@ use vfxgraph_render::plate::plate_frames;
 use vfxgraph_render::{with_sync_progress, RenderError};
 
 use crate::artifacts::{image_sequence, put_image, ImageArt, ReportArt};
-use crate::render::{camera_for, pick_light, scene_inputs, SceneArt};
+use crate::render::{camera_for, pick_light, scene_inputs, SceneArt, SceneInputs};
 
 /// Named images of one size (`layers`): what a compositor reads from a multi-layer EXR.
 #[derive(Clone, Debug, PartialEq)]
@@ -48,12 +50,18 @@ impl ArtifactType for LayersArt {
     }
 }
 
-/// The docs of the shot's renders' scene, cameras and intrinsics inputs ([`scene_inputs`]).
-pub(crate) const SHOT_INPUTS: [&str; 3] = [
-    "objects and shadow catchers",
-    "the solved camera path (K from `intrinsics`, the path, or the scene camera)",
-    "K (and image size) replacing the path's and the scene camera's",
-];
+/// The scene, cameras and intrinsics inputs of the shot's renders ([`scene_inputs`]).
+pub(crate) const SHOT_INPUTS: SceneInputs = SceneInputs {
+    scene: In::new("scene", "objects and shadow catchers"),
+    cameras: OptIn::new(
+        "cameras",
+        "the solved camera path (K from `intrinsics`, the path, or the scene camera)",
+    ),
+    intrinsics: OptIn::new(
+        "intrinsics",
+        "K (and image size) replacing the path's and the scene camera's",
+    ),
+};
 
 /// `fit_catcher`'s params: the frame, then [`FitCatcherOptions`].
 #[derive(Default, vfxgraph_params::Options)]
@@ -65,9 +73,35 @@ struct FitCatcherNodeOptions {
     fit: FitCatcherOptions,
 }
 
-/// Registers the artifact and nodes of this module.
+const PLATES: SeqIn<ImageArt> = SeqIn::new(
+    "plate",
+    "the plate frames (linear radiance); frame `frame` is used",
+);
+const SCENE: Out<SceneArt> = Out::new("scene", "the scene with the fitted catcher colour");
+const FIT_REPORT: Out<ReportArt> = Out::new("report", "the fit");
+const RENDER_PLATE: OptIn<ImageArt> = OptIn::new("plate", "this frame's plate (linear radiance)");
+const RENDER_IMAGE: Out<ImageArt> = Out::new("image", "the composite (linear RGB)");
+const BEAUTY: Out<ImageArt> = Out::new(
+    "beauty",
+    "the synthetic objects, RGBA premultiplied (alpha = coverage)",
+);
+const SHADOW: Out<ImageArt> = Out::new(
+    "shadow",
+    "the shadow/light matte: catcher with / without objects (1 = unchanged), RGB",
+);
+const LAYERS_OUT: Out<LayersArt> = Out::new(
+    "layers",
+    "composite, beauty, shadow, shadow_difference, catcher_with, catcher_without, \
+     variance, samples",
+);
+const RENDER_REPORT: Out<ReportArt> = Out::new("report", "counters and time");
+const LAYERS: In<LayersArt> = In::new("layers", "from differential_render");
+const COMPOSITE_PLATE: OptIn<ImageArt> = OptIn::new("plate", "the frame's plate");
+const COMPOSITE: Out<ImageArt> = Out::new("image", "the composite, linear RGB");
+const LAYERS_TO_WRITE: In<LayersArt> = In::new("layers", "the layers");
+
+/// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
-    r.register_artifact::<LayersArt>();
     r.register_fn(
         scene_inputs(
             NodeSpec::new(
@@ -84,12 +118,9 @@ pub fn register(r: &mut Registry) {
             .options::<FitCatcherNodeOptions>(),
             SHOT_INPUTS,
         )
-        .sequence_input_of::<ImageArt>(
-            "plate",
-            "the plate frames (linear radiance); frame `frame` is used",
-        )
-        .output_of::<SceneArt>("scene", "the scene with the fitted catcher colour")
-        .output_of::<ReportArt>("report", "the fit"),
+        .input(PLATES)
+        .output(SCENE)
+        .output(FIT_REPORT),
         run_fit_catcher,
     );
     r.register_fn(
@@ -118,22 +149,12 @@ pub fn register(r: &mut Registry) {
             .options::<ReadColour>(),
             SHOT_INPUTS,
         )
-        .optional_input_of::<ImageArt>("plate", "this frame's plate (linear radiance)")
-        .output_of::<ImageArt>("image", "the composite (linear RGB)")
-        .output_of::<ImageArt>(
-            "beauty",
-            "the synthetic objects, RGBA premultiplied (alpha = coverage)",
-        )
-        .output_of::<ImageArt>(
-            "shadow",
-            "the shadow/light matte: catcher with / without objects (1 = unchanged), RGB",
-        )
-        .output_of::<LayersArt>(
-            "layers",
-            "composite, beauty, shadow, shadow_difference, catcher_with, catcher_without, \
-             variance, samples",
-        )
-        .output_of::<ReportArt>("report", "counters and time"),
+        .input(RENDER_PLATE)
+        .output(RENDER_IMAGE)
+        .output(BEAUTY)
+        .output(SHADOW)
+        .output(LAYERS_OUT)
+        .output(RENDER_REPORT),
         run_differential_render,
     );
     r.register_fn(
@@ -149,9 +170,9 @@ pub fn register(r: &mut Registry) {
         .threads(vfxgraph_engine::Threads::One)
         .options::<CompositeOptions>()
         .options::<ReadColour>()
-        .input_of::<LayersArt>("layers", "from differential_render")
-        .optional_input_of::<ImageArt>("plate", "the frame's plate")
-        .output_of::<ImageArt>("image", "the composite, linear RGB"),
+        .input(LAYERS)
+        .input(COMPOSITE_PLATE)
+        .output(COMPOSITE),
         run_composite,
     );
     r.register_fn(
@@ -165,17 +186,17 @@ pub fn register(r: &mut Registry) {
         .threads(vfxgraph_engine::Threads::One)
         .output_file_param("path", "output file, e.g. out/shot.%04d.exr")
         .options::<LayersOptions>()
-        .input_of::<LayersArt>("layers", "the layers"),
+        .input(LAYERS_TO_WRITE),
         run_write_layers,
     );
 }
 
 fn run_fit_catcher(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let FitCatcherNodeOptions { frame, fit: o } = ctx.options()?;
-    let art = ctx.input::<SceneArt>("scene")?;
+    let art = ctx.get(SHOT_INPUTS.scene)?;
     let light = pick_light(ctx, art)?;
-    let plate = plate_frames(&image_sequence(ctx, "plate")?, &[frame])?[0].1;
-    let camera = camera_for(ctx, &art.scene, Some(frame))?;
+    let plate = plate_frames(&image_sequence(ctx, PLATES)?, &[frame])?[0].1;
+    let camera = camera_for(ctx, SHOT_INPUTS, &art.scene, Some(frame))?;
     let (scene, fit) = fit_catcher(
         &art.scene,
         light.env(),
@@ -185,17 +206,17 @@ fn run_fit_catcher(ctx: &mut Context<'_>) -> Result<(), NodeError> {
         Some(ctx.cancel_flag()),
     )
     .map_err(|e| NodeError::msg(format!("frame {frame}: {e}")))?;
-    ctx.output("scene", SceneArt::new(scene, art.dome.clone()));
-    ctx.output("report", ReportArt(fit.report(frame)));
+    ctx.set(SCENE, SceneArt::new(scene, art.dome.clone()));
+    ctx.set(FIT_REPORT, ReportArt(fit.report(frame)));
     Ok(())
 }
 
 fn run_differential_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: DifferentialOptions = ctx.options()?;
-    let art = ctx.input::<SceneArt>("scene")?;
+    let art = ctx.get(SHOT_INPUTS.scene)?;
     let light = pick_light(ctx, art)?;
-    let camera = camera_for(ctx, &art.scene, ctx.frame())?;
-    let plate = plate_of(ctx)?;
+    let camera = camera_for(ctx, SHOT_INPUTS, &art.scene, ctx.frame())?;
+    let plate = plate_of(ctx, RENDER_PLATE)?;
     let plate = plate.as_ref();
     let settings = o.settings(ctx.seed());
     let progress = |x| ctx.progress(x);
@@ -219,18 +240,18 @@ fn run_differential_render(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let shadow = layers[2].1.clone();
     let report = out.report(ctx.frame(), &camera, &settings, o.mode, plate.is_some());
     tracing::info!("{}: render took {:.3} s", ctx.node_id(), out.stats.seconds);
-    ctx.output("image", ImageArt(image));
-    ctx.output("beauty", ImageArt(l.beauty.clone()));
-    ctx.output("shadow", ImageArt(shadow));
-    ctx.output("layers", LayersArt(layers));
-    ctx.output("report", ReportArt(report));
+    ctx.set(RENDER_IMAGE, ImageArt(image));
+    ctx.set(BEAUTY, ImageArt(l.beauty.clone()));
+    ctx.set(SHADOW, ImageArt(shadow));
+    ctx.set(LAYERS_OUT, LayersArt(layers));
+    ctx.set(RENDER_REPORT, ReportArt(report));
     Ok(())
 }
 
-/// The plate of this instance: the `plate` input (already in the working space), else the
+/// The plate of this instance: input `port` (already in the working space), else the
 /// `plate` file pattern read from `colour_space` into the working space, else `None`.
-fn plate_of(ctx: &Context<'_>) -> Result<Option<Image>, NodeError> {
-    if let Some(p) = ctx.input_opt::<ImageArt>("plate")? {
+fn plate_of(ctx: &Context<'_>, port: OptIn<ImageArt>) -> Result<Option<Image>, NodeError> {
+    if let Some(p) = ctx.get(port)? {
         return Ok(Some(p.0.clone()));
     }
     let colour: ReadColour = ctx.options()?;
@@ -246,19 +267,20 @@ fn plate_of(ctx: &Context<'_>) -> Result<Option<Image>, NodeError> {
 
 fn run_composite(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: CompositeOptions = ctx.options()?;
-    let layers = &ctx.input::<LayersArt>("layers")?.0;
+    let layers = &ctx.get(LAYERS)?.0;
     let l = DifferentialLayers::from_named(layers).map_err(NodeError::msg)?;
     let (w, h, g) = (l.beauty.width, l.beauty.height, o.grey as f32);
-    let plate = plate_of(ctx)?.unwrap_or_else(|| Image::from_fn(w, h, 3, |_, _, _| g));
+    let plate =
+        plate_of(ctx, COMPOSITE_PLATE)?.unwrap_or_else(|| Image::from_fn(w, h, 3, |_, _, _| g));
     let image = composite(&l, &plate, o.mode).map_err(NodeError::msg)?;
-    ctx.output("image", ImageArt(image));
+    ctx.set(COMPOSITE, ImageArt(image));
     Ok(())
 }
 
 fn run_write_layers(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: LayersOptions = ctx.options()?;
     crate::image_io::check_pattern(ctx)?;
-    let bytes = o.encode(&ctx.input::<LayersArt>("layers")?.0)?;
+    let bytes = o.encode(&ctx.get(LAYERS_TO_WRITE)?.0)?;
     Ok(vfxgraph_imaging::io::write_atomic(
         &ctx.path("path"),
         &bytes,

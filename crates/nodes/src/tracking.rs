@@ -2,7 +2,7 @@
 //! `draw_tracks`, and the `tracks` artifact.
 
 use vfxgraph_engine::stream::Stream;
-use vfxgraph_engine::{Context, Mode, NodeError, NodeSpec, Registry};
+use vfxgraph_engine::{Context, In, Mode, NodeError, NodeSpec, Out, Registry, StreamIn};
 use vfxgraph_vision::klt::{
     draw_tracks, track_loaded, DrawTracksOptions, GrayImage, TrackerOptions, Tracks,
     WriteTracksOptions,
@@ -20,9 +20,16 @@ json_artifact! {
     check = Tracks::validate;
 }
 
-/// Registers the artifact and nodes of this module.
+/// The trackers' frames.
+pub(crate) const FRAMES: StreamIn<ImageArt> = StreamIn::new("frames", "the frames, in order");
+/// The trackers' and `read_tracks`' tracks.
+pub(crate) const TRACKS_OUT: Out<TracksArt> = Out::new("tracks", "the tracks");
+const TRACKS: In<TracksArt> = In::new("tracks", "the tracks");
+const FRAME: In<ImageArt> = In::new("frames", "the frame");
+const DRAWN: Out<ImageArt> = Out::new("image", "the frame with tracks drawn (RGB)");
+
+/// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
-    register_json_artifacts(r);
     r.register_fn(
         klt_spec(
             "klt_track",
@@ -48,7 +55,7 @@ pub fn register(r: &mut Registry) {
         .threads(vfxgraph_engine::Threads::One)
         .memory(vfxgraph_engine::Memory::Fixed(512))
         .input_file_param("path", "the tracks file")
-        .output_of::<TracksArt>("tracks", "the tracks"),
+        .output(TRACKS_OUT),
         run_read_tracks,
     );
     r.register_fn(
@@ -60,7 +67,7 @@ pub fn register(r: &mut Registry) {
         .mode(Mode::Once)
         .output_file_param("path", "the file to write")
         .options::<WriteTracksOptions>()
-        .input_of::<TracksArt>("tracks", "the tracks"),
+        .input(TRACKS),
         run_write_tracks,
     );
     r.register_fn(
@@ -72,9 +79,9 @@ pub fn register(r: &mut Registry) {
         )
         .mode(Mode::PerFrame)
         .options::<DrawTracksOptions>()
-        .input_of::<ImageArt>("frames", "the frame")
-        .input_of::<TracksArt>("tracks", "the tracks")
-        .output_of::<ImageArt>("image", "the frame with tracks drawn (RGB)"),
+        .input(FRAME)
+        .input(TRACKS)
+        .output(DRAWN),
         run_draw_tracks,
     );
 }
@@ -90,15 +97,15 @@ pub(crate) fn klt_spec(
     NodeSpec::new(name, doc)
         .mode(Mode::Once)
         .options_from(defaults)
-        .streamed_input_of::<ImageArt>("frames", "the frames, in order")
-        .output_of::<TracksArt>("tracks", "the tracks")
+        .input(FRAMES)
+        .output(TRACKS_OUT)
 }
 
 /// The frames of input `frames` as gray images (the trackers' input), read in parallel.
 #[cfg(feature = "opencv")]
 pub(crate) fn gray_frames(ctx: &Context<'_>) -> Result<Vec<(i64, GrayImage)>, NodeError> {
     use rayon::prelude::*;
-    let frames = ctx.stream::<ImageArt>("frames")?;
+    let frames = ctx.get(FRAMES)?;
     (0..frames.len())
         .into_par_iter()
         .map(|k| gray_frame(&frames, k))
@@ -115,11 +122,11 @@ fn gray_frame(frames: &Stream<'_, ImageArt>, k: usize) -> Result<(i64, GrayImage
 pub(crate) fn run_klt_track(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let params: TrackerOptions = ctx.options()?;
     let tracks = {
-        let frames = ctx.stream::<ImageArt>("frames")?;
+        let frames = ctx.get(FRAMES)?;
         let load = |k| gray_frame(&frames, k);
         track_loaded(frames.len(), load, &params, |x| ctx.progress(x))?
     };
-    ctx.output("tracks", TracksArt(tracks));
+    ctx.set(TRACKS_OUT, TracksArt(tracks));
     Ok(())
 }
 
@@ -129,22 +136,22 @@ fn run_read_tracks(ctx: &mut Context<'_>) -> Result<(), NodeError> {
         .map_err(|e| NodeError::msg(format!("cannot read {}: {e}", path.display())))?;
     let tracks =
         Tracks::parse(&text).map_err(|e| NodeError::msg(format!("{}: {e}", path.display())))?;
-    ctx.output("tracks", TracksArt(tracks));
+    ctx.set(TRACKS_OUT, TracksArt(tracks));
     Ok(())
 }
 
 fn run_write_tracks(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: WriteTracksOptions = ctx.options()?;
-    let text = o.format.text(&ctx.input::<TracksArt>("tracks")?.0);
+    let text = o.format.text(&ctx.get(TRACKS)?.0);
     crate::write_output(ctx, "path", text.as_bytes())
 }
 
 fn run_draw_tracks(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let o: DrawTracksOptions = ctx.options()?;
-    let img = &ctx.input::<ImageArt>("frames")?.0;
-    let tracks = &ctx.input::<TracksArt>("tracks")?.0;
+    let img = &ctx.get(FRAME)?.0;
+    let tracks = &ctx.get(TRACKS)?.0;
     let drawn = draw_tracks(img, tracks, ctx.frame().unwrap_or(0), &o);
-    ctx.output("image", ImageArt(drawn));
+    ctx.set(DRAWN, ImageArt(drawn));
     Ok(())
 }
 

@@ -7,7 +7,7 @@ use vfxgraph_engine::{Context, NodeError, Registry};
 use vfxgraph_vision::klt::opencv::track_sequence_opencv;
 use vfxgraph_vision::klt::{GrayImage, TrackerOptions};
 
-use crate::tracking::{gray_frames, klt_spec, TracksArt};
+use crate::tracking::{gray_frames, klt_spec, TracksArt, TRACKS_OUT};
 
 /// Registers `klt_track_opencv`.
 pub fn register(r: &mut Registry) {
@@ -51,7 +51,7 @@ fn run_klt_track_opencv(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     }
     let tracks = track_sequence_opencv(&refs, &params, |x| ctx.progress(x))
         .map_err(|e| NodeError::msg(format!("klt_track_opencv: {e}")))?;
-    ctx.output("tracks", TracksArt(tracks));
+    ctx.set(TRACKS_OUT, TracksArt(tracks));
     Ok(())
 }
 

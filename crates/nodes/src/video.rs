@@ -4,12 +4,15 @@
 //! AV1, MJPEG, in MP4, MOV, MKV, MXF — through the system's FFmpeg executables; with `backend:
 //! opencv` (a build with the `opencv` cargo feature) any file OpenCV's VideoCapture opens.
 
-use vfxgraph_engine::{Context, Mode, NodeError, NodeSpec, Registry, Threads};
+use vfxgraph_engine::{Context, Mode, NodeError, NodeSpec, Out, Registry, SeqIn, Threads};
 use vfxgraph_imaging::colour::{ReadColour, WorkingSpace, WriteColour};
 use vfxgraph_imaging::{Image, Operator};
 use vfxgraph_video::{open_shared, write_video, ReadVideoOptions, WriteVideoOptions};
 
 use crate::artifacts::ImageArt;
+
+const FRAME: Out<ImageArt> = Out::new("sequence", "the frame's image");
+const FRAMES: SeqIn<ImageArt> = SeqIn::new("sequence", "the frames, in order");
 
 /// Registers the nodes of this module.
 pub fn register(r: &mut Registry) {
@@ -30,7 +33,7 @@ pub fn register(r: &mut Registry) {
         .input_file_param("path", "the video file, relative to the graph file")
         .options::<ReadVideoOptions>()
         .options::<ReadColour>()
-        .output_of::<ImageArt>("sequence", "the frame's image"),
+        .output(FRAME),
         run_read_video,
     );
     r.register_fn(
@@ -48,7 +51,7 @@ pub fn register(r: &mut Registry) {
         .output_file_param("path", "the .mp4 file, relative to the graph file")
         .options::<WriteVideoOptions>()
         .options::<WriteColour>()
-        .sequence_input_of::<ImageArt>("sequence", "the frames, in order"),
+        .input(FRAMES),
         run_write_video,
     );
 }
@@ -61,7 +64,7 @@ fn run_read_video(ctx: &mut Context<'_>) -> Result<(), NodeError> {
     let config = crate::image_io::ocio_config(ctx);
     let path = ctx.path("path");
     colour.convert_decoded(&mut img, config.as_deref(), &path.display().to_string())?;
-    ctx.output("sequence", ImageArt(img));
+    ctx.set(FRAME, ImageArt(img));
     Ok(())
 }
 
@@ -77,7 +80,7 @@ fn run_write_video(ctx: &mut Context<'_>) -> Result<(), NodeError> {
             path.display()
         )));
     }
-    let frames = crate::artifacts::image_sequence(ctx, "sequence")?;
+    let frames = crate::artifacts::image_sequence(ctx, FRAMES)?;
     if !managed && colour.working_space == WorkingSpace::LinearRec709 {
         return Ok(write_video(&path, &frames, &o)?);
     }

@@ -9,6 +9,14 @@ use vfxgraph_engine::{
     exec, graph, Context, Graph, Kind, Mode, Node, NodeError, NodeSpec, Overrides, ParamDesc,
     ParamValue, PathRole, PortSpec, Registry, RunOptions, RunReport,
 };
+use vfxgraph_engine::{In, OptIn, Out, SeqIn, StreamIn};
+
+const OUT: Out<f64> = Out::new("out", "");
+const A: In<f64> = In::new("a", "");
+const OPTIONAL_A: OptIn<f64> = OptIn::new("a", "");
+const B: OptIn<f64> = OptIn::new("b", "");
+const ITEMS: SeqIn<f64> = SeqIn::new("items", "");
+const STREAMED_ITEMS: StreamIn<f64> = StreamIn::new("items", "");
 
 pub struct Num(NodeSpec);
 impl Node for Num {
@@ -17,7 +25,7 @@ impl Node for Num {
     }
     fn run(&self, ctx: &mut Context<'_>) -> Result<(), NodeError> {
         let v = ctx.params().f64("value");
-        ctx.output("out", v);
+        ctx.set(OUT, v);
         Ok(())
     }
 }
@@ -28,10 +36,10 @@ impl Node for Add {
         &self.0
     }
     fn run(&self, ctx: &mut Context<'_>) -> Result<(), NodeError> {
-        let a = *ctx.input::<f64>("a")?;
-        let b = ctx.input_opt::<f64>("b")?.copied().unwrap_or(0.0);
+        let a = *ctx.get(A)?;
+        let b = ctx.get(B)?.copied().unwrap_or(0.0);
         let v = a + b + ctx.params().f64("offset");
-        ctx.output("out", v);
+        ctx.set(OUT, v);
         Ok(())
     }
 }
@@ -42,8 +50,8 @@ impl Node for Round {
         &self.0
     }
     fn run(&self, ctx: &mut Context<'_>) -> Result<(), NodeError> {
-        let a = ctx.input::<f64>("a")?.round();
-        ctx.output("out", a);
+        let a = ctx.get(A)?.round();
+        ctx.set(OUT, a);
         Ok(())
     }
 }
@@ -56,7 +64,7 @@ impl Node for Ramp {
     fn run(&self, ctx: &mut Context<'_>) -> Result<(), NodeError> {
         let f = ctx.frame().expect("per frame") as f64;
         let v = f * ctx.params().f64("scale");
-        ctx.output("out", v);
+        ctx.set(OUT, v);
         Ok(())
     }
 }
@@ -67,8 +75,8 @@ impl Node for Sum {
         &self.0
     }
     fn run(&self, ctx: &mut Context<'_>) -> Result<(), NodeError> {
-        let v: f64 = ctx.sequence::<f64>("items")?.iter().map(|(_, x)| **x).sum();
-        ctx.output("out", v);
+        let v: f64 = ctx.get(ITEMS)?.iter().map(|(_, x)| **x).sum();
+        ctx.set(OUT, v);
         Ok(())
     }
 }
@@ -86,7 +94,7 @@ impl Node for ReadNum {
             .trim()
             .parse()
             .map_err(|e| NodeError::msg(format!("{}: {e}", p.display())))?;
-        ctx.output("out", v);
+        ctx.set(OUT, v);
         Ok(())
     }
 }
@@ -114,12 +122,12 @@ impl Node for SumEveryOther {
         &self.0
     }
     fn run(&self, ctx: &mut Context<'_>) -> Result<(), NodeError> {
-        let items = ctx.stream::<f64>("items")?;
+        let items = ctx.get(STREAMED_ITEMS)?;
         let mut v = 0.0;
         for k in (0..items.len()).step_by(2) {
             v += *items.get(k)?;
         }
-        ctx.output("out", v);
+        ctx.set(OUT, v);
         Ok(())
     }
 }
@@ -146,7 +154,7 @@ impl Node for SumListed {
                 .parse::<f64>()
                 .map_err(|e| NodeError::msg(e.to_string()))?;
         }
-        ctx.output("out", v);
+        ctx.set(OUT, v);
         Ok(())
     }
 }
@@ -166,7 +174,7 @@ impl Node for SumPaths {
                 .parse::<f64>()
                 .map_err(|e| NodeError::msg(e.to_string()))?;
         }
-        ctx.output("out", v);
+        ctx.set(OUT, v);
         Ok(())
     }
 }
@@ -179,7 +187,7 @@ impl Node for WriteNum {
         &self.0
     }
     fn run(&self, ctx: &mut Context<'_>) -> Result<(), NodeError> {
-        let v = *ctx.input::<f64>("a")?;
+        let v = *ctx.get(A)?;
         let (path, text) = (ctx.path("path"), format!("{v}\n"));
         if self.1 {
             ctx.write_file(&path.with_extension("note"), b"a note\n")?;
@@ -208,7 +216,7 @@ impl Node for Rand {
     }
     fn run(&self, ctx: &mut Context<'_>) -> Result<(), NodeError> {
         let v = (ctx.seed() >> 11) as f64 / (1u64 << 53) as f64;
-        ctx.output("out", v);
+        ctx.set(OUT, v);
         Ok(())
     }
 }
@@ -234,7 +242,7 @@ impl Node for Rendezvous {
                 "partner never arrived: nodes did not run concurrently",
             ));
         }
-        ctx.output("out", 1.0f64);
+        ctx.set(OUT, 1.0f64);
         Ok(())
     }
 }
@@ -257,7 +265,7 @@ pub fn registry() -> Registry {
             )
             .cosmetic(),
         )
-        .output(PortSpec::one("out", "float", ""))));
+        .output(OUT)));
     r.register_node(Add(NodeSpec::new("add", "a + b + offset")
         .param(ParamDesc::optional(
             "offset",
@@ -271,13 +279,13 @@ pub fn registry() -> Registry {
             ParamValue::Int(1),
             "",
         ))
-        .input(PortSpec::one("a", "float", ""))
-        .input(PortSpec::one("b", "float", "").optional())
-        .output(PortSpec::one("out", "float", ""))));
+        .input(A)
+        .input(B)
+        .output(OUT)));
     r.register_node(Round(
         NodeSpec::new("round", "round to integer")
-            .input(PortSpec::one("a", "float", ""))
-            .output(PortSpec::one("out", "float", "")),
+            .input(A)
+            .output(OUT),
     ));
     r.register_node(Ramp(
         NodeSpec::new("ramp", "frame × scale")
@@ -288,17 +296,17 @@ pub fn registry() -> Registry {
                 ParamValue::Float(1.0),
                 "",
             ))
-            .output(PortSpec::one("out", "float", "")),
+            .output(OUT),
     ));
     r.register_node(Sum(NodeSpec::new("sum", "sum of a sequence")
         .mode(Mode::Once)
-        .input(PortSpec::sequence("items", "float", ""))
-        .output(PortSpec::one("out", "float", ""))));
+        .input(ITEMS)
+        .output(OUT)));
     // A number from a text file named by the `path` param.
     let read_num = |name, doc| {
         NodeSpec::new(name, doc)
             .input_file_param("path", "")
-            .output(PortSpec::one("out", "float", ""))
+            .output(OUT)
     };
     r.register_node(ReadNum(read_num("read_num", "a number from a text file")));
     r.register_node(ReadNum(
@@ -321,14 +329,14 @@ pub fn registry() -> Registry {
             "sum of every other item of a streamed sequence",
         )
         .mode(Mode::Once)
-        .streamed_input_of::<f64>("items", "")
-        .output(PortSpec::one("out", "float", "")),
+        .input(STREAMED_ITEMS)
+        .output(OUT),
     ));
     r.register_node(SumListed(
         NodeSpec::new("sum_listed", "sum of the numbers in the files a list names")
             .mode(Mode::Once)
             .param(ParamDesc::required("list", Kind::Path(PathRole::Input), ""))
-            .output(PortSpec::one("out", "float", "")),
+            .output(OUT),
     ));
     r.register_node(SumPaths(
         NodeSpec::new("sum_paths", "sum of the numbers in the listed files")
@@ -338,7 +346,7 @@ pub fn registry() -> Registry {
                 Kind::PathList(PathRole::Input),
                 "",
             ))
-            .output(PortSpec::one("out", "float", "")),
+            .output(OUT),
     ));
     for (name, note) in [("write_num", false), ("write_num_note", true)] {
         r.register_node(WriteNum(
@@ -348,19 +356,19 @@ pub fn registry() -> Registry {
                     Kind::Path(PathRole::Output),
                     "",
                 ))
-                .input(PortSpec::one("a", "float", "")),
+                .input(A),
             note,
         ));
     }
     r.register_node(Fail(
         NodeSpec::new("fail", "always fails")
-            .input(PortSpec::one("a", "float", "").optional())
-            .output(PortSpec::one("out", "float", "")),
+            .input(OPTIONAL_A)
+            .output(OUT),
     ));
     r.register_node(Rand(
         NodeSpec::new("rand", "a seeded random number")
             .seeded()
-            .output(PortSpec::one("out", "float", "")),
+            .output(OUT),
     ));
     r.register_node(Rendezvous(
         NodeSpec::new("rendezvous", "waits for a partner")
@@ -371,13 +379,13 @@ pub fn registry() -> Registry {
                 ParamValue::Str(String::new()),
                 "",
             ))
-            .output(PortSpec::one("out", "float", "")),
+            .output(OUT),
     ));
     r.register_node(Sequence2(
         NodeSpec::new("pair", "sequence of a pair")
             .mode(Mode::Once)
             .input(PortSpec::sequence("items", "string", ""))
-            .output(PortSpec::one("out", "float", "")),
+            .output(OUT),
     ));
     r
 }
@@ -388,7 +396,7 @@ impl Node for Sequence2 {
         &self.0
     }
     fn run(&self, ctx: &mut Context<'_>) -> Result<(), NodeError> {
-        ctx.output("out", 0.0f64);
+        ctx.set(OUT, 0.0f64);
         Ok(())
     }
 }

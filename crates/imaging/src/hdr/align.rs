@@ -434,13 +434,22 @@ pub fn align_exposures(
     Ok((apply_shifts(stack, &shifts)?, shifts))
 }
 
-/// The `align_exposures` report of `shifts` found on a stack of `len` exposures: the reference
-/// exposure and each exposure's shift, `aligned(x, y) = exposure(x - dx, y - dy)`.
-pub fn align_report(opts: &AlignOptions, len: usize, shifts: &[(i64, i64)]) -> serde_json::Value {
-    serde_json::json!({
-        "reference": opts.reference.unwrap_or(len / 2),
-        "shifts": shifts.iter().map(|&(x, y)| [x, y]).collect::<Vec<_>>(),
-    })
+/// The `align_exposures` report: the reference exposure and each exposure's shift `[dx, dy]`,
+/// `aligned(x, y) = exposure(x - dx, y - dy)`.
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct AlignReport {
+    /// The exposure the others are aligned to.
+    pub reference: usize,
+    /// Per exposure, `[dx, dy]`.
+    pub shifts: Vec<[i64; 2]>,
+}
+
+/// The report of `shifts` found on a stack of `len` exposures.
+pub fn align_report(opts: &AlignOptions, len: usize, shifts: &[(i64, i64)]) -> AlignReport {
+    AlignReport {
+        reference: opts.reference.unwrap_or(len / 2),
+        shifts: shifts.iter().map(|&(x, y)| [x, y]).collect(),
+    }
 }
 
 #[cfg(test)]

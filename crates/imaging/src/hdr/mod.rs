@@ -36,7 +36,7 @@ use std::path::PathBuf;
 use crate::error::ImageError;
 
 pub use align::{
-    align_exposures, align_report, apply_shifts, mtb_shifts, AlignChain, AlignOptions,
+    align_exposures, align_report, apply_shifts, mtb_shifts, AlignChain, AlignOptions, AlignReport,
 };
 pub use exif::{
     exposure_settings, read_exposure_settings, relative_exposures, with_exposure_exif,
