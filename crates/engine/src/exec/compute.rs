@@ -9,11 +9,11 @@ use std::sync::atomic::AtomicBool;
 
 use rayon::prelude::*;
 
-use super::common::Common;
 use super::instances::{frame_suffix, DepKind};
 use super::keys::uncached_digest;
 use super::schedule::Runner;
 use super::seed_for;
+use super::setup::RunSetup;
 use super::RunOptions;
 use crate::artifact::{Digest, Value};
 use crate::graph::{Graph, GraphNode};
@@ -33,8 +33,8 @@ pub(super) struct Computed {
 impl Runner<'_> {
     /// Runs the node of instance `i` on its (materialized) inputs.
     pub(super) fn compute(&self, i: usize) -> Result<Computed, String> {
-        let inst = &self.c.insts[i];
-        let graph = self.c.graph;
+        let inst = &self.setup.insts[i];
+        let graph = self.setup.graph;
         let gn = &graph.nodes[inst.node];
         let inputs = self.gather_inputs(i)?;
         let (node_idx, frame) = (inst.node, inst.frame);
@@ -46,8 +46,8 @@ impl Runner<'_> {
     /// the node asks for them, the others' now.
     fn gather_inputs(&self, i: usize) -> Result<BTreeMap<&'static str, InputValue<'_>>, String> {
         let mut inputs = BTreeMap::new();
-        let spec = self.c.graph.nodes[self.c.insts[i].node].spec();
-        for d in &self.c.insts[i].deps {
+        let spec = self.setup.graph.nodes[self.setup.insts[i].node].spec();
+        for d in &self.setup.insts[i].deps {
             let streamed = spec.inputs.iter().any(|p| p.name == d.port && p.streamed);
             let v = match &d.kind {
                 DepKind::One(j) => InputValue::One(self.value(*j, d.from_port)?),
@@ -55,7 +55,7 @@ impl Runner<'_> {
                     r.clone()
                         .map(|j| {
                             let read = move || self.value(j, d.from_port);
-                            (self.c.insts[j].frame.unwrap_or(0), Deferred::new(read))
+                            (self.setup.insts[j].frame.unwrap_or(0), Deferred::new(read))
                         })
                         .collect(),
                 ),
@@ -66,7 +66,7 @@ impl Runner<'_> {
                         .into_par_iter()
                         .map(|j| {
                             self.value(j, d.from_port)
-                                .map(|v| (self.c.insts[j].frame.unwrap_or(0), v))
+                                .map(|v| (self.setup.insts[j].frame.unwrap_or(0), v))
                         })
                         .collect::<Result<_, _>>()?,
                 ),
@@ -85,11 +85,11 @@ impl Runner<'_> {
         computed: &Computed,
         seconds: f64,
     ) -> std::io::Result<()> {
-        let Some(store) = &self.c.store else {
+        let Some(store) = &self.setup.store else {
             return Ok(());
         };
-        let inst = &self.c.insts[i];
-        let gn = &self.c.graph.nodes[inst.node];
+        let inst = &self.setup.insts[i];
+        let gn = &self.setup.graph.nodes[inst.node];
         let mut outs = Vec::new();
         for (port, (v, bytes)) in &computed.outputs {
             store.put_object(&v.digest(), v.type_name(), bytes)?;
@@ -136,11 +136,11 @@ impl Runner<'_> {
         key: &Digest,
         digests: &BTreeMap<&'static str, Digest>,
     ) -> std::io::Result<()> {
-        let Some(store) = &self.c.store else {
+        let Some(store) = &self.setup.store else {
             return Ok(());
         };
-        let inst = &self.c.insts[i];
-        let gn = &self.c.graph.nodes[inst.node];
+        let inst = &self.setup.insts[i];
+        let gn = &self.setup.graph.nodes[inst.node];
         let outputs = gn
             .spec()
             .outputs
@@ -166,7 +166,7 @@ impl Runner<'_> {
 
     /// The files of instance `i`'s output path params, with their digests.
     fn written_files(&self, i: usize) -> std::io::Result<Vec<WrittenFile>> {
-        self.c
+        self.setup
             .output_files(i)
             .iter()
             .map(|p| self.hashed(p))
@@ -175,7 +175,7 @@ impl Runner<'_> {
 
     /// File `path` with its digest; the error names the file.
     fn hashed(&self, path: &Path) -> std::io::Result<WrittenFile> {
-        let d = self.c.hasher.hash(path).map_err(|e| {
+        let d = self.setup.hasher.hash(path).map_err(|e| {
             std::io::Error::new(e.kind(), format!("cannot hash {}: {e}", path.display()))
         })?;
         Ok(WrittenFile {
@@ -264,7 +264,7 @@ pub fn recompute_uncached(
     if gn.spec().cache_outputs || !gn.spec().inputs.is_empty() {
         return Err(format!("`{}` is not an uncached reader", gn.id));
     }
-    let c = Common::new(graph, &RunOptions::default()).map_err(|e| e.to_string())?;
+    let c = RunSetup::new(graph, &RunOptions::default()).map_err(|e| e.to_string())?;
     let i = (0..c.insts.len())
         .find(|&i| c.insts[i].node == node && c.insts[i].frame == frame)
         .ok_or_else(|| format!("`{}` has no instance{}", gn.id, frame_suffix(frame)))?;

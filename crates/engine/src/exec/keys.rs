@@ -5,9 +5,9 @@
 
 use std::path::Path;
 
-use super::common::Common;
 use super::instances::{Dep, DepKind};
-use super::records::InstRecord;
+use super::records::InstanceRecord;
+use super::setup::RunSetup;
 use crate::artifact::{sequence_digest, Digest};
 use crate::graph::GraphNode;
 use crate::node::NodeSpec;
@@ -16,10 +16,10 @@ use crate::store::{ActionEntry, Store};
 /// An instance's cache key and the components it was built from.
 pub(super) struct KeyParts {
     pub(super) key: Digest,
-    pub(super) record: InstRecord,
+    pub(super) record: InstanceRecord,
 }
 
-impl Common<'_> {
+impl RunSetup<'_> {
     /// Builds the key of instance `i` given a way to read upstream output digests.
     pub(super) fn key(
         &self,
@@ -31,7 +31,7 @@ impl Common<'_> {
         let spec = gn.spec();
         let mut h = blake3::Hasher::new();
         hash_node(&mut h, spec, gn);
-        let mut record = InstRecord::default();
+        let mut record = InstanceRecord::default();
         for d in &inst.deps {
             let digest = self.input_digest(d, &digest_of)?;
             h.update(b"in\0");
@@ -80,7 +80,7 @@ impl Common<'_> {
         &self,
         h: &mut blake3::Hasher,
         i: usize,
-        record: &mut InstRecord,
+        record: &mut InstanceRecord,
     ) -> Result<(), String> {
         for (param, path) in self.input_files(i) {
             let digest = self.hasher.hash(&path).map_err(|e| {
@@ -99,43 +99,48 @@ impl Common<'_> {
     }
 
     /// A valid cache entry for `key`: objects present (unless the node is uncached), written
-    /// files unchanged.
-    pub(super) fn lookup(&self, i: usize, key: &Digest) -> Result<ActionEntry, String> {
+    /// files unchanged; else why there is none.
+    pub(super) fn lookup(&self, i: usize, key: &Digest) -> Result<ActionEntry, Miss> {
         let Some(store) = &self.store else {
-            return Err("cache disabled".into());
+            return Err(Miss::Disabled);
         };
         if self.forced[self.insts[i].node] {
-            return Err("forced".into());
+            return Err(Miss::Forced);
         }
         let Some(entry) = store.get_action(key) else {
-            return Err(String::new());
+            return Err(Miss::NoEntry);
         };
         if self.graph.nodes[self.insts[i].node].spec().cache_outputs {
-            check_objects(store, &entry)?;
+            check_objects(store, &entry).map_err(Miss::Stale)?;
         }
         // The files this instance writes, where this graph writes them: the same action in
         // another folder (a graph copied beside its twin, sharing the cache) has its own files.
         let expected = self.output_files(i);
         if expected.len() != entry.files.len() {
-            return Err("output files differ from the cached entry".into());
+            return Err(Miss::Stale(
+                "output files differ from the cached entry".into(),
+            ));
         }
         if let Some(p) = expected
             .iter()
             .find(|p| !entry.files.iter().any(|f| f.path == **p))
         {
-            return Err(format!(
+            return Err(Miss::Stale(format!(
                 "output file {} was not written by the cached entry",
                 p.display()
-            ));
+            )));
         }
         for f in &entry.files {
-            self.check_file(&f.path, &f.digest, "output file", "was modified")?;
+            self.check_file(&f.path, &f.digest, "output file", "was modified")
+                .map_err(Miss::Stale)?;
         }
         for f in &entry.node_files {
-            self.check_file(&f.path, &f.digest, "output file", "was modified")?;
+            self.check_file(&f.path, &f.digest, "output file", "was modified")
+                .map_err(Miss::Stale)?;
         }
         for f in &entry.read_files {
-            self.check_file(&f.path, &f.digest, "input file", "changed")?;
+            self.check_file(&f.path, &f.digest, "input file", "changed")
+                .map_err(Miss::Stale)?;
         }
         Ok(entry)
     }
@@ -179,6 +184,32 @@ fn hash_node(h: &mut blake3::Hasher, spec: &NodeSpec, gn: &GraphNode) {
             h.update(p.name.as_bytes());
             h.update(&[0]);
             h.update(&buf);
+        }
+    }
+}
+
+/// Why a cache lookup found no entry to serve.
+#[derive(Clone, Debug, PartialEq)]
+pub(super) enum Miss {
+    /// The run uses no cache.
+    Disabled,
+    /// The node is `--force`d.
+    Forced,
+    /// No entry has the key: why is found by comparing the key's parts with the last run's
+    /// records ([`RunSetup::explain`]).
+    NoEntry,
+    /// An entry whose outputs or files are gone or changed: what is wrong with it.
+    Stale(String),
+}
+
+impl Miss {
+    /// What the miss says by itself (`None` for [`Miss::NoEntry`], which the records explain).
+    pub(super) fn reason(&self) -> Option<&str> {
+        match self {
+            Miss::Disabled => Some("cache disabled"),
+            Miss::Forced => Some("forced"),
+            Miss::NoEntry => None,
+            Miss::Stale(why) => Some(why),
         }
     }
 }

@@ -29,7 +29,6 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
-mod common;
 mod compute;
 mod instances;
 mod keys;
@@ -37,6 +36,7 @@ mod plan;
 mod records;
 mod report;
 mod schedule;
+mod setup;
 mod values;
 
 pub use compute::recompute_uncached;

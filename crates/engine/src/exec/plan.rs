@@ -3,9 +3,9 @@
 
 use std::collections::BTreeMap;
 
-use super::common::Common;
 use super::instances::frame_suffix;
 use super::report::{InstanceReport, PlanReport, PlanStatus};
+use super::setup::RunSetup;
 use super::{ExecError, RunOptions};
 use crate::artifact::Digest;
 use crate::graph::Graph;
@@ -16,7 +16,7 @@ type CachedDigests = Vec<Option<BTreeMap<String, Digest>>>;
 
 /// Decides, without running anything, which instances are cached, will run, or are blocked.
 pub fn plan(graph: &Graph, opts: &RunOptions) -> Result<PlanReport, ExecError> {
-    let c = Common::new(graph, opts)?;
+    let c = RunSetup::new(graph, opts)?;
     let n = c.insts.len();
     let mut status = vec![PlanStatus::Blocked; n];
     let mut digests: CachedDigests = vec![None; n];
@@ -32,7 +32,7 @@ pub fn plan(graph: &Graph, opts: &RunOptions) -> Result<PlanReport, ExecError> {
 
 /// The plan of instance `i`, given the plan of the instances before it.
 fn plan_instance(
-    c: &Common,
+    c: &RunSetup,
     i: usize,
     status: &[PlanStatus],
     digests: &mut CachedDigests,

@@ -7,17 +7,17 @@ use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
 
-use super::common::Common;
 use super::instances::DepKind;
-use super::keys::KeyParts;
+use super::keys::{KeyParts, Miss};
 use super::schedule::Runner;
+use super::setup::RunSetup;
 use crate::artifact::Digest;
 use crate::graph::Graph;
 use crate::store::{ActionEntry, Store};
 
 /// The components of a cache key, kept to explain the next rerun.
 #[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
-pub(super) struct InstRecord {
+pub(super) struct InstanceRecord {
     pub(super) key: String,
     pub(super) inputs: BTreeMap<String, String>,
     pub(super) files: BTreeMap<String, String>,
@@ -27,7 +27,7 @@ pub(super) struct InstRecord {
 /// instance's part is a file of its own beside it (`records/<node>/<frame>.json`), so
 /// concurrent runs of different frames never rewrite one shared file.
 #[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
-pub(super) struct NodeMeta {
+pub(super) struct NodeRecord {
     node_type: String,
     version: u32,
     params: BTreeMap<String, String>,
@@ -74,21 +74,21 @@ pub fn last_run_entry(
     frame: Option<i64>,
 ) -> Option<ActionEntry> {
     let dir = record_dir(graph, node);
-    let meta: NodeMeta = store.get_record(&format!("{dir}/node.json"))?;
+    let meta: NodeRecord = store.get_record(&format!("{dir}/node.json"))?;
     if meta.node_type != graph.nodes[node].spec().name {
         return None;
     }
-    let rec: InstRecord = store.get_record(&format!("{dir}/{}.json", frame_key(frame)))?;
+    let rec: InstanceRecord = store.get_record(&format!("{dir}/{}.json", frame_key(frame)))?;
     store.get_action(&Digest::from_hex(&rec.key)?)
 }
 
-impl Common<'_> {
+impl RunSetup<'_> {
     /// The record folder of a node (per graph file and node id), relative to `records/`.
     pub(super) fn record_dir(&self, node: usize) -> String {
         record_dir(self.graph, node)
     }
 
-    pub(super) fn meta_record_name(&self, node: usize) -> String {
+    pub(super) fn node_record_name(&self, node: usize) -> String {
         format!("{}/node.json", self.record_dir(node))
     }
 
@@ -96,10 +96,10 @@ impl Common<'_> {
         format!("{}/{}.json", self.record_dir(node), frame_key(frame))
     }
 
-    /// The node-wide record of this run: what [`NodeMeta`] stores.
-    pub(super) fn meta(&self, node: usize) -> NodeMeta {
+    /// The node-wide record of this run: what [`NodeRecord`] stores.
+    pub(super) fn node_record(&self, node: usize) -> NodeRecord {
         let spec = self.graph.nodes[node].spec();
-        NodeMeta {
+        NodeRecord {
             node_type: spec.name.to_string(),
             version: spec.version,
             params: self.param_strings(node),
@@ -122,17 +122,17 @@ impl Common<'_> {
     }
 
     /// Why instance `i` must run, comparing its key parts with the node's last record.
-    pub(super) fn explain(&self, i: usize, parts: &KeyParts, miss: &str) -> String {
-        if !miss.is_empty() {
-            return miss.to_string();
+    pub(super) fn explain(&self, i: usize, parts: &KeyParts, miss: &Miss) -> String {
+        if let Some(why) = miss.reason() {
+            return why.to_string();
         }
         let node = self.insts[i].node;
-        let Some(old) = self.old_meta(node) else {
+        let Some(old) = self.old_node_record(node) else {
             return "no cache entry (first run)".into();
         };
         let mut why = self.node_changes(node, &old);
         let old_inst = self.store.as_ref().and_then(|s| {
-            s.get_record::<InstRecord>(&self.inst_record_name(node, self.insts[i].frame))
+            s.get_record::<InstanceRecord>(&self.inst_record_name(node, self.insts[i].frame))
         });
         if let Some(oi) = old_inst {
             self.instance_changes(i, parts, &oi, &mut why);
@@ -147,20 +147,20 @@ impl Common<'_> {
     }
 
     /// The last run's record of node `node`, read from the store once per plan or run.
-    fn old_meta(&self, node: usize) -> Option<NodeMeta> {
+    fn old_node_record(&self, node: usize) -> Option<NodeRecord> {
         let mut cache = self.old_records.lock().expect("records lock");
         cache
             .entry(node)
             .or_insert_with(|| {
                 self.store
                     .as_ref()
-                    .and_then(|s| s.get_record::<NodeMeta>(&self.meta_record_name(node)))
+                    .and_then(|s| s.get_record::<NodeRecord>(&self.node_record_name(node)))
             })
             .clone()
     }
 
     /// What changed in node `node` since record `old`: version, params, seed.
-    fn node_changes(&self, node: usize, old: &NodeMeta) -> Vec<String> {
+    fn node_changes(&self, node: usize, old: &NodeRecord) -> Vec<String> {
         let spec = self.graph.nodes[node].spec();
         let mut why = Vec::new();
         if old.version != spec.version {
@@ -181,7 +181,13 @@ impl Common<'_> {
     }
 
     /// What changed in instance `i`'s inputs and input files since record `oi`.
-    fn instance_changes(&self, i: usize, parts: &KeyParts, oi: &InstRecord, why: &mut Vec<String>) {
+    fn instance_changes(
+        &self,
+        i: usize,
+        parts: &KeyParts,
+        oi: &InstanceRecord,
+        why: &mut Vec<String>,
+    ) {
         for (port, d) in &parts.record.inputs {
             if oi.inputs.get(port) != Some(d) {
                 let src = self.input_source(i, port);
@@ -217,8 +223,8 @@ impl Common<'_> {
 
 impl Runner<'_> {
     /// Keeps instance `i`'s key components, to be saved at the end of the run.
-    pub(super) fn remember(&self, i: usize, record: InstRecord) {
-        let inst = &self.c.insts[i];
+    pub(super) fn remember(&self, i: usize, record: InstanceRecord) {
+        let inst = &self.setup.insts[i];
         self.new_records
             .lock()
             .expect("records lock")
@@ -230,11 +236,17 @@ impl Runner<'_> {
     /// Writes the key components of this run's instances: each record file is replaced
     /// whole (atomically) and only when it changed; no file is merged with another run's.
     pub(super) fn save_records(&self) {
-        let Some(store) = &self.c.store else { return };
+        let Some(store) = &self.setup.store else {
+            return;
+        };
         let new = std::mem::take(&mut *self.new_records.lock().expect("records lock"));
         for (node, instances) in new {
-            put_if_changed(store, &self.c.meta_record_name(node), &self.c.meta(node));
-            let dir = self.c.record_dir(node);
+            put_if_changed(
+                store,
+                &self.setup.node_record_name(node),
+                &self.setup.node_record(node),
+            );
+            let dir = self.setup.record_dir(node);
             for (frame, rec) in instances {
                 put_if_changed(store, &format!("{dir}/{frame}.json"), &rec);
             }

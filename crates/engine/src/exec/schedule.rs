@@ -6,12 +6,12 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
 use std::time::{Duration, Instant};
 
-use super::common::Common;
 use super::compute::Computed;
 use super::instances::{frame_suffix, Role};
-use super::keys::{uncached_digest, KeyParts};
-use super::records::InstRecord;
+use super::keys::{uncached_digest, KeyParts, Miss};
+use super::records::InstanceRecord;
 use super::report::{InstanceReport, Observer, RunReport, Status};
+use super::setup::RunSetup;
 use super::{ExecError, RunOptions};
 use crate::artifact::{Digest, Value};
 use crate::graph::Graph;
@@ -20,17 +20,17 @@ use crate::registry::Registry;
 use crate::store::ActionEntry;
 
 /// How an instance was resolved.
-pub(super) struct Done {
+pub(super) struct Resolution {
     pub(super) status: Status,
     pub(super) reason: String,
     pub(super) seconds: f64,
     pub(super) digests: BTreeMap<&'static str, Digest>,
 }
 
-impl Done {
+impl Resolution {
     /// A resolution without outputs (skipped or failed).
     fn empty(status: Status, reason: String, seconds: f64) -> Self {
-        Done {
+        Resolution {
             status,
             reason,
             seconds,
@@ -50,25 +50,25 @@ enum Leased {
 }
 
 /// The run state of one instance.
-pub(super) struct State {
+pub(super) struct InstanceState {
     /// Upstream instances not yet resolved.
     pending: AtomicUsize,
     /// Downstream instances that have not finished yet.
     pub(super) consumers_left: AtomicUsize,
-    pub(super) done: OnceLock<Done>,
+    pub(super) done: OnceLock<Resolution>,
     /// Output values kept in memory for consumers still to come.
     pub(super) values: Mutex<BTreeMap<&'static str, Value>>,
 }
 
 /// A run in progress.
 pub(super) struct Runner<'a> {
-    pub(super) c: Common<'a>,
+    pub(super) setup: RunSetup<'a>,
     pub(super) cancel: Arc<AtomicBool>,
     pub(super) registry: &'a Registry,
-    pub(super) state: Vec<State>,
+    pub(super) state: Vec<InstanceState>,
     pub(super) observer: &'a dyn Observer,
     /// This run's key components, per node and frame key, saved at the end.
-    pub(super) new_records: Mutex<HashMap<usize, BTreeMap<String, InstRecord>>>,
+    pub(super) new_records: Mutex<HashMap<usize, BTreeMap<String, InstanceRecord>>>,
 }
 
 /// Runs a graph: every instance is served from the cache or computed, in parallel. Node
@@ -81,10 +81,10 @@ pub fn run(
     observer: &dyn Observer,
 ) -> Result<RunReport, ExecError> {
     let t0 = Instant::now();
-    let c = Common::new(graph, opts)?;
-    let state = initial_state(&c);
+    let setup = RunSetup::new(graph, opts)?;
+    let state = initial_state(&setup);
     let runner = Runner {
-        c,
+        setup,
         cancel: opts.cancel.clone().unwrap_or_default(),
         registry,
         state,
@@ -94,15 +94,17 @@ pub fn run(
     let pool = thread_pool(opts.jobs)?;
     pool.install(|| {
         rayon::scope(|s| {
-            for i in 0..runner.c.insts.len() {
-                if runner.c.insts[i].upstream.is_empty() && runner.c.role[i] != Role::Unneeded {
+            for i in 0..runner.setup.insts.len() {
+                if runner.setup.insts[i].upstream.is_empty()
+                    && runner.setup.role[i] != Role::Unneeded
+                {
                     runner.schedule(s, i);
                 }
             }
         })
     });
     runner.save_records();
-    runner.c.hasher.save();
+    runner.setup.hasher.save();
     Ok(RunReport {
         nodes: runner.report(),
         wall_seconds: t0.elapsed().as_secs_f64(),
@@ -110,10 +112,10 @@ pub fn run(
 }
 
 /// Each instance's state before the run: all upstream pending, all needed consumers to come.
-fn initial_state(c: &Common) -> Vec<State> {
+fn initial_state(c: &RunSetup) -> Vec<InstanceState> {
     c.insts
         .iter()
-        .map(|inst| State {
+        .map(|inst| InstanceState {
             pending: AtomicUsize::new(inst.upstream.len()),
             consumers_left: AtomicUsize::new(
                 inst.downstream
@@ -145,13 +147,13 @@ impl<'a> Runner<'a> {
     fn schedule<'s>(&'s self, s: &rayon::Scope<'s>, i: usize) {
         s.spawn(move |s| {
             self.resolve(i);
-            for &u in &self.c.insts[i].upstream {
+            for &u in &self.setup.insts[i].upstream {
                 if self.state[u].consumers_left.fetch_sub(1, Ordering::AcqRel) == 1 {
                     self.state[u].values.lock().expect("values lock").clear();
                 }
             }
-            for &d in &self.c.insts[i].downstream {
-                if self.c.role[d] != Role::Unneeded
+            for &d in &self.setup.insts[i].downstream {
+                if self.setup.role[d] != Role::Unneeded
                     && self.state[d].pending.fetch_sub(1, Ordering::AcqRel) == 1
                 {
                     self.schedule(s, d);
@@ -160,8 +162,8 @@ impl<'a> Runner<'a> {
         });
     }
 
-    pub(super) fn finish(&self, i: usize, done: Done) {
-        let inst = &self.c.insts[i];
+    pub(super) fn finish(&self, i: usize, done: Resolution) {
+        let inst = &self.setup.insts[i];
         self.observer
             .finished(inst.node, inst.frame, done.status, done.seconds);
         let _ = self.state[i].done.set(done);
@@ -178,59 +180,59 @@ impl<'a> Runner<'a> {
     /// Resolves instance `i`: skipped, served from the cache, or computed.
     fn resolve(&self, i: usize) {
         if self.cancel.load(Ordering::Relaxed) {
-            let done = Done::empty(Status::Skipped, "run cancelled".into(), 0.0);
+            let done = Resolution::empty(Status::Skipped, "run cancelled".into(), 0.0);
             return self.finish(i, done);
         }
         if let Some(reason) = self.failed_upstream(i) {
-            return self.finish(i, Done::empty(Status::Skipped, reason, 0.0));
+            return self.finish(i, Resolution::empty(Status::Skipped, reason, 0.0));
         }
-        let parts = match self.c.key(i, |j, port| self.resolved_digest(j, port)) {
+        let parts = match self.setup.key(i, |j, port| self.resolved_digest(j, port)) {
             Ok(p) => p,
-            Err(e) => return self.finish(i, Done::empty(Status::Failed, e, 0.0)),
+            Err(e) => return self.finish(i, Resolution::empty(Status::Failed, e, 0.0)),
         };
-        if !self.c.graph.nodes[self.c.insts[i].node]
+        if !self.setup.graph.nodes[self.setup.insts[i].node]
             .spec()
             .cache_outputs
         {
             return self.resolve_uncached(i, parts);
         }
-        let miss = match self.c.lookup(i, &parts.key) {
+        let miss = match self.setup.lookup(i, &parts.key) {
             Ok(entry) => return self.serve_cached(i, parts, &entry, "cache hit"),
             Err(m) => m,
         };
-        if self.c.role[i] == Role::CacheOnly {
-            let why = if miss.is_empty() { "no entry" } else { &miss };
+        if self.setup.role[i] == Role::CacheOnly {
+            let why = miss.reason().unwrap_or("no entry");
             let reason = format!(
                 "an input of the selected instances is not in the cache ({why}); \
                  it must run first (a missing farm dependency, or a cleaned cache)"
             );
-            return self.finish(i, Done::empty(Status::Failed, reason, 0.0));
+            return self.finish(i, Resolution::empty(Status::Failed, reason, 0.0));
         }
         self.run_instance(i, parts, &miss);
     }
 
     /// Why instance `i` cannot run, if an input failed or was skipped.
     fn failed_upstream(&self, i: usize) -> Option<String> {
-        let &j = self.c.insts[i].upstream.iter().find(|&&j| {
+        let &j = self.setup.insts[i].upstream.iter().find(|&&j| {
             self.state[j]
                 .done
                 .get()
                 .is_none_or(|d| matches!(d.status, Status::Failed | Status::Skipped))
         })?;
-        let up = &self.c.insts[j];
+        let up = &self.setup.insts[j];
         Some(format!(
             "upstream `{}`{} did not complete",
-            self.c.graph.nodes[up.node].id,
+            self.setup.graph.nodes[up.node].id,
             frame_suffix(up.frame)
         ))
     }
 
     /// Resolves instance `i` from its valid cache entry, without loading its values.
     fn serve_cached(&self, i: usize, parts: KeyParts, entry: &ActionEntry, reason: &str) {
-        if let Some(store) = &self.c.store {
+        if let Some(store) = &self.setup.store {
             store.touch_action(&parts.key);
         }
-        let spec = self.c.graph.nodes[self.c.insts[i].node].spec();
+        let spec = self.setup.graph.nodes[self.setup.insts[i].node].spec();
         let digests = spec
             .outputs
             .iter()
@@ -246,7 +248,7 @@ impl<'a> Runner<'a> {
         self.remember(i, parts.record);
         self.finish(
             i,
-            Done {
+            Resolution {
                 status: Status::Cached,
                 reason: reason.into(),
                 seconds: 0.0,
@@ -258,17 +260,17 @@ impl<'a> Runner<'a> {
     /// The lease to compute instance `i` (`None`: compute without one), or the entry another
     /// run computed while this one waited for its lease, or the run was cancelled meanwhile.
     fn take_lease(&self, i: usize, key: &Digest) -> Leased {
-        let Some(store) = &self.c.store else {
+        let Some(store) = &self.setup.store else {
             return Leased::Compute(None);
         };
-        if self.c.forced[self.c.insts[i].node] {
+        if self.setup.forced[self.setup.insts[i].node] {
             return Leased::Compute(None);
         }
         loop {
             match store.try_lease(key) {
                 Ok(Some(lease)) => {
                     // Finished by another run between the miss and the lease?
-                    return match self.c.lookup(i, key) {
+                    return match self.setup.lookup(i, key) {
                         Ok(entry) => Leased::Served(entry),
                         Err(_) => Leased::Compute(Some(lease)),
                     };
@@ -297,7 +299,7 @@ impl<'a> Runner<'a> {
                     }
                 }
             }
-            if let Ok(entry) = self.c.lookup(i, key) {
+            if let Ok(entry) = self.setup.lookup(i, key) {
                 return Leased::Served(entry);
             }
         }
@@ -307,30 +309,30 @@ impl<'a> Runner<'a> {
     /// by its key ([`uncached_digest`]) and computed when a consumer reads them. Its action
     /// entry (no objects) is what makes the next run report it cached.
     fn resolve_uncached(&self, i: usize, parts: KeyParts) {
-        let spec = self.c.graph.nodes[self.c.insts[i].node].spec();
+        let spec = self.setup.graph.nodes[self.setup.insts[i].node].spec();
         let digests: BTreeMap<_, _> = spec
             .outputs
             .iter()
             .map(|p| (p.name, uncached_digest(&parts.key, p.name)))
             .collect();
-        let (status, reason) = match self.c.lookup(i, &parts.key) {
+        let (status, reason) = match self.setup.lookup(i, &parts.key) {
             Ok(_) => {
-                if let Some(store) = &self.c.store {
+                if let Some(store) = &self.setup.store {
                     store.touch_action(&parts.key);
                 }
                 (Status::Cached, "cache hit".to_string())
             }
             Err(miss) => {
-                let reason = self.c.explain(i, &parts, &miss);
+                let reason = self.setup.explain(i, &parts, &miss);
                 if let Err(e) = self.store_uncached(i, &parts.key, &digests) {
                     let reason = format!("its entry could not be cached: {e}");
-                    return self.finish(i, Done::empty(Status::Failed, reason, 0.0));
+                    return self.finish(i, Resolution::empty(Status::Failed, reason, 0.0));
                 }
                 (Status::Ran, format!("{reason} (read when a consumer runs)"))
             }
         };
         self.remember(i, parts.record);
-        let done = Done {
+        let done = Resolution {
             status,
             reason,
             seconds: 0.0,
@@ -340,19 +342,19 @@ impl<'a> Runner<'a> {
     }
 
     /// Computes instance `i` (a cache miss for reason `miss`) and stores its result.
-    fn run_instance(&self, i: usize, parts: KeyParts, miss: &str) {
+    fn run_instance(&self, i: usize, parts: KeyParts, miss: &Miss) {
         let _lease = match self.take_lease(i, &parts.key) {
             Leased::Compute(lease) => lease,
             Leased::Served(entry) => {
                 return self.serve_cached(i, parts, &entry, "computed by a concurrent run")
             }
             Leased::Cancelled => {
-                let done = Done::empty(Status::Skipped, "run cancelled".into(), 0.0);
+                let done = Resolution::empty(Status::Skipped, "run cancelled".into(), 0.0);
                 return self.finish(i, done);
             }
         };
-        let reason = self.c.explain(i, &parts, miss);
-        let inst = &self.c.insts[i];
+        let reason = self.setup.explain(i, &parts, miss);
+        let inst = &self.setup.insts[i];
         self.observer.started(inst.node, inst.frame);
         let t = Instant::now();
         match self.compute(i) {
@@ -362,7 +364,7 @@ impl<'a> Runner<'a> {
             }
             Err(e) => {
                 let seconds = t.elapsed().as_secs_f64();
-                self.finish(i, Done::empty(Status::Failed, e, seconds));
+                self.finish(i, Resolution::empty(Status::Failed, e, seconds));
             }
         }
     }
@@ -385,7 +387,7 @@ impl<'a> Runner<'a> {
             // The cache stays as it was (writes are atomic; an entry is written after
             // its objects), and the run says so: exit code 1, not a silent miss.
             let reason = format!("ran, but its result could not be cached: {e}");
-            return self.finish(i, Done::empty(Status::Failed, reason, seconds));
+            return self.finish(i, Resolution::empty(Status::Failed, reason, seconds));
         }
         {
             let mut vals = self.state[i].values.lock().expect("values lock");
@@ -398,7 +400,7 @@ impl<'a> Runner<'a> {
         self.remember(i, parts.record);
         self.finish(
             i,
-            Done {
+            Resolution {
                 status: Status::Ran,
                 reason,
                 seconds,
@@ -409,13 +411,13 @@ impl<'a> Runner<'a> {
 
     /// One report line per visited instance, in graph order.
     fn report(&self) -> Vec<InstanceReport<Status>> {
-        self.c
+        self.setup
             .insts
             .iter()
             .enumerate()
-            .filter(|(i, _)| self.c.role[*i] != Role::Unneeded)
+            .filter(|(i, _)| self.setup.role[*i] != Role::Unneeded)
             .map(|(i, inst)| {
-                let gn = &self.c.graph.nodes[inst.node];
+                let gn = &self.setup.graph.nodes[inst.node];
                 let d = self.state[i].done.get();
                 InstanceReport {
                     id: gn.id.clone(),

@@ -25,7 +25,7 @@ impl Runner<'_> {
             .digests
             .get(port)
             .ok_or_else(|| format!("internal: no output `{port}`"))?;
-        let spec = self.c.graph.nodes[self.c.insts[j].node].spec();
+        let spec = self.setup.graph.nodes[self.setup.insts[j].node].spec();
         let static_port = spec
             .outputs
             .iter()
@@ -54,7 +54,7 @@ impl Runner<'_> {
 
     /// Output `port` of instance `j` read from the store, if it is there and decodes.
     fn load_stored(&self, j: usize, port: &'static str, digest: &Digest) -> Option<Value> {
-        let store = self.c.store.as_ref()?;
+        let store = self.setup.store.as_ref()?;
         let (ty, bytes) = store.get_object(digest)?;
         match self.registry.decode(&ty, &bytes) {
             Ok(data) => {
@@ -73,9 +73,9 @@ impl Runner<'_> {
     /// Deterministic nodes give the same bytes; anything else is reported rather than
     /// silently mixed.
     fn recompute(&self, j: usize, port: &'static str, digest: Digest) -> Result<Value, String> {
-        let up = &self.c.insts[j];
-        let id = &self.c.graph.nodes[up.node].id;
-        if self.c.role[j] == Role::CacheOnly {
+        let up = &self.setup.insts[j];
+        let id = &self.setup.graph.nodes[up.node].id;
+        if self.setup.role[j] == Role::CacheOnly {
             return Err(format!(
                 "the cached output `{port}` of `{id}`{} is missing from the cache, and only the \
                  selected instances may run",
@@ -94,7 +94,7 @@ impl Runner<'_> {
                  (is the node deterministic?); run again"
             ));
         }
-        if let Some(store) = self.c.store.as_ref() {
+        if let Some(store) = self.setup.store.as_ref() {
             let _ = store.put_object(&digest, v.type_name(), bytes);
         }
         self.keep(j, port, v);
@@ -106,17 +106,17 @@ impl Runner<'_> {
     /// are checked against the key that named the output, so a file changed during the run
     /// is an error, not a mix of two versions. An error names the node and frame.
     fn compute_uncached(&self, j: usize, port: &str, digest: Digest) -> Result<Value, String> {
-        let up = &self.c.insts[j];
+        let up = &self.setup.insts[j];
         let at = format!(
             "`{}`{}",
-            self.c.graph.nodes[up.node].id,
+            self.setup.graph.nodes[up.node].id,
             frame_suffix(up.frame)
         );
         let mut outputs = self.compute(j).map_err(|e| format!("{at}: {e}"))?.outputs;
         let (v, _) = outputs
             .remove(port)
             .ok_or_else(|| format!("internal: no output `{port}`"))?;
-        let now = self.c.key(j, |_, _| None)?;
+        let now = self.setup.key(j, |_, _| None)?;
         if uncached_digest(&now.key, port) != digest {
             return Err(format!("{at}: its files changed during the run; run again"));
         }

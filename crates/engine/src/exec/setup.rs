@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use std::sync::Mutex;
 
 use super::instances::{expand, roles, Inst, Role};
-use super::records::NodeMeta;
+use super::records::NodeRecord;
 use super::{ExecError, RunOptions};
 use crate::fsutil::FileHasher;
 use crate::graph::Graph;
@@ -16,7 +16,7 @@ use crate::param::PathRole;
 use crate::store::Store;
 
 /// The state a plan or a run starts from.
-pub(super) struct Common<'a> {
+pub(super) struct RunSetup<'a> {
     pub(super) graph: &'a Graph,
     pub(super) insts: Vec<Inst>,
     pub(super) hasher: FileHasher,
@@ -26,10 +26,10 @@ pub(super) struct Common<'a> {
     /// Per instance.
     pub(super) role: Vec<Role>,
     /// The last run's node-wide records, read once per node.
-    pub(super) old_records: Mutex<HashMap<usize, Option<NodeMeta>>>,
+    pub(super) old_records: Mutex<HashMap<usize, Option<NodeRecord>>>,
 }
 
-impl<'a> Common<'a> {
+impl<'a> RunSetup<'a> {
     pub(super) fn new(graph: &'a Graph, opts: &RunOptions) -> Result<Self, ExecError> {
         let (insts, _) = expand(graph);
         let store = open_store(opts)?;
@@ -39,7 +39,7 @@ impl<'a> Common<'a> {
         };
         let forced = forced_nodes(graph, opts)?;
         let role = roles(graph, &insts, opts.only.as_deref())?;
-        Ok(Common {
+        Ok(RunSetup {
             graph,
             role,
             insts,
