@@ -14,10 +14,6 @@ use std::process::Command;
 
 use serde_json::Value as Json;
 
-fn repo() -> &'static Path {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-}
-
 /// `graphs/tonemap_hdri.yaml` and its data copied into `dir`.
 fn tonemap_graph(dir: &Path) -> PathBuf {
     fs::create_dir_all(dir.join("data")).unwrap();
@@ -33,6 +29,7 @@ fn tonemap_graph(dir: &Path) -> PathBuf {
 
 mod common;
 use common::vfx;
+use vfxgraph_testdata::repo;
 
 /// What `vfxgraph run --json` said: exit code, each node's status and reason, stderr.
 struct Run {

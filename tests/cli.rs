@@ -15,12 +15,9 @@ fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_vfxgraph"))
 }
 
-fn repo() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
 mod common;
 use common::{run_json, vfx};
+use vfxgraph_testdata::repo;
 
 fn statuses<'a>(nodes: &'a [Json], status: &str) -> Vec<(&'a str, Option<i64>)> {
     nodes

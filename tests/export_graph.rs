@@ -5,39 +5,26 @@
 //! points where our cameras do.
 
 use std::fs;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
 use serde_json::json;
+use vfxgraph_testdata::{repo, Python};
 use vfxgraph_vision::camera::Camera;
 use vfxgraph_vision::export::colmap;
 
-fn repo() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-fn python() -> String {
-    std::env::var("VFXGRAPH_PYTHON").unwrap_or_else(|_| "python3".into())
-}
-
-fn have(module: &str) -> bool {
-    let ok = Command::new(python())
-        .args(["-c", &format!("import {module}")])
-        .output()
-        .map(|o| o.status.success())
-        .unwrap_or(false);
-    if !ok {
-        let msg = format!("python module `{module}` not found with `{}`", python());
-        if std::env::var("VFXGRAPH_REQUIRE_CLIENTS").is_ok_and(|v| v == "1") {
-            panic!("{msg}");
-        }
-        eprintln!("skipping the {module} check: {msg}");
-    }
-    ok
+/// The Python with the clients these checks use.
+fn python() -> Python {
+    Python::from_env(
+        "VFXGRAPH_PYTHON",
+        "python3",
+        "pip install pycolmap bpy usd-core, or set VFXGRAPH_PYTHON",
+    )
 }
 
 fn check(script: &str, export: &Path, truth: &Path, extra: &[&str]) {
-    let out = Command::new(python())
+    let out = python()
+        .command()
         .arg(repo().join("scripts/check").join(script))
         .arg(export)
         .arg(truth)
@@ -228,7 +215,7 @@ fn book_export_graph_writes_every_format_and_the_clients_agree() {
     // relaxation's final tolerance in pycolmap too (+ the 1e-6 px by which pycolmap's
     // projections may differ from ours, checked above).
     let tol = (report["inlier_tolerance"].as_f64().unwrap() + 1e-6).to_string();
-    if have("pycolmap") {
+    if python().has("pycolmap") {
         check(
             "colmap_check.py",
             &o.join("colmap"),
@@ -236,10 +223,10 @@ fn book_export_graph_writes_every_format_and_the_clients_agree() {
             &["--obs-tol", &tol],
         );
     }
-    if have("bpy") {
+    if python().has("bpy") {
         check("blender_check.py", &o.join("book_camera.py"), &truth, &[]);
     }
-    if have("pxr.Usd") {
+    if python().has("pxr.Usd") {
         check("usd_check.py", &o.join("book_camera.usda"), &truth, &[]);
     }
 }

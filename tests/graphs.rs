@@ -14,12 +14,9 @@ use vfxgraph_imaging::{read_image, Image};
 use vfxgraph_nodes::modeling::MeasuredReport;
 use vfxgraph_vision::matchmove::SolveReport;
 
-fn repo() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
 mod common;
 use common::{run_json, vfx};
+use vfxgraph_testdata::repo;
 
 fn text(out: &Output) -> String {
     format!(

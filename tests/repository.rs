@@ -8,10 +8,7 @@ mod common;
 
 use std::fs;
 use std::path::{Path, PathBuf};
-
-fn repo() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
+use vfxgraph_testdata::repo;
 
 #[test]
 fn the_node_reference_is_generated_from_the_registry() {

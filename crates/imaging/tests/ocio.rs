@@ -11,46 +11,21 @@
 //! opencolorio numpy`). Without them the test prints a notice and passes, unless
 //! `VFXGRAPH_REQUIRE_CLIENTS=1` (set by `.ci/run`), where it fails.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
-
 use serde_json::Value;
 use vfxgraph_imaging::colour::{ColourConfig, BUILTIN_CONFIG};
+use vfxgraph_testdata::{repo, Python};
+
+/// The Python with the clients these checks use.
+fn python() -> Python {
+    Python::from_env(
+        "VFXGRAPH_PYTHON_OCIO",
+        "~/.cache/vfxgraph/pyenv-ocio/bin/python",
+        "pip install opencolorio numpy, or set VFXGRAPH_PYTHON_OCIO",
+    )
+}
 
 /// The largest error allowed: 1e-4, the bound vfxgraph promises for its colour transforms.
 const BOUND: f64 = 1e-4;
-
-fn repo() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-fn python() -> String {
-    std::env::var("VFXGRAPH_PYTHON_OCIO").unwrap_or_else(|_| {
-        let home = std::env::var("HOME").unwrap_or_default();
-        format!("{home}/.cache/vfxgraph/pyenv-ocio/bin/python")
-    })
-}
-
-/// True when PyOpenColorIO imports; otherwise a notice (or a failure when clients are required).
-fn have_ocio() -> bool {
-    let ok = Command::new(python())
-        .args(["-c", "import PyOpenColorIO, numpy"])
-        .output()
-        .map(|o| o.status.success())
-        .unwrap_or(false);
-    if !ok {
-        let msg = format!(
-            "python module `PyOpenColorIO` not found with `{}` (pip install opencolorio numpy, \
-             or set VFXGRAPH_PYTHON_OCIO)",
-            python()
-        );
-        if std::env::var("VFXGRAPH_REQUIRE_CLIENTS").is_ok_and(|v| v == "1") {
-            panic!("{msg}");
-        }
-        eprintln!("skipping the OpenColorIO checks: {msg}");
-    }
-    ok
-}
 
 fn rgb(v: &Value) -> [f32; 3] {
     let a = v.as_array().expect("an RGB triple");
@@ -59,10 +34,11 @@ fn rgb(v: &Value) -> [f32; 3] {
 
 #[test]
 fn every_transform_matches_pyopencolorio() {
-    if !have_ocio() {
+    if !python().has("PyOpenColorIO, numpy") {
         return;
     }
-    let out = Command::new(python())
+    let out = python()
+        .command()
         .arg(repo().join("scripts/check/ocio_transforms.py"))
         .arg(BUILTIN_CONFIG)
         .output()

@@ -12,46 +12,24 @@
 
 use std::collections::BTreeMap;
 use std::fs;
-use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::path::Path;
 
 use vfxgraph_imaging::image::Image;
 use vfxgraph_imaging::io::dpx::{self, DpxOptions, Transfer};
+use vfxgraph_testdata::{repo, Python};
 
-fn repo() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-fn python() -> String {
-    std::env::var("VFXGRAPH_PYTHON_OIIO").unwrap_or_else(|_| {
-        let home = std::env::var("HOME").unwrap_or_default();
-        format!("{home}/.cache/vfxgraph/pyenv-oiio/bin/python")
-    })
-}
-
-/// True when OpenImageIO imports; otherwise a notice (or a failure when clients are required).
-fn have_oiio() -> bool {
-    let ok = Command::new(python())
-        .args(["-c", "import OpenImageIO, numpy"])
-        .output()
-        .map(|o| o.status.success())
-        .unwrap_or(false);
-    if !ok {
-        let msg = format!(
-            "python module `OpenImageIO` not found with `{}` (pip install openimageio numpy, or \
-             set VFXGRAPH_PYTHON_OIIO)",
-            python()
-        );
-        if std::env::var("VFXGRAPH_REQUIRE_CLIENTS").is_ok_and(|v| v == "1") {
-            panic!("{msg}");
-        }
-        eprintln!("skipping the OpenImageIO checks: {msg}");
-    }
-    ok
+/// The Python with the clients these checks use.
+fn python() -> Python {
+    Python::from_env(
+        "VFXGRAPH_PYTHON_OIIO",
+        "~/.cache/vfxgraph/pyenv-oiio/bin/python",
+        "pip install openimageio numpy, or set VFXGRAPH_PYTHON_OIIO",
+    )
 }
 
 fn oiio(action: &str, dir: &Path) {
-    let out = Command::new(python())
+    let out = python()
+        .command()
         .arg(repo().join("scripts/check/oiio_images.py"))
         .arg(action)
         .arg(dir)
@@ -96,7 +74,7 @@ fn max_diff(a: &[f32], b: &[f32]) -> f32 {
 
 #[test]
 fn dpx_files_agree_with_openimageio_both_ways() {
-    if !have_oiio() {
+    if !python().has("OpenImageIO, numpy") {
         return;
     }
     let tmp = tempfile::tempdir().unwrap();
@@ -203,7 +181,7 @@ fn dpx_files_agree_with_openimageio_both_ways() {
 fn tiff_files_agree_with_openimageio_both_ways() {
     use vfxgraph_imaging::color::linear_to_srgb;
     use vfxgraph_imaging::io::tiff::{self, TiffCompression, TiffDepth, TiffOptions};
-    if !have_oiio() {
+    if !python().has("OpenImageIO, numpy") {
         return;
     }
     let tmp = tempfile::tempdir().unwrap();
@@ -313,7 +291,7 @@ fn tiff_files_agree_with_openimageio_both_ways() {
 #[test]
 fn exif_focal_lengths_written_by_openimageio() {
     use vfxgraph_imaging::metadata::{camera_focal, FocalSource};
-    if !have_oiio() {
+    if !python().has("OpenImageIO, numpy") {
         return;
     }
     let tmp = tempfile::tempdir().unwrap();

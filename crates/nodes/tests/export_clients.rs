@@ -11,11 +11,11 @@
 //! fails.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use nalgebra::{Point3, Vector3};
 use serde_json::json;
 use vfxgraph_params::Choice;
+use vfxgraph_testdata::{repo, Python};
 use vfxgraph_vision::camera::{Camera, Intrinsics, Pose};
 use vfxgraph_vision::export::files::write;
 use vfxgraph_vision::export::{colmap, ExportFormat, SceneOptions, Shot, UpAxis};
@@ -24,6 +24,15 @@ use vfxgraph_vision::klt::{Track, Tracks};
 use vfxgraph_vision::lens::Distortion;
 use vfxgraph_vision::points::PointCloud;
 use vfxgraph_vision::rotation::axis_angle_to_r;
+
+/// The Python with the clients these checks use.
+fn python() -> Python {
+    Python::from_env(
+        "VFXGRAPH_PYTHON",
+        "python3",
+        "pip install pycolmap bpy usd-core, or set VFXGRAPH_PYTHON",
+    )
+}
 
 /// Writes `shot` in the format named `format` (`colmap`, `blender`, `usd`, `nuke`, `json`, `ply`).
 fn export(
@@ -36,38 +45,10 @@ fn export(
     write(f, path, shot, o)
 }
 
-fn repo() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-fn python() -> String {
-    std::env::var("VFXGRAPH_PYTHON").unwrap_or_else(|_| "python3".into())
-}
-
-/// True when `module` imports; otherwise a notice (or a failure when clients are required).
-fn have(module: &str) -> bool {
-    let ok = Command::new(python())
-        .args(["-c", &format!("import {module}")])
-        .output()
-        .map(|o| o.status.success())
-        .unwrap_or(false);
-    if !ok {
-        let msg = format!(
-            "python module `{module}` not found with `{}` (pip install pycolmap bpy usd-core, \
-             or set VFXGRAPH_PYTHON)",
-            python()
-        );
-        if std::env::var("VFXGRAPH_REQUIRE_CLIENTS").is_ok_and(|v| v == "1") {
-            panic!("{msg}");
-        }
-        eprintln!("skipping: {msg}");
-    }
-    ok
-}
-
 /// Runs a checker (with extra arguments); panics with its output unless it exits 0.
 fn check(script: &str, export: &Path, truth: &Path, extra: &[&str]) {
-    let out = Command::new(python())
+    let out = python()
+        .command()
         .arg(repo().join("scripts/check").join(script))
         .arg(export)
         .arg(truth)
@@ -324,7 +305,7 @@ fn colmap_export_reads_in_pycolmap_and_round_trips() {
             assert!((a.pose.t - b.pose.t).abs().max() < 1e-9);
         }
         assert_eq!(m.cloud.points, s.cloud.as_ref().unwrap().points);
-        if have("pycolmap") {
+        if python().has("pycolmap") {
             let t = dir.join("truth.json");
             truth(&s, &o, &t);
             // Observations are projections rounded to 1/64 px: at most √2/128 px off.
@@ -391,7 +372,7 @@ fn colmap_export_with_a_lens_reads_in_pycolmap_and_round_trips() {
             assert!((a.pose.r - b.pose.r).abs().max() < 1e-9);
             assert!((a.pose.t - b.pose.t).abs().max() < 1e-9);
         }
-        if have("pycolmap") {
+        if python().has("pycolmap") {
             let t = dir.join("truth.json");
             truth(&s, &o, &t);
             // The refit is within its error of our lens; Brown–Conrady is the same formula.
@@ -415,7 +396,7 @@ fn colmap_export_with_a_lens_reads_in_pycolmap_and_round_trips() {
 
 #[test]
 fn blender_script_builds_the_camera_in_bpy() {
-    if !have("bpy") {
+    if !python().has("bpy") {
         return;
     }
     let cases = [
@@ -455,7 +436,7 @@ fn blender_script_builds_the_camera_in_bpy() {
 /// 5e-4 px (Brown–Conrady), plus the refit's error for the division lens.
 #[test]
 fn blender_tracking_camera_distorts_like_ours() {
-    if !have("bpy") {
+    if !python().has("bpy") {
         return;
     }
     for (name, d) in [("brown", brown()), ("division", division())] {
@@ -496,7 +477,7 @@ fn blender_tracking_camera_distorts_like_ours() {
 /// distorted pixels within 0.01 px.
 #[test]
 fn usd_lens_attributes_reproject_like_ours() {
-    if !have("pxr.Usd") {
+    if !python().has("pxr.Usd") {
         return;
     }
     for (name, k) in [
@@ -518,7 +499,7 @@ fn usd_lens_attributes_reproject_like_ours() {
 
 #[test]
 fn usd_stage_opens_in_usd_core() {
-    if !have("pxr.Usd") {
+    if !python().has("pxr.Usd") {
         return;
     }
     let cases = [
@@ -550,7 +531,7 @@ fn usd_stage_opens_in_usd_core() {
 /// is, every colour exactly ours.
 #[test]
 fn ply_cloud_imports_in_blender() {
-    if !have("bpy") {
+    if !python().has("bpy") {
         return;
     }
     let dir = tmp("ply");
@@ -594,7 +575,7 @@ fn a_zoom_exports_to_colmap_blender_and_usd() {
     for (a, b) in s.path.frames.iter().zip(&m.path.frames) {
         assert_eq!(a.focal, b.focal);
     }
-    if have("pycolmap") {
+    if python().has("pycolmap") {
         check(
             "colmap_check.py",
             &dir.join("sparse"),
@@ -602,12 +583,12 @@ fn a_zoom_exports_to_colmap_blender_and_usd() {
             &["--obs-tol", "0.01105"],
         );
     }
-    if have("bpy") {
+    if python().has("bpy") {
         let script = dir.join("camera.py");
         export("blender", &script, &s, &o).unwrap();
         check("blender_check.py", &script, &t, &[]);
     }
-    if have("pxr.Usd") {
+    if python().has("pxr.Usd") {
         let usda = dir.join("camera.usda");
         export("usd", &usda, &s, &o).unwrap();
         check("usd_check.py", &usda, &t, &[]);

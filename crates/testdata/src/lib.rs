@@ -13,9 +13,67 @@
 //! relative to the repository root).
 
 use std::path::{Path, PathBuf};
+use std::process::Command;
 
 /// The manifest: one path a line, relative to the data folder; `#` starts a comment.
 const MANIFEST: &str = include_str!("../../../tests/data_manifest.txt");
+
+/// The repository's root folder (the workspace's).
+pub fn repo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+/// A Python interpreter the tests check files with in another program's library (a client:
+/// OpenImageIO, PyOpenColorIO, COLMAP's, Blender's, USD's).
+pub struct Python {
+    exe: String,
+    hint: &'static str,
+}
+
+impl Python {
+    /// The interpreter `$var` names, else `fallback` (a leading `~/` is the home folder);
+    /// `hint` says how to install the modules the tests import with it.
+    pub fn from_env(var: &str, fallback: &str, hint: &'static str) -> Python {
+        let exe = std::env::var(var).unwrap_or_else(|_| match fallback.strip_prefix("~/") {
+            Some(rest) => format!("{}/{rest}", std::env::var("HOME").unwrap_or_default()),
+            None => fallback.to_string(),
+        });
+        Python { exe, hint }
+    }
+
+    /// The interpreter's path or name.
+    pub fn exe(&self) -> &str {
+        &self.exe
+    }
+
+    /// A command running the interpreter.
+    pub fn command(&self) -> Command {
+        Command::new(&self.exe)
+    }
+
+    /// Whether `modules` (an `import` statement's list, e.g. `OpenImageIO, numpy`) import.
+    /// When they do not: a panic when the clients are required (`VFXGRAPH_REQUIRE_CLIENTS=1`,
+    /// as under CI), else a notice on stderr and `false` (the test skips its check).
+    pub fn has(&self, modules: &str) -> bool {
+        let ok = self
+            .command()
+            .args(["-c", &format!("import {modules}")])
+            .output()
+            .is_ok_and(|o| o.status.success());
+        if !ok {
+            let msg = format!(
+                "python modules `{modules}` not found with `{}` ({})",
+                self.exe, self.hint
+            );
+            assert!(
+                !std::env::var("VFXGRAPH_REQUIRE_CLIENTS").is_ok_and(|v| v == "1"),
+                "{msg}"
+            );
+            eprintln!("skipping the check: {msg}");
+        }
+        ok
+    }
+}
 
 /// The data folder: `VFXGRAPH_SHARED_DATA` if set, else `../shared/data` beside the clone.
 pub fn root() -> PathBuf {
