@@ -6,6 +6,7 @@ mod bench_shot;
 mod bench_video;
 mod farm;
 mod interrupt;
+mod probe;
 mod progress;
 mod reference;
 mod report;
@@ -84,6 +85,16 @@ enum Command {
         /// Print the node reference as Markdown: every node's ports, params and defaults.
         #[arg(long)]
         markdown: bool,
+    },
+    /// What the readers know of image and video files: size, encoding, colour fields, frame
+    /// count and rate, and the camera's focal length from EXIF or QuickTime metadata.
+    Probe {
+        /// The files.
+        #[arg(required = true, value_name = "FILE")]
+        files: Vec<PathBuf>,
+        /// Print JSON.
+        #[arg(long)]
+        json: bool,
     },
     /// Describe a node type: ports, params, defaults, ranges.
     Describe {
@@ -301,6 +312,7 @@ fn prints_listings(c: &Command) -> bool {
         Command::Plan { .. }
             | Command::Nodes { .. }
             | Command::Describe { .. }
+            | Command::Probe { .. }
             | Command::Dot { .. }
             | Command::Cache { .. }
             | Command::Check { .. }
@@ -482,6 +494,7 @@ fn dispatch(cli: Cli, registry: &Registry) -> Result<u8, String> {
             }
             Ok(0)
         }
+        Command::Probe { files, json } => probe::run(&files, json),
         Command::Describe { node_type } => match registry.node(&node_type) {
             Some(n) => {
                 report::print_describe(n.spec(), registry);

@@ -905,3 +905,58 @@ fn ocio_flag_and_environment() {
     assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(err.contains("bad.ocio"), "{err}");
 }
+
+/// `probe` reports what the readers know: a DPX file's size, bits, transfer and the frame rate
+/// of its film header; a PNG's size and that it records no focal length; a missing file is an
+/// error in its place and exit status 1.
+#[test]
+fn probe_reports_what_the_readers_know() {
+    let dir = tempfile::tempdir().unwrap();
+    let img = vfxgraph_imaging::Image::from_fn(6, 4, 3, |x, y, c| (x + y + c) as f32 / 16.0);
+    let mut dpx =
+        vfxgraph_imaging::io::dpx::encode(&img, &vfxgraph_imaging::io::dpx::DpxOptions::default())
+            .unwrap();
+    // The film industry header's frame rate (big-endian f32 at byte 1724).
+    dpx[1724..1728].copy_from_slice(&23.976f32.to_be_bytes());
+    std::fs::write(dir.path().join("plate.dpx"), &dpx).unwrap();
+    vfxgraph_imaging::write_image(&dir.path().join("still.png"), &img).unwrap();
+    let out = bin()
+        .args(["probe", "--json", "plate.dpx", "still.png"])
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: Json = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v[0]["format"], "dpx", "{v}");
+    assert_eq!(v[0]["size"], serde_json::json!([6, 4]), "{v}");
+    assert_eq!(v[0]["bits"], 10, "{v}");
+    assert!(
+        (v[0]["frame_rate"].as_f64().unwrap() - 23.976).abs() < 1e-4,
+        "{v}"
+    );
+    assert!(
+        v[0]["transfer"].as_str().unwrap().contains("density"),
+        "{v}"
+    );
+    assert_eq!(v[1]["size"], serde_json::json!([6, 4]), "{v}");
+    assert!(
+        v[1]["focal_px"].is_null() && v[1]["focal_missing"].is_string(),
+        "{v}"
+    );
+    let out = bin()
+        .args(["probe", "still.png", "gone.mov"])
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("still.png") && text.contains("gone.mov"),
+        "{text}"
+    );
+    assert!(text.contains("error"), "{text}");
+}

@@ -117,6 +117,9 @@ pub struct DpxInfo {
     pub data_offset: usize,
     /// Bytes of padding after each line.
     pub line_padding: usize,
+    /// Frames a second, as the film industry header records it (else the television
+    /// header's temporal sampling rate), when either is set.
+    pub frame_rate: Option<f64>,
 }
 
 /// A reader of the header's fields in the file's byte order.
@@ -230,6 +233,13 @@ pub fn read_header(bytes: &[u8]) -> Result<DpxInfo, ImageError> {
         (Some(l), Some(h)) if h > l && h < (1u32 << bits.min(16)) => Some((l, h)),
         _ => None,
     };
+    // A rate field (f32) of the film (byte 1724) or television (byte 1940) header, when the
+    // header reaches it and it holds a rate (undefined is all ones: a NaN).
+    let rate_at = |at: usize| {
+        let v = f32::from_bits(f.u32(at).ok().filter(|_| data_offset >= at + 4)?);
+        (v.is_finite() && v > 0.0 && v <= 1000.0).then_some(v as f64)
+    };
+    let frame_rate = rate_at(1724).or_else(|| rate_at(1940));
     Ok(DpxInfo {
         width,
         height,
@@ -243,6 +253,7 @@ pub fn read_header(bytes: &[u8]) -> Result<DpxInfo, ImageError> {
         reference,
         data_offset,
         line_padding,
+        frame_rate,
     })
 }
 
@@ -564,6 +575,7 @@ pub(crate) fn encode_values(
         reference: None,
         data_offset: HEADER,
         line_padding: 0,
+        frame_rate: None,
     };
     let line = info
         .line_bytes()
@@ -747,6 +759,44 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The frame rate is the film header's, else the television header's; undefined (all
+    /// ones), zero or absurd fields give none, and a header too short to hold them too.
+    #[test]
+    fn the_frame_rate_comes_from_the_film_or_television_header() {
+        let img = ramp(3, 4, 2);
+        let bytes = encode(&img, &DpxOptions::default()).unwrap();
+        assert_eq!(read_header(&bytes).unwrap().frame_rate, None);
+        let put =
+            |b: &mut Vec<u8>, at: usize, v: f32| b[at..at + 4].copy_from_slice(&v.to_be_bytes());
+        let mut tv = bytes.clone();
+        put(&mut tv, 1940, 29.97);
+        let r = read_header(&tv).unwrap().frame_rate.unwrap();
+        assert!((r - 29.97).abs() < 1e-5, "{r}");
+        let mut film = tv.clone();
+        put(&mut film, 1724, 24.0);
+        assert_eq!(read_header(&film).unwrap().frame_rate, Some(24.0));
+        for bad in [0.0, -24.0, f32::INFINITY, 1e6] {
+            let mut b = bytes.clone();
+            put(&mut b, 1724, bad);
+            assert_eq!(read_header(&b).unwrap().frame_rate, None, "{bad}");
+        }
+        // Little-endian files hold it in their own byte order.
+        let mut le = bytes.clone();
+        le[..4].copy_from_slice(b"XPDS");
+        for at in [4usize, 772, 776, 780, 784, 792, 808, 812] {
+            le[at..at + 4].reverse();
+        }
+        for at in [770usize, 804, 806] {
+            le[at..at + 2].reverse();
+        }
+        le[1724..1728].copy_from_slice(&25.0f32.to_le_bytes());
+        let info = read_header(&le).unwrap();
+        assert_eq!(
+            (info.width, info.height, info.frame_rate),
+            (4, 2, Some(25.0))
+        );
     }
 
     #[test]
