@@ -389,10 +389,11 @@ fn calibrate_hdr_camera_graph_recovers_a_known_camera() {
         return;
     };
     let data = vfxgraph_testdata::require("book-demo/calib_projs.txt");
-    let projs = vfxgraph_vision::formats::read_points2d(&data).unwrap().0;
-    let k = vfxgraph_vision::Intrinsics::new(3100.0, 3100.0, 2000.0, 1500.0);
-    let r = vfxgraph_vision::rotation::axis_angle_to_r(&nalgebra::Vector3::new(0.1, -0.4, 0.05));
-    let truth = vfxgraph_vision::Camera::new(k.clone(), r, nalgebra::Vector3::new(0.2, -0.1, 3.0));
+    let projs = vfxgraph_geometry::formats::read_points2d(&data).unwrap().0;
+    let k = vfxgraph_geometry::Intrinsics::new(3100.0, 3100.0, 2000.0, 1500.0);
+    let r = vfxgraph_geometry::rotation::axis_angle_to_r(&nalgebra::Vector3::new(0.1, -0.4, 0.05));
+    let truth =
+        vfxgraph_geometry::Camera::new(k.clone(), r, nalgebra::Vector3::new(0.2, -0.1, 3.0));
     let inv = truth.pose.inverse();
     let depths = [4.0, 6.5, 5.0, 8.0, 3.5, 7.0];
     let mut text = String::new();

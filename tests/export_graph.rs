@@ -9,8 +9,8 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use serde_json::json;
-use vfxgraph_vision::camera::Camera;
-use vfxgraph_vision::export::colmap;
+use vfxgraph_exchange::colmap;
+use vfxgraph_geometry::camera::Camera;
 
 fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -132,7 +132,7 @@ fn book_export_graph_writes_every_format_and_the_clients_agree() {
     // The COLMAP model and the JSON export hold the same solve: K, every pose within 1e-9
     // (R through COLMAP's quaternion), the tracks' 2-D points, and the book's K from g7cam.txt.
     let ours = colmap::read(&o.join("colmap/cameras.txt")).unwrap();
-    let k = vfxgraph_vision::formats::read_intrinsics(&vfxgraph_testdata::require(
+    let k = vfxgraph_geometry::formats::read_intrinsics(&vfxgraph_testdata::require(
         "book-demo/g7cam.txt",
     ))
     .unwrap()
