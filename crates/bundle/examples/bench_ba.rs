@@ -2,10 +2,10 @@
 //! `vfxgraph bench ba` will print), or write a synthetic video-like BAL problem.
 //!
 //! ```text
-//! cargo run --release -p vfxgraph-vision --example bench_ba -- FILE \
+//! cargo run --release -p vfxgraph-bundle --example bench_ba -- FILE \
 //!     [--solver auto|dense|sparse|iterative] [--loss none|huber:A|cauchy:A] \
 //!     [--max-iterations N] [--threads N] [--json]
-//! cargo run --release -p vfxgraph-vision --example bench_ba -- \
+//! cargo run --release -p vfxgraph-bundle --example bench_ba -- \
 //!     --generate-video CAMERAS POINTS OUT.txt [--seed S] [--perturb SCALE]
 //! ```
 

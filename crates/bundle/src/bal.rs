@@ -15,8 +15,9 @@ use std::path::Path;
 
 use nalgebra::{Vector2, Vector3};
 
+use super::camera_model::{CameraModel, Intrinsics};
 use super::error::BundleError;
-use super::problem::{CameraModel, CameraPose, Gauge, Intrinsics, Observation, Point, Problem};
+use super::problem::{CameraPose, Gauge, Observation, Point, Problem};
 
 struct Tokens<'a> {
     iter: std::str::SplitAsciiWhitespace<'a>,

@@ -14,9 +14,10 @@
 use nalgebra::{DMatrix, Matrix3, SMatrix, Vector3};
 use rayon::prelude::*;
 
+use super::camera_model::INTRINSICS;
 use super::error::BundleError;
 use super::problem::Problem;
-use super::residual::{project_with_jacobians, CAMERA_COLUMNS as CC, INTRINSICS};
+use super::residual::{project_with_jacobians, CAMERA_COLUMNS as CC};
 use super::rotation::rotation_and_left_jacobian;
 
 /// The covariance of an intrinsics block's parameters (in the order of
@@ -435,7 +436,8 @@ fn pseudo_inverse(v: &Matrix3<f64>) -> (Matrix3<f64>, usize) {
 
 #[cfg(test)]
 mod tests {
-    use super::super::problem::{CameraPose, Gauge, Intrinsics, Observation, Point};
+    use super::super::camera_model::Intrinsics;
+    use super::super::problem::{CameraPose, Gauge, Observation, Point};
     use super::*;
     use nalgebra::{Vector2, Vector3};
     use rand::{Rng, SeedableRng};

@@ -8,7 +8,7 @@ use super::loss::Loss;
 use super::problem::Problem;
 use super::residual::{project_rt, project_with_jacobians_rj, CAMERA_COLUMNS as CC};
 use super::rotation::{angle_axis_to_matrix, rotation_and_left_jacobian};
-use super::schur::Structure;
+use super::structure::Structure;
 
 /// Observations per parallel chunk (fixed, so the reduction order never depends on threads).
 pub(crate) const CHUNK: usize = 4096;

@@ -11,10 +11,12 @@
 //!
 //! One concept per file:
 //! - [`rotation`]: axis–angle rotation with its analytic Jacobian (book 4.5.2);
-//! - [`residual`]: camera models and the reprojection residual with analytic Jacobians;
+//! - [`camera_model`]: the intrinsics block and its camera models; [`residual`]: the
+//!   reprojection residual with analytic Jacobians;
 //! - [`loss`]: robust losses and Triggs' correction;
-//! - [`problem`]: parameter blocks, observations, fixed flags and the gauge;
-//! - [`schur`]: the reduced camera system (Schur complement on the points);
+//! - [`problem`]: parameter blocks, observations, fixed flags, priors and the gauge;
+//! - [`structure`]: the problem's fixed block structure; [`schur`]: the reduced camera system
+//!   (Schur complement on the points);
 //! - [`linear_solver`]: dense / sparse Cholesky and block-Jacobi PCG on the reduced system;
 //! - [`lm`]: the Levenberg–Marquardt trust-region loop;
 //! - [`report`]: what a solve returns; [`covariance`]: the solved intrinsics' uncertainty;
@@ -42,6 +44,7 @@
 
 pub mod bal;
 pub mod bench;
+pub mod camera_model;
 pub mod covariance;
 pub mod error;
 mod evaluate;
@@ -54,21 +57,19 @@ pub mod residual;
 pub mod rotation;
 pub mod schur;
 pub mod sequence;
+pub mod structure;
 pub mod synthetic;
 
 pub use bal::{read_bal, read_bal_str, write_bal};
 pub use bench::{solve_bal_file, BalBenchOptions, BalBenchReport};
+pub use camera_model::{CameraModel, Intrinsics, INTRINSICS};
 pub use covariance::{intrinsics_covariance, IntrinsicsCovariance};
 pub use error::BundleError;
 pub use linear_solver::LinearSolverKind;
 pub use lm::{solve, SolverOptions};
 pub use loss::{Loss, RobustLoss};
-pub use problem::{
-    zoom_priors, CameraModel, CameraPose, Gauge, Intrinsics, Observation, Point, Prior, PriorTerm,
-    Problem,
-};
+pub use problem::{zoom_priors, CameraPose, Gauge, Observation, Point, Prior, PriorTerm, Problem};
 pub use report::{SolverReport, TerminationReason};
-pub use residual::INTRINSICS;
 pub use sequence::{adjust_sequence, AdjustedSequence, SequenceAdjustOptions, SolverChoice};
 
 #[cfg(test)]

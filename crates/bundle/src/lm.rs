@@ -12,14 +12,15 @@ use std::time::Instant;
 use nalgebra::Vector3;
 use rayon::prelude::*;
 
+use super::camera_model::Intrinsics;
 use super::error::BundleError;
 use super::evaluate::{self, linearize, Linearization, CHUNK};
 use super::linear_solver::pcg::PcgOptions;
 use super::linear_solver::{LinearSolver, LinearSolverKind};
 use super::loss::Loss;
-use super::problem::{CameraPose, Intrinsics, Point, Problem};
+use super::problem::{CameraPose, Point, Problem};
 use super::report::{reprojection_errors, IterationSummary, SolverReport, TerminationReason};
-use super::schur::{Structure, NONE};
+use super::structure::{Structure, NONE};
 
 /// Options of [`solve`]; the defaults are Ceres' defaults.
 #[derive(Debug, Clone, Copy, PartialEq)]

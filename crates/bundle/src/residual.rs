@@ -7,12 +7,8 @@
 
 use nalgebra::{Matrix2x3, Matrix3, SMatrix, Vector2, Vector3};
 
-use super::problem::{CameraModel, Intrinsics};
+use super::camera_model::{CameraModel, Intrinsics, INTRINSICS};
 use super::rotation::{angle_axis_to_matrix, rotation_and_left_jacobian, skew};
-
-/// Most parameters of an intrinsics block (the radial–tangential lens's
-/// `[f, k1, k2, p1, p2, cx, cy]`, [`CameraModel::Radial`]).
-pub const INTRINSICS: usize = 7;
 
 /// Local camera columns of an observation's Jacobian: ω, t and the intrinsics block's.
 pub const CAMERA_COLUMNS: usize = 6 + INTRINSICS;

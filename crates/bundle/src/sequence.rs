@@ -7,11 +7,12 @@ use std::collections::HashMap;
 use nalgebra::{Vector2, Vector3};
 use vfxgraph_params::{Choice, Options};
 
+use super::camera_model::{CameraModel, Intrinsics};
 use super::error::BundleError;
 use super::linear_solver::LinearSolverKind;
 use super::lm::{solve, SolverOptions};
 use super::loss::RobustLoss;
-use super::problem::{CameraModel, CameraPose, Gauge, Intrinsics, Observation, Point, Problem};
+use super::problem::{CameraPose, Gauge, Observation, Point, Problem};
 use super::report::SolverReport;
 use vfxgraph_geometry::camera::Pose;
 use vfxgraph_geometry::formats::cameras::{CameraPath, FramePose};

@@ -7,7 +7,8 @@ use nalgebra::{Matrix3, Vector2, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 
-use super::problem::{CameraPose, Gauge, Intrinsics, Observation, Point, Problem};
+use super::camera_model::Intrinsics;
+use super::problem::{CameraPose, Gauge, Observation, Point, Problem};
 use super::rotation::{angle_axis_to_matrix, matrix_to_angle_axis};
 
 type PoseMap = Box<dyn Fn(&Matrix3<f64>, &Vector3<f64>) -> (Matrix3<f64>, Vector3<f64>)>;

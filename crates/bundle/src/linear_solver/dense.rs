@@ -5,7 +5,8 @@ use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt;
 use faer::{Conj, Mat, Par};
 
-use crate::schur::{ReducedSystem, Structure};
+use crate::schur::ReducedSystem;
+use crate::structure::Structure;
 
 /// Dense solver state: the matrix buffer, reused between iterations.
 pub(crate) struct DenseSolver {

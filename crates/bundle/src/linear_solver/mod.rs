@@ -6,7 +6,8 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::schur::{ReducedSystem, Structure};
+use super::schur::ReducedSystem;
+use super::structure::Structure;
 
 pub mod dense;
 pub mod pcg;

@@ -5,7 +5,8 @@
 use nalgebra::DMatrix;
 
 use super::sym_matvec;
-use crate::schur::{ReducedSystem, Structure};
+use crate::schur::ReducedSystem;
+use crate::structure::Structure;
 
 /// Stopping rule of the conjugate gradients.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -11,7 +11,8 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, Mat, Par, Side};
 
 use crate::error::BundleError;
-use crate::schur::{ReducedSystem, Structure};
+use crate::schur::ReducedSystem;
+use crate::structure::Structure;
 
 /// Sparse solver state: the upper-triangular CSC pattern of S, where each of its values comes
 /// from in the block storage, and the symbolic factorisation.
