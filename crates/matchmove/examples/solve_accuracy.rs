@@ -3,7 +3,7 @@
 //! similarity that aligns the two, and the solved lens against the true one.
 //!
 //! ```text
-//! cargo run --release -p vfxgraph-vision --example solve_accuracy -- SOLVED.json TRUTH.json \
+//! cargo run --release -p vfxgraph-matchmove --example solve_accuracy -- SOLVED.json TRUTH.json \
 //!     [POINTS.json "x y z; x y z; …"]
 //! ```
 //! With a `point_cloud_calibrate` report and the true points (in its order), also the points'

@@ -2,7 +2,7 @@
 //! plate solved with the defaults (K given), scored against its true cameras, and the figures
 //! printed per set and per motion: success rate, rotation error distribution, centre error.
 //!
-//! `cargo run --release -p vfxgraph-vision --example solve_corpus -- [count] [seed] [init] [json]`
+//! `cargo run --release -p vfxgraph-matchmove --example solve_corpus -- [count] [seed] [init] [json]`
 //! (defaults: 126 plates, seed 1, the default start; `init` is `calibrated` or `book`; `json`
 //! writes every plate's result to that file). With `VFXGRAPH_CORPUS_EXPORT=DIR` every plate's
 //! tracks, K and true cameras are written to `DIR/<name>.json` as well, for
@@ -164,12 +164,9 @@ fn solve(spec: &PlateSpec, options: &MatchmoveOptions) -> Outcome {
     if std::env::var("VFXGRAPH_ORACLE").is_ok() && !solve.report.rotation_only {
         if let Some(g) = &options.global {
             let truth: Vec<Option<_>> = plate.truth.iter().cloned().map(Some).collect();
-            if let Ok((p, _)) = vfxgraph_matchmove::global::global_bundle_adjust(
-                &plate.tracks,
-                &plate.k,
-                &truth,
-                g,
-            ) {
+            if let Ok((p, _)) =
+                vfxgraph_matchmove::global::global_bundle_adjust(&plate.tracks, &plate.k, &truth, g)
+            {
                 out.oracle_rotation_max_deg = score(&plate, &p, false).rotation_max_deg;
             }
         }

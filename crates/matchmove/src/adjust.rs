@@ -4,8 +4,7 @@
 //! solve refines) or one per frame (a zoom, with its priors) — solved, and written back.
 
 use nalgebra::Vector3;
-
-use super::report;
+use serde::{Deserialize, Serialize};
 use vfxgraph_geometry::camera::{Intrinsics, Pose};
 use vfxgraph_geometry::error::{Result, VisionError};
 use vfxgraph_klt::Tracks;
@@ -79,18 +78,32 @@ pub(crate) fn bundle_adjust_lens(
 /// ([`vfxgraph_bundle::CameraModel::Radial`]).
 pub(crate) type Held = [bool; vfxgraph_bundle::INTRINSICS];
 
+/// One intrinsic parameter of a solve.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SolvedIntrinsic {
+    /// `focal_px`, `k1`, `k2`.
+    pub name: String,
+    /// Its solved value.
+    pub value: f64,
+    /// Held at its given value.
+    pub held: bool,
+    /// Its standard deviation (the covariance at the solution scaled by the residual
+    /// variance), when free and computed.
+    pub sd: Option<f64>,
+}
+
 /// The solved intrinsics of a lens block for a report: the focal length and every free lens
 /// parameter, with their standard deviations where known (`cov`).
 pub(crate) fn solved_intrinsics(
     k: &Intrinsics,
     held: Held,
     cov: Option<&BlockCovariance>,
-) -> Vec<report::SolvedIntrinsic> {
+) -> Vec<SolvedIntrinsic> {
     let values = lens_block(k, held).params;
     let names = ["focal_px", "k1", "k2", "p1", "p2", "cx_px", "cy_px"];
     (0..names.len())
         .filter(|&i| i == 0 || !held[i])
-        .map(|i| report::SolvedIntrinsic {
+        .map(|i| SolvedIntrinsic {
             name: names[i].into(),
             value: values[i],
             held: held[i],

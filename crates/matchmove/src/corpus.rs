@@ -3,7 +3,7 @@
 //! far-field ground, a cluttered table, a volume of points), the motions of real footage
 //! (orbit, dolly in and out, truck, crane, hand-held, a slow push, a nodal pan, a locked-off
 //! camera), lengths from 8 to 200 frames, focal lengths from wide to long, and track noise
-//! and outliers — tracked by the KLT-like simulation of [`super::synthetic`].
+//! and outliers — tracked by the KLT-like simulation of [`crate::synthetic`].
 //!
 //! Every plate is drawn from its own seed ([`PlateSpec::seed`]), so a corpus is the same on any
 //! machine, and [`corpus`] varies the seeds over the categories so that no constant is tuned to
@@ -13,12 +13,12 @@ use nalgebra::Vector3;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use serde::{Deserialize, Serialize};
-
-use super::synthetic::{simulate_tracks, TrackSim};
 use vfxgraph_geometry::camera::{Intrinsics, Pose};
 use vfxgraph_geometry::camera_path::look_at;
-use vfxgraph_klt::Tracks;
 use vfxgraph_geometry::rotation::axis_angle_to_r;
+use vfxgraph_klt::Tracks;
+
+use crate::synthetic::{simulate_tracks, TrackSim};
 
 /// The set: what the features lie on.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -394,7 +394,7 @@ pub fn generate(spec: &PlateSpec) -> Plate {
         if z < 0.05 * distance {
             return None;
         }
-        super::project(&k, pose, x)
+        crate::structure::project(&k, pose, x)
     };
     let sim = TrackSim {
         frames: spec.frames,
@@ -560,7 +560,7 @@ mod tests {
             );
             assert_eq!(
                 solve.report.rotation_sd_basis,
-                super::super::report::RotationSdBasis::Shot
+                crate::report::RotationSdBasis::Shot
             );
             assert_eq!(warned, poor, "{}: {:?}", spec.name(), solve.report.warnings);
             let ratio = sc.rotation_max_deg / sd;

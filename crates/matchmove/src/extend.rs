@@ -6,13 +6,13 @@
 use nalgebra::{Point2, Point3, Vector3};
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
-
-use super::{reprojection_error, triangulate_views};
 use vfxgraph_geometry::calibration::resect_p3p;
 use vfxgraph_geometry::camera::{Intrinsics, Pose};
 use vfxgraph_geometry::error::{Result, VisionError};
-use vfxgraph_klt::Tracks;
 use vfxgraph_geometry::ransac::RansacParams;
+use vfxgraph_klt::Tracks;
+
+use crate::structure::{reprojection_error, triangulate_views};
 
 /// Resection threshold, pixels.
 const RESECTION_TOLERANCE: f64 = 4.0;
@@ -96,7 +96,7 @@ pub fn extend_to_all_frames(
     mut poses: Vec<Option<Pose>>,
     mut points: Vec<Option<Vector3<f64>>>,
     seed: u64,
-) -> Result<super::Structure> {
+) -> Result<crate::structure::Structure> {
     let mut rng = Pcg64::seed_from_u64(seed);
     let n = poses.len();
     if poses.iter().all(|p| p.is_some()) {

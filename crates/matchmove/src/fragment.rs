@@ -12,18 +12,18 @@ use nalgebra::{Point2, Point3, Vector3};
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
 use serde::{Deserialize, Serialize};
-
-use super::fragments::Fragment;
-use super::pair::{best_pair, InitMethod, PairOptions, PairRejections, AMBIGUITY_RATIO};
-use super::{bundle_adjust_indexed, reprojection_error, through, triangulate_views};
 use vfxgraph_geometry::calibration::{resect_known_k, resect_p3p};
-use vfxgraph_geometry::two_view::StartModel;
-use vfxgraph_params::Options;
-
 use vfxgraph_geometry::camera::{Intrinsics, Pose};
 use vfxgraph_geometry::error::{Result, VisionError};
-use vfxgraph_klt::Tracks;
 use vfxgraph_geometry::ransac::RansacParams;
+use vfxgraph_geometry::two_view::StartModel;
+use vfxgraph_klt::Tracks;
+use vfxgraph_params::Options;
+
+use crate::adjust::bundle_adjust_indexed;
+use crate::fragments::Fragment;
+use crate::pair::{best_pair, InitMethod, PairOptions, PairRejections, AMBIGUITY_RATIO};
+use crate::structure::{reprojection_error, through, triangulate_views};
 
 /// The refinement cycles' constants.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Options)]
@@ -303,13 +303,13 @@ pub fn solve_fragment(
     seed: u64,
 ) -> Result<FragmentSolution> {
     let best = best_pair(tracks, k, frag, pair, seed)?;
-    let mut rng = Pcg64::seed_from_u64(super::derive_seed(seed, 3, 0));
+    let mut rng = Pcg64::seed_from_u64(crate::structure::derive_seed(seed, 3, 0));
     let mut main = refine_seed(tracks, k, frag, pair, refine, &best.points, &mut rng)?;
     // A second motion of the pair that kept nearly as many features is refined too: the
     // better fit wins, and one that fits about as well makes the fragment ambiguous.
     let mut ambiguity = None;
     if let Some(alt_points) = &best.alternative {
-        let mut rng = Pcg64::seed_from_u64(super::derive_seed(seed, 3, 1));
+        let mut rng = Pcg64::seed_from_u64(crate::structure::derive_seed(seed, 3, 1));
         if let Ok(alt) = refine_seed(tracks, k, frag, pair, refine, alt_points, &mut rng) {
             let degrees = rotation_difference(&main, &alt, frag);
             let alt_better =

@@ -12,12 +12,11 @@
 //! throws away — is kept and solved too.
 
 use serde::{Deserialize, Serialize};
-
-use vfxgraph_params::Options;
-
-use super::through;
 use vfxgraph_geometry::error::{Result, VisionError};
 use vfxgraph_klt::Tracks;
+use vfxgraph_params::Options;
+
+use crate::structure::through;
 
 /// The cutting rule's constants.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Options)]

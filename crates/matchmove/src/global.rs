@@ -18,14 +18,15 @@
 use nalgebra::Vector3;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-use vfxgraph_params::Options;
-
-use super::track_weights::track_weights;
-use super::{bundle_adjust_indexed, reprojection_error, triangulate_views};
 use vfxgraph_bundle::Loss;
 use vfxgraph_geometry::camera::{Intrinsics, Pose};
 use vfxgraph_geometry::error::{Result, VisionError};
 use vfxgraph_klt::Tracks;
+use vfxgraph_params::Options;
+
+use crate::adjust::bundle_adjust_indexed;
+use crate::structure::{reprojection_error, triangulate_views};
+use crate::track_weights::track_weights;
 
 pub use vfxgraph_bundle::loss::RobustLoss;
 
@@ -185,7 +186,7 @@ pub fn global_bundle_adjust(
     k: &Intrinsics,
     poses: &[Option<Pose>],
     options: &GlobalOptions,
-) -> Result<super::Structure> {
+) -> Result<crate::structure::Structure> {
     if options.thresholds.iter().any(|t| !(*t > 0.0)) || !(options.triangulation_tolerance > 0.0) {
         return Err(VisionError::InvalidInput(
             "global bundle adjustment thresholds must be positive".into(),
@@ -206,14 +207,14 @@ pub fn global_lens_adjust(
     k: &Intrinsics,
     poses: &[Option<Pose>],
     options: &GlobalOptions,
-    held: super::Held,
+    held: crate::adjust::Held,
 ) -> Result<(
-    super::Poses,
-    super::TrackPoints,
+    crate::structure::Poses,
+    crate::structure::TrackPoints,
     Intrinsics,
-    Option<super::BlockCovariance>,
+    Option<crate::adjust::BlockCovariance>,
 )> {
-    let und = super::lens_solve::undistort_tracks(tracks, k)?;
+    let und = crate::lens::undistort_tracks(tracks, k)?;
     global_adjust(tracks, &und, k, poses, options, Some(held))
 }
 
@@ -225,12 +226,12 @@ fn global_adjust(
     k: &Intrinsics,
     poses: &[Option<Pose>],
     options: &GlobalOptions,
-    lens: Option<super::Held>,
+    lens: Option<crate::adjust::Held>,
 ) -> Result<(
-    super::Poses,
-    super::TrackPoints,
+    crate::structure::Poses,
+    crate::structure::TrackPoints,
     Intrinsics,
-    Option<super::BlockCovariance>,
+    Option<crate::adjust::BlockCovariance>,
 )> {
     if options.thresholds.iter().any(|t| !(*t > 0.0)) || !(options.triangulation_tolerance > 0.0) {
         return Err(VisionError::InvalidInput(
@@ -296,7 +297,7 @@ fn global_adjust(
                 )?;
             }
             Some(held) => {
-                let (k_new, c) = super::bundle_adjust_lens(
+                let (k_new, c) = crate::adjust::bundle_adjust_lens(
                     tracks,
                     &k,
                     held,
@@ -309,7 +310,7 @@ fn global_adjust(
                 )?;
                 k = k_new;
                 cov = c;
-                und = std::borrow::Cow::Owned(super::lens_solve::undistort_tracks(tracks, &k)?);
+                und = std::borrow::Cow::Owned(crate::lens::undistort_tracks(tracks, &k)?);
             }
         }
     }

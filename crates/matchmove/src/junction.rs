@@ -16,15 +16,14 @@
 
 use nalgebra::{Matrix3, Vector3};
 use serde::{Deserialize, Serialize};
-
-use super::fragment::FragmentSolution;
-use super::reprojection_error;
-use vfxgraph_params::Options;
-
 use vfxgraph_geometry::camera::{Intrinsics, Pose};
 use vfxgraph_geometry::error::{Result, VisionError};
-use vfxgraph_klt::Tracks;
 use vfxgraph_geometry::optimize::brent_minimize;
+use vfxgraph_klt::Tracks;
+use vfxgraph_params::Options;
+
+use crate::fragment::FragmentSolution;
+use crate::structure::reprojection_error;
 
 /// The scale search's constants.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Options)]
@@ -289,10 +288,10 @@ mod tests {
         );
         let x = Vector3::new(0.4, -0.3, 5.0);
         for s in [0.5, 1.0, 3.7] {
-            let a = super::super::project(&k, &p, &x).unwrap();
+            let a = crate::structure::project(&k, &p, &x).unwrap();
             let mp = moved_pose(&ra, &ta, &rb0, &tb0, &p, s);
             let mx = moved_point(&ra, &ta, &rb0, &tb0, &x, s);
-            let b = super::super::project(&k, &mp, &mx).unwrap();
+            let b = crate::structure::project(&k, &mp, &mx).unwrap();
             assert!(
                 (a[0] - b[0]).abs() < 1e-9 && (a[1] - b[1]).abs() < 1e-9,
                 "{a:?} {b:?}"

@@ -22,20 +22,19 @@ use rand::SeedableRng;
 use rand_pcg::Pcg64;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-
-use super::fragments::{mean_displacement, Fragment};
-use super::{derive_seed, through};
-use vfxgraph_params::Options;
-
 use vfxgraph_geometry::calibration::{factor_camera, refine_known_k, resect_ransac, P3pEstimator};
 use vfxgraph_geometry::camera::Intrinsics;
 use vfxgraph_geometry::error::{Result, VisionError};
-use vfxgraph_klt::Tracks;
 use vfxgraph_geometry::ransac::{ransac, RansacParams};
 use vfxgraph_geometry::two_view::{
     reconstruct_two_view, relative_pose_calibrated, CalibratedOptions, EpipolarResidual,
     StartModel, TwoViewOptions,
 };
+use vfxgraph_klt::Tracks;
+use vfxgraph_params::Options;
+
+use crate::fragments::{mean_displacement, Fragment};
+use crate::structure::{derive_seed, through};
 
 /// How a fragment's reconstruction starts.
 #[derive(
@@ -511,7 +510,7 @@ pub fn best_pair(
     // The winning pair's other motions, resected through every frame without the bound: one
     // that keeps nearly as many features may explain the fragment as well (a plane seen along
     // a straight path keeps the homography's twofold ambiguity in every frame); the fragment's
-    // refinement decides ([`super::fragment`]).
+    // refinement decides ([`crate::fragment`]).
     let alternative = best.as_ref().and_then(|(bn, points, _)| {
         siblings
             .iter()

@@ -1,15 +1,20 @@
 //! No single point of failure (not in the book, whose solve stops at the first fragment it
 //! cannot start): a fragment whose start fails is retried with every frame pair, then split in
 //! two halves that share their middle frame; the longest run of solved pieces is what
-//! [`super::matchmove`] joins, and the extension stage registers the other frames to its
+//! the pipeline (`matchmove`) joins, and the extension stage registers the other frames to its
 //! structure. Only a shot no part of which starts is an error ([`no_start_error`]), naming
 //! every piece, why it failed, and what to try.
 
-use super::fragments::{self, Fragment};
-use super::{derive_seed, solve_fragment, FragmentSolution, MatchmoveOptions, PairOptions};
 use vfxgraph_geometry::camera::Intrinsics;
 use vfxgraph_geometry::error::VisionError;
 use vfxgraph_klt::Tracks;
+
+use crate::fragment::{solve_fragment, FragmentSolution};
+use crate::fragments;
+use crate::fragments::Fragment;
+use crate::options::MatchmoveOptions;
+use crate::pair::PairOptions;
+use crate::structure::derive_seed;
 
 /// A piece of the shot: solved, or the fragment and why it could not be started.
 pub(crate) type Piece = std::result::Result<FragmentSolution, (Fragment, VisionError)>;

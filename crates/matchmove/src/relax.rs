@@ -16,14 +16,13 @@
 use nalgebra::{Matrix3, Matrix6, Vector3, Vector6};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-
-use vfxgraph_params::Options;
-
-use super::{reprojection_error, triangulate_views};
 use vfxgraph_geometry::camera::{Intrinsics, Pose};
 use vfxgraph_geometry::error::{Result, VisionError};
-use vfxgraph_klt::Tracks;
 use vfxgraph_geometry::rotation::axis_angle_to_r;
+use vfxgraph_klt::Tracks;
+use vfxgraph_params::Options;
+
+use crate::structure::{reprojection_error, triangulate_views};
 
 /// The relaxation's constants (book values as defaults).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Options)]
@@ -133,7 +132,10 @@ fn refine_point(
     views: &[(&Pose, [f64; 2])],
     iters: usize,
 ) -> Vector3<f64> {
-    let ps: Vec<_> = views.iter().map(|(p, _)| super::p_matrix(k, p)).collect();
+    let ps: Vec<_> = views
+        .iter()
+        .map(|(p, _)| crate::structure::p_matrix(k, p))
+        .collect();
     let xs: Vec<_> = views
         .iter()
         .map(|(_, o)| nalgebra::Point2::new(o[0], o[1]))
@@ -155,7 +157,7 @@ fn camera_normal_equations(
 ) -> (f64, Matrix6<f64>, Vector6<f64>) {
     let (mut cost, mut h, mut g) = (0.0, Matrix6::zeros(), Vector6::zeros());
     for (x, o) in obs {
-        let Some((p, j)) = super::pose_jacobian(k, pose, x) else {
+        let Some((p, j)) = crate::structure::pose_jacobian(k, pose, x) else {
             continue;
         };
         let r = [p[0] - o[0], p[1] - o[1]];
@@ -215,7 +217,7 @@ pub fn relax(
     poses: &[Option<Pose>],
     options: &RelaxOptions,
     progress: &(dyn Fn(usize, usize) + Sync),
-) -> Result<super::Structure> {
+) -> Result<crate::structure::Structure> {
     if !(options.initial_tolerance > 0.0) || options.tolerance_step < 0.0 {
         return Err(VisionError::InvalidInput(
             "relaxation tolerances must be positive".into(),
@@ -334,7 +336,7 @@ mod tests {
             .collect();
         let obs: Vec<(Vector3<f64>, [f64; 2])> = pts
             .iter()
-            .map(|x| (*x, super::super::project(&k, &truth, x).unwrap()))
+            .map(|x| (*x, crate::structure::project(&k, &truth, x).unwrap()))
             .collect();
         let start = Pose::new(
             axis_angle_to_r(&Vector3::new(0.01, 0.02, -0.01)) * truth.r,

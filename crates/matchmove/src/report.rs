@@ -5,12 +5,13 @@ use std::time::Instant;
 
 use nalgebra::{Matrix6, Vector3};
 use serde::{Deserialize, Serialize};
-
-use super::fragment::FragmentReport;
-use super::reprojection_error;
-use super::score::BookScore;
 use vfxgraph_geometry::camera::{Intrinsics, Pose};
 use vfxgraph_klt::Tracks;
+
+pub use crate::adjust::SolvedIntrinsic;
+use crate::fragment::FragmentReport;
+use crate::score::BookScore;
+use crate::structure::reprojection_error;
 
 /// Wall time of one stage.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -82,7 +83,7 @@ pub struct SolveReport {
     pub stages: Vec<StageTime>,
     /// Per fragment (empty for stages that do not cut fragments).
     pub fragments: Vec<FragmentReport>,
-    /// The book-style score over all tracks (see [`super::score`]), when computed.
+    /// The book-style score over all tracks (see [`crate::score`]), when computed.
     pub score: Option<BookScore>,
     /// Fallbacks taken and other remarks, for a person to read.
     pub notes: Vec<String>,
@@ -91,7 +92,7 @@ pub struct SolveReport {
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub warnings: Vec<String>,
     /// The camera was solved as a nodal pan: rotations only, every centre at the origin
-    /// ([`super::tripod`]).
+    /// ([`crate::tripod`]).
     #[serde(default)]
     pub rotation_only: bool,
     /// The intrinsics the solve refined (focal length, distortion), with their standard
@@ -121,24 +122,10 @@ pub enum RotationSdBasis {
     Frame,
 }
 
-/// One intrinsic parameter of a solve.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct SolvedIntrinsic {
-    /// `focal_px`, `k1`, `k2`.
-    pub name: String,
-    /// Its solved value.
-    pub value: f64,
-    /// Held at its given value.
-    pub held: bool,
-    /// Its standard deviation (the covariance at the solution scaled by the residual
-    /// variance), when free and computed.
-    pub sd: Option<f64>,
-}
-
 /// The standard deviation (degrees) of the least-determined rotation axis of a camera whose
-/// observations have the normal matrix `a` (JᵀJ in the pose, `super::pose_jacobian`) and pixel noise
-/// `sigma` per coordinate: √λmax of the rotation block of σ²(JᵀJ)⁻¹ (Hartley & Zisserman,
-/// §5.2.5). `None` when the pose is not determined (a singular normal matrix).
+/// observations have the normal matrix `a` (JᵀJ in the pose,
+/// `crate::structure::pose_jacobian`) and pixel noise `sigma` per coordinate: √λmax of the
+/// rotation block of σ²(JᵀJ)⁻¹ (Hartley & Zisserman, §5.2.5). `None` when the pose is not determined (a singular normal matrix).
 pub fn pose_sd(a: &Matrix6<f64>, sigma: f64) -> Option<f64> {
     let cov = a.try_inverse()? * (sigma * sigma);
     rotation_sd(&cov)
@@ -172,7 +159,7 @@ pub fn shot_rotation_sd(
     free_focal: bool,
 ) -> Option<Vec<Option<f64>>> {
     let rotation_only = poses.iter().flatten().all(|p| p.t == Vector3::zeros());
-    let mut block = super::adjust::pinhole_block(k);
+    let mut block = crate::adjust::pinhole_block(k);
     block.fixed = !free_focal;
     block.held[1] = true;
     block.held[2] = true;
@@ -183,9 +170,9 @@ pub fn shot_rotation_sd(
     };
     // The solve's inliers, unweighted.
     let inlier = |t: usize, f: usize| f64::from(u8::from(marks[t][f - tracks.tracks[t].first]));
-    let super::adjust::IndexedProblem {
+    let crate::adjust::IndexedProblem {
         problem, cam_frame, ..
-    } = super::adjust::indexed_problem(
+    } = crate::adjust::indexed_problem(
         tracks,
         vec![block],
         Vec::new(),
@@ -228,7 +215,7 @@ impl SolveReport {
         points: &[Option<Vector3<f64>>],
         inlier_tolerance: f64,
     ) {
-        let marks = super::inlier_marks(tracks, k, poses, points, inlier_tolerance);
+        let marks = crate::structure::inlier_marks(tracks, k, poses, points, inlier_tolerance);
         if let Some(sd) = shot_rotation_sd(tracks, k, poses, points, &marks, true) {
             for (fr, s) in self.frames.iter_mut().zip(sd) {
                 if fr.inliers >= 4 {
@@ -241,7 +228,7 @@ impl SolveReport {
 }
 
 /// Builds the per-frame and per-track figures of a solve; `marks` (by track index and
-/// observation) are the solve's inliers at `inlier_tolerance` (`super::inlier_marks`).
+/// observation) are the solve's inliers at `inlier_tolerance` (`crate::structure::inlier_marks`).
 pub fn solve_report(
     tracks: &Tracks,
     k: &Intrinsics,
@@ -279,7 +266,7 @@ pub fn solve_report(
             let e = reprojection_error(k, p, x, o);
             frames[f].observations += 1;
             if m[j] {
-                if let Some((_, j)) = super::pose_jacobian(k, p, x) {
+                if let Some((_, j)) = crate::structure::pose_jacobian(k, p, x) {
                     normal[f] += j.transpose() * j;
                 }
                 frames[f].inliers += 1;
@@ -349,14 +336,15 @@ pub fn solve_report(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::structure::pose_jacobian;
+    use nalgebra::{Point2, Point3};
+    use rand::{Rng, SeedableRng};
+    use rand_pcg::Pcg64;
     use vfxgraph_geometry::calibration::{refine_camera, IntrinsicsModel};
     use vfxgraph_geometry::camera::Camera;
     use vfxgraph_geometry::optimize::LmOptions;
     use vfxgraph_geometry::rotation::{axis_angle_to_r, r_to_axis_angle};
     use vfxgraph_geometry::synthetic::gaussian;
-    use nalgebra::{Point2, Point3};
-    use rand::{Rng, SeedableRng};
-    use rand_pcg::Pcg64;
 
     /// The predicted rotation covariance matches the scatter of poses refined from noisy
     /// observations of fixed points (Monte Carlo), for points spread over the image and for
@@ -385,7 +373,7 @@ mod tests {
                 .collect();
             let mut a = Matrix6::zeros();
             for x in &xs {
-                let (_, j) = crate::pose_jacobian(&k, &pose, x).unwrap();
+                let (_, j) = pose_jacobian(&k, &pose, x).unwrap();
                 a += j.transpose() * j;
             }
             let cov = a.try_inverse().unwrap() * (sigma * sigma);

@@ -8,11 +8,11 @@
 use nalgebra::{Point2, Point3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-
-use super::{p_matrix, poses_by_index, reprojection_error};
 use vfxgraph_geometry::camera::{Intrinsics, Pose};
 use vfxgraph_geometry::formats::cameras::CameraPath;
 use vfxgraph_klt::Tracks;
+
+use crate::structure::{p_matrix, poses_by_index, reprojection_error};
 
 /// The figures of [`score_cameras`].
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -84,7 +84,8 @@ fn track_errors(
         max_iterations: 50,
         ..Default::default()
     };
-    let x: Point3<f64> = vfxgraph_geometry::two_view::triangulate_nonlinear(&ps, &xs, &x0, &lm).unwrap_or(x0);
+    let x: Point3<f64> =
+        vfxgraph_geometry::two_view::triangulate_nonlinear(&ps, &xs, &x0, &lm).unwrap_or(x0);
     Some(
         views
             .iter()
@@ -140,8 +141,9 @@ pub fn score_poses(tracks: &Tracks, k: &Intrinsics, poses: &[Option<Pose>]) -> B
     let mut max_rot = 0.0f64;
     let mut steps = Vec::new();
     for w in posed.windows(2) {
-        max_rot =
-            max_rot.max(vfxgraph_geometry::rotation::rotation_angle_between(&w[0].r, &w[1].r).to_degrees());
+        max_rot = max_rot.max(
+            vfxgraph_geometry::rotation::rotation_angle_between(&w[0].r, &w[1].r).to_degrees(),
+        );
         steps.push((w[1].center() - w[0].center()).norm());
     }
     let max_step = steps.iter().cloned().fold(0.0, f64::max);

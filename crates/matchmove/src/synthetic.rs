@@ -9,11 +9,10 @@
 use nalgebra::Vector3;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
-
 use vfxgraph_geometry::camera::{Intrinsics, Pose};
-use vfxgraph_klt::{LostReason, Track, Tracks};
 use vfxgraph_geometry::rotation::axis_angle_to_r;
 use vfxgraph_geometry::synthetic::gaussian;
+use vfxgraph_klt::{LostReason, Track, Tracks};
 
 /// What to generate.
 #[derive(Clone, Debug)]
@@ -115,7 +114,7 @@ pub fn synthetic_shot(o: &ShotOptions) -> SyntheticShot {
             )
         })
         .collect();
-    let project = |f: usize, pi: usize| super::project(&ks[f], &truth[f], &scene[pi]);
+    let project = |f: usize, pi: usize| crate::structure::project(&ks[f], &truth[f], &scene[pi]);
     let sim = TrackSim {
         frames: o.frames,
         slots: o.slots,

@@ -1,8 +1,13 @@
 //! Tests of the whole matchmove against known truth.
 
-use super::synthetic::{synthetic_shot, ShotOptions};
+use nalgebra::Vector3;
+use vfxgraph_geometry::camera::{Intrinsics, Pose};
+use vfxgraph_geometry::formats::CameraPath;
+use vfxgraph_klt::Tracks;
+
 use super::*;
-use vfxgraph_geometry::camera::Pose;
+use crate::structure::{reprojection_error, through};
+use crate::synthetic::{synthetic_shot, ShotOptions};
 
 /// Similarity alignment of an estimated path onto the truth: the rotation from the cameras'
 /// orientations (R_g ≈ R_e·Rᵀ, averaged and projected onto SO(3)), then scale and translation by
@@ -26,7 +31,8 @@ pub(crate) fn aligned_errors(est: &[Pose], truth: &[Pose]) -> (Vec<f64>, Vec<f64
         .iter()
         .zip(truth)
         .map(|(e, g)| {
-            vfxgraph_geometry::rotation::rotation_angle_between(&(e.r * r.transpose()), &g.r).to_degrees()
+            vfxgraph_geometry::rotation::rotation_angle_between(&(e.r * r.transpose()), &g.r)
+                .to_degrees()
         })
         .collect();
     let c_err = a
@@ -87,7 +93,7 @@ fn synthetic_shot_is_recovered_within_tolerance() {
 /// report's tolerance, the report counts exactly the kept observations per frame, the clean
 /// tracks' observations (σ = 0.5 px, so beyond 3 px has probability e⁻¹⁸) are all kept, and
 /// the rejected ones are the drifting tracks'.
-fn check_inlier_marks(shot: &super::synthetic::SyntheticShot, solve: &Solve) {
+fn check_inlier_marks(shot: &crate::synthetic::SyntheticShot, solve: &Solve) {
     let (cloud, rep) = (&solve.cloud, &solve.report);
     cloud.validate().unwrap();
     assert_eq!(cloud.inlier_frames.len(), cloud.points.len());
@@ -221,7 +227,9 @@ fn book_tracks_every_frame_solved_and_better_than_the_book() {
 }
 
 /// The synthetic shot seen through `lens`: every observation moved where the lens images it.
-fn distorted_shot(lens: vfxgraph_lens::Distortion) -> (super::synthetic::SyntheticShot, Intrinsics) {
+fn distorted_shot(
+    lens: vfxgraph_lens::Distortion,
+) -> (crate::synthetic::SyntheticShot, Intrinsics) {
     let shot = synthetic_shot(&ShotOptions {
         frames: 60,
         outlier_fraction: 0.05,
@@ -305,7 +313,7 @@ fn tangential_shot(
     shift: (f64, f64),
     seed: u64,
 ) -> (
-    super::synthetic::SyntheticShot,
+    crate::synthetic::SyntheticShot,
     Intrinsics,
     Tracks,
     Intrinsics,
@@ -346,7 +354,7 @@ fn tangential_shot(
 fn solve_tangential_shot(
     noise: f64,
     shift: (f64, f64),
-    principal_point: super::PrincipalPoint,
+    principal_point: crate::lens::PrincipalPoint,
 ) -> (Intrinsics, Solve, f64, f64) {
     let (shot, k_true, tracks, start) = tangential_shot(noise, shift, 1);
     let lens_options = LensOptions {
@@ -395,7 +403,7 @@ fn solve_tangential_shot(
 #[test]
 fn tangential_distortion_is_recovered() {
     let (k_true, solve, max_rot, max_c) =
-        solve_tangential_shot(0.1, (0.0, 0.0), super::PrincipalPoint::Centre);
+        solve_tangential_shot(0.1, (0.0, 0.0), crate::lens::PrincipalPoint::Centre);
     let k = solve.path.intrinsics.clone().unwrap();
     let vfxgraph_lens::Distortion::BrownConrady { k1, p1, p2, .. } = k.distortion else {
         panic!("solved {:?}", k.distortion)
@@ -418,7 +426,7 @@ fn tangential_distortion_is_recovered() {
 #[test]
 fn a_refined_principal_point_agrees_with_its_reported_uncertainty() {
     let (k_true, solve, _, _) =
-        solve_tangential_shot(0.5, (12.0, -8.0), super::PrincipalPoint::Refine);
+        solve_tangential_shot(0.5, (12.0, -8.0), crate::lens::PrincipalPoint::Refine);
     let truth = [
         ("focal_px", k_true.f1),
         ("k1", -0.16),
@@ -473,7 +481,7 @@ fn a_given_lens_is_undistorted_before_the_pinhole_solve() {
 
 /// A nodal pan of 60 frames (34° about the vertical, 0.5 px noise, 5 % drifting tracks, the
 /// camera centre fixed): the tracks and their truth.
-fn pan_shot(pan: f64) -> super::synthetic::SyntheticShot {
+fn pan_shot(pan: f64) -> crate::synthetic::SyntheticShot {
     synthetic_shot(&ShotOptions {
         frames: 60,
         travel: 0.0,
@@ -490,7 +498,9 @@ fn max_rotation_error(solve: &Solve, truth: &[Pose]) -> f64 {
         .frames
         .iter()
         .zip(truth)
-        .map(|(f, g)| vfxgraph_geometry::rotation::rotation_angle_between(&f.pose.r, &g.r).to_degrees())
+        .map(|(f, g)| {
+            vfxgraph_geometry::rotation::rotation_angle_between(&f.pose.r, &g.r).to_degrees()
+        })
         .fold(0.0, f64::max)
 }
 
@@ -550,13 +560,13 @@ fn parallax_tells_a_pan_from_a_moving_camera() {
     eprintln!("pan: {}", p.describe());
     assert!(p.rotation_only, "{}", p.describe());
     // Without K: homographies rule the moving camera out, not the pan.
-    let h = tripod::rule_out_pan(&moving.tracks, &opts, 1).unwrap();
+    let h = parallax::rule_out_pan(&moving.tracks, &opts, 1).unwrap();
     eprintln!(
         "moving, homographies: {:?}",
         h.as_ref().map(Parallax::describe)
     );
     assert!(h.is_some());
-    assert!(tripod::rule_out_pan(&pan.tracks, &opts, 1)
+    assert!(parallax::rule_out_pan(&pan.tracks, &opts, 1)
         .unwrap()
         .is_none());
 }
@@ -577,16 +587,16 @@ fn the_least_parallax_over_focal_lengths_rules_out_only_the_moving_camera() {
         frames: 60,
         ..ShotOptions::default()
     });
-    let pairs = tripod::fit_pairs(&moving.tracks, None, 1).unwrap();
+    let pairs = parallax::fit_pairs(&moving.tracks, None, 1).unwrap();
     let k = unknown(&moving.k);
-    let p = tripod::rule_out_pan_at_any_focal(&moving.tracks, &k, &pairs, &opts, 1).unwrap();
+    let p = parallax::rule_out_pan_at_any_focal(&moving.tracks, &k, &pairs, &opts, 1).unwrap();
     let p = p.expect("a moving camera is ruled out");
     eprintln!("moving: {}", p.describe());
     assert!(p.parallax_px > 6.0 * p.threshold_px, "{}", p.describe());
     let pan = pan_shot(0.6);
-    let pairs = tripod::fit_pairs(&pan.tracks, None, 1).unwrap();
+    let pairs = parallax::fit_pairs(&pan.tracks, None, 1).unwrap();
     let k = unknown(&pan.k);
-    let p = tripod::rule_out_pan_at_any_focal(&pan.tracks, &k, &pairs, &opts, 1).unwrap();
+    let p = parallax::rule_out_pan_at_any_focal(&pan.tracks, &k, &pairs, &opts, 1).unwrap();
     assert!(
         p.is_none(),
         "a pan was ruled out: {}",
@@ -794,7 +804,7 @@ fn distortion_from_too_few_tracks_is_a_clear_error() {
 
 /// A zoom: 60 frames whose focal length runs 900 → 1400 px, the
 /// camera on a curved path (a zoom along a straight track or an orbit is not determined,
-/// [`super::zoom`]), 0.5 px noise and 5 % drifting tracks, solved with `zoom: true` and the
+/// [`crate::zoom`]), 0.5 px noise and 5 % drifting tracks, solved with `zoom: true` and the
 /// focal length unknown (only the image size given). Measured: every frame's focal length
 /// within 0.16 % (the goal: 1 %), rotation max 0.038°, centre max 0.21 % of the path.
 #[test]
@@ -852,7 +862,7 @@ fn a_zoom_is_solved_frame_by_frame() {
 }
 
 /// A zoom along a straight track (a critical motion: the focal lengths are not determined by
-/// the tracks, [`super::zoom`]) whose first focal length is known: `focal: known` holds it and
+/// the tracks, [`crate::zoom`]) whose first focal length is known: `focal: known` holds it and
 /// the zoom and the cameras come out right; `refine` lets the whole zoom drift. 40 frames,
 /// 900 → 1300 px, 0.3 px noise. Measured: held, worst focal error 0.076 %, rotation max
 /// 0.022°; refined, 0.17 % and 0.031°. (On a rendered orbit zooming 1.5× the difference is

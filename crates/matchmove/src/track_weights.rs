@@ -32,7 +32,6 @@
 
 use nalgebra::Vector3;
 use rayon::prelude::*;
-
 use vfxgraph_geometry::camera::{Intrinsics, Pose};
 use vfxgraph_klt::Tracks;
 
@@ -71,7 +70,7 @@ pub(crate) fn track_weights(
             let t = &tracks.tracks[ti];
             let projected = t.points.iter().enumerate().map(|(j, o)| {
                 let p = flags[ti][j]
-                    .then(|| super::project(k, poses[t.first + j].as_ref()?, &x))
+                    .then(|| crate::structure::project(k, poses[t.first + j].as_ref()?, &x))
                     .flatten()?;
                 Some([p[0] - o[0], p[1] - o[1]])
             });

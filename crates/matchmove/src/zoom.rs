@@ -12,7 +12,7 @@
 //!    is each frame's focal length relative to the first. (A camera moving towards the scene
 //!    also enlarges it; the adjustment corrects what the ratios take for zoom.)
 //! 2. The tracks **normalised** to the first frame's focal length ([`normalise`]); its value
-//!    estimated as an unknown focal length is ([`super::lens_solve::estimate_focal`]) or taken
+//!    estimated as an unknown focal length is ([`crate::focal::estimate_focal`]) or taken
 //!    from the intrinsics.
 //! 3. **Rounds** of: the book's matchmove of the normalised tracks, then a global bundle
 //!    adjustment of the observed pixels in which every frame has its own focal length and
@@ -27,13 +27,14 @@
 //! first frame's focal length is known (`focal: known`), which the adjustment then holds.
 
 use nalgebra::Vector2;
-
-use super::lens_solve::FocalMode;
-use super::{matchmove, MatchmoveOptions, Solve};
 use vfxgraph_bundle::{zoom_priors, Gauge};
 use vfxgraph_geometry::camera::{Intrinsics, Pose};
 use vfxgraph_geometry::error::{Result, VisionError};
 use vfxgraph_klt::Tracks;
+
+use crate::lens::FocalMode;
+use crate::options::MatchmoveOptions;
+use crate::pipeline::{matchmove, Solve};
 
 /// Fewest rounds of a zoom solve: the first round's fixed-focal solve starts from the
 /// scale-change ratios, which take a camera moving towards the scene for a zoom, and its poses
@@ -170,8 +171,8 @@ pub(crate) fn solve_zoom(
     let ratios = zoom_ratios(und, k);
     let f0 = if focal == FocalMode::Unknown {
         let norm = normalise(und, k, &ratios, 1.0);
-        let f = super::lens_solve::estimate_focal(&norm, k, options)?;
-        stages.push(super::StageTime::new("focal estimate", t0));
+        let f = crate::focal::estimate_focal(&norm, k, options)?;
+        stages.push(crate::report::StageTime::new("focal estimate", t0));
         notes.push(format!(
             "initial focal length {f:.1} px (first frame) from the tracks"
         ));
@@ -192,15 +193,15 @@ pub(crate) fn solve_zoom(
     let inner = MatchmoveOptions {
         global: None,
         score: false,
-        pair: super::PairOptions {
-            init: super::InitMethod::Book,
+        pair: crate::pair::PairOptions {
+            init: crate::pair::InitMethod::Book,
             ..options.pair.clone()
         },
         ..options.clone()
     };
     let calibrated = MatchmoveOptions {
-        pair: super::PairOptions {
-            init: super::InitMethod::Calibrated,
+        pair: crate::pair::PairOptions {
+            init: crate::pair::InitMethod::Calibrated,
             ..options.pair.clone()
         },
         ..inner.clone()
@@ -215,16 +216,16 @@ pub(crate) fn solve_zoom(
             // is not, and the ratios' focal lengths are near enough for it to start.
             Err(_) => matchmove(&norm, &k_ref, &calibrated, progress)?,
         };
-        stages.push(super::StageTime::new(
+        stages.push(crate::report::StageTime::new(
             &format!("round {}: fixed-focal solve", round + 1),
             t0,
         ));
         let t0 = std::time::Instant::now();
-        let poses = super::poses_by_index(&norm, &s.path);
+        let poses = crate::structure::poses_by_index(&norm, &s.path);
         let hold_first = focal == FocalMode::Known;
         let (poses, points, f_new) =
             zoom_adjust(und, k, f0, &focals, &poses, global, sigma, hold_first)?;
-        stages.push(super::StageTime::new(
+        stages.push(crate::report::StageTime::new(
             &format!("round {}: zoom adjustment", round + 1),
             t0,
         ));
@@ -239,7 +240,7 @@ pub(crate) fn solve_zoom(
     }
     let (poses, points, s) = solved.expect("at least one round");
     let norm = normalise(und, k, &focals, f0);
-    let mut out = super::finish_solve(
+    let mut out = crate::pipeline::finish_solve(
         &norm,
         &k_ref,
         &poses,
@@ -312,7 +313,7 @@ pub fn thickness(points: &[[f64; 3]]) -> Option<f64> {
 }
 
 /// The global adjustment of a zoom (module docs, step 3): the rounds of
-/// [`super::global::global_bundle_adjust`] with one focal-length block per frame and the
+/// [`crate::global::global_bundle_adjust`] with one focal-length block per frame and the
 /// smoothness prior; the first frame's focal length held with `hold_first`. Returns the poses,
 /// the points and the focal lengths.
 #[allow(clippy::type_complexity, clippy::too_many_arguments)]
@@ -322,12 +323,16 @@ fn zoom_adjust(
     f_ref: f64,
     focals: &[f64],
     poses: &[Option<Pose>],
-    options: &super::global::GlobalOptions,
+    options: &crate::global::GlobalOptions,
     sigma: f64,
     hold_first: bool,
-) -> Result<(super::Poses, super::TrackPoints, Vec<f64>)> {
-    use super::global::triangulate_all;
-    use super::track_weights::track_weights;
+) -> Result<(
+    crate::structure::Poses,
+    crate::structure::TrackPoints,
+    Vec<f64>,
+)> {
+    use crate::global::triangulate_all;
+    use crate::track_weights::track_weights;
     options.check().map_err(VisionError::InvalidInput)?;
     let k_ref = with_focal(k, f_ref);
     let mut focals = focals.to_vec();
@@ -384,7 +389,7 @@ fn zoom_adjust(
                 b
             })
             .collect();
-        let (_, blocks, _) = super::adjust_with_blocks(
+        let (_, blocks, _) = crate::adjust::adjust_with_blocks(
             und,
             blocks,
             priors.clone(),
