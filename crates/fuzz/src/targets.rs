@@ -710,7 +710,7 @@ fn seeds_points(d: &SeedDirs) -> Vec<Seed> {
     ];
     s.extend(named(&[d.shared.join("book-demo/calib_projs.txt")]));
     s.extend(files(
-        &d.repo.join("crates/vision/tests/data/book"),
+        &d.repo.join("crates/geometry/tests/data/book"),
         &[".txt"],
         1 << 16,
     ));

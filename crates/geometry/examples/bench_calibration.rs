@@ -7,7 +7,7 @@
 //! Each call is repeated `--repeat` times (same inputs, same seed) and the fastest time is kept,
 //! which makes the figure robust to the load of a shared machine.
 //!
-//! `cargo run --release --example bench_calibration -p vfxgraph-vision -- [--scenes N] [--repeat R] [--out FILE]`
+//! `cargo run --release --example bench_calibration -p vfxgraph-geometry -- [--scenes N] [--repeat R] [--out FILE]`
 
 use std::time::Instant;
 

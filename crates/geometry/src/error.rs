@@ -1,4 +1,4 @@
-//! Errors of the vision library.
+//! Errors of the camera crates (geometry, matchmove, exchange).
 //!
 //! Every estimator checks its input and reports a typed error instead of returning NaN or
 //! panicking (ARCHITECTURE.md, "Conventions").

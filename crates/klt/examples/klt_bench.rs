@@ -1,7 +1,7 @@
 //! Times and runs our KLT (book chapter 6) on one frame pair for `scripts/bench/klt_vs_opencv.py`.
 //!
 //! ```text
-//! cargo run --release -p vfxgraph-vision --example klt_bench -- \
+//! cargo run --release -p vfxgraph-klt --example klt_bench -- \
 //!     A.png B.png CORNERS.txt FEATURES WINDOW LEVELS ITERATIONS REPEAT [EPSILON]
 //! ```
 //! CORNERS.txt holds `x y` per line: the points tracked from A to B (so both trackers are

@@ -6,7 +6,7 @@
 //! A tracker change is judged by these residuals over hundreds of tracks, not by one solve.
 //!
 //! ```text
-//! cargo run --release -p vfxgraph-vision --example track_accuracy -- \
+//! cargo run --release -p vfxgraph-klt --example track_accuracy -- \
 //!     ../shared/data/blender_plate_dev/distorted [FEATURES] [key=value …]
 //! ```
 //! Keys: `bad=on` (print each track over 1 px with its residuals), `drift=<px|off>`, `fb=<px|off>`, `noise=<factor>`, `frames=<n>`, `oracle=<dir>` (write `all.json` and `kept.json`, the tracks without those whose RMS against the true cameras exceeds `oracle_px`, default 1 px, to solve both and see what the bad tracks cost). Prints one JSON

@@ -42,7 +42,7 @@
 //! ~0.85 per step on that plate): the alignment took 10 translation and 19 affine steps (the
 //! cap is 20) a feature and frame, and stopped short of the optimum. With the three: 5.2 and
 //! 10.0 steps, and the median per-track RMS error against the true cameras fell from 0.62 to
-//! 0.51 px (150 features, pinhole plate; `cargo run --release -p vfxgraph-vision --example
+//! 0.51 px (150 features, pinhole plate; `cargo run --release -p vfxgraph-klt --example
 //! track_accuracy -- ../shared/data/blender_plate_dev/pinhole 150`).
 
 use nalgebra::{Matrix3, Matrix6, SMatrix, SVector, Vector2, Vector6};

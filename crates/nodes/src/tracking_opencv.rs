@@ -1,5 +1,5 @@
 //! `klt_track_opencv` (only with the `opencv` cargo feature): `klt_track`'s params, ports and
-//! `tracks` artifact over vfxgraph-vision's `klt::opencv::track_sequence_opencv` (the book's
+//! `tracks` artifact over vfxgraph-klt's `opencv::track_sequence_opencv` (the book's
 //! chapter 6 tracker with OpenCV's `goodFeaturesToTrack` and `calcOpticalFlowPyrLK`; how the
 //! params map onto OpenCV's is documented there), to cross-check our KLT inside a graph.
 

@@ -1,7 +1,7 @@
 //! The point-cloud definer (book §8.3, `defpcl`): the marks file of a `read_marks` node —
 //! read, validated, written back in the book's `points2d.txt` form (and JSON beside it), and
 //! triangulated from the solved cameras with the catalog's own `point_cloud_calibrate`
-//! (vision crate) so the page shows each point's reprojection error while marking.
+//! (geometry crate) so the page shows each point's reprojection error while marking.
 //!
 //! The file is a declared input of `read_marks` (its content digest is in the node's key), so
 //! after a save the plan marks exactly `read_marks` and its dependants to run.

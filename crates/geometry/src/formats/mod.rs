@@ -129,7 +129,7 @@ mod tests {
     #[test]
     fn files_round_trip_in_text_and_json() {
         let dir =
-            std::env::temp_dir().join(format!("vfxgraph-vision-formats-{}", std::process::id()));
+            std::env::temp_dir().join(format!("vfxgraph-geometry-formats-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let k = Intrinsics::new(1000.0, 1001.0, 640.0, 360.0);
         let p2 = Points2d(vec![Point2::new(1.0, 2.0), Point2::new(3.5, -4.0)]);
