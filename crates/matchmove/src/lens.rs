@@ -143,7 +143,7 @@ impl LensOptions {
         Ok(k)
     }
 
-    /// Whether anything of the lens is solved (otherwise [`matchmove_with_lens`] is the book's
+    /// Whether anything of the lens is solved (otherwise `matchmove_with_lens` is the book's
     /// matchmove on the undistorted tracks).
     pub fn solves_lens(&self) -> bool {
         self.focal != FocalMode::Known

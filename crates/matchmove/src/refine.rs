@@ -18,7 +18,7 @@ use crate::report::StageTime;
 use crate::structure::poses_by_index;
 
 /// Whether a solve that refines a path scores its cameras (the `relax` and
-/// `global_bundle_adjust` nodes; [`MatchmoveOptions::score`] is `matchmove`'s).
+/// `global_bundle_adjust` nodes; [`crate::options::MatchmoveOptions::score`] is `matchmove`'s).
 #[derive(Debug, PartialEq, Options)]
 pub struct Score {
     /// score the cameras against every track into the report
@@ -77,7 +77,7 @@ pub fn relax_path(
 
 /// A robust global bundle adjustment ([`global_bundle_adjust`]) of a solved path, as a
 /// [`Solve`]. A lens on `k` is undistorted from the tracks first ([`pinhole_view`]) and returned
-/// with the cameras (held: the lens is solved by [`matchmove_with_lens`]).
+/// with the cameras (held: the lens is solved by [`crate::solve::matchmove_with_lens`]).
 pub fn adjust_path(
     tracks: &Tracks,
     k: &Intrinsics,

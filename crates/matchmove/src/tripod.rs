@@ -9,8 +9,9 @@
 //! ([`vfxgraph_bundle::Gauge::RotationOnly`]) and each point a direction (on the unit sphere),
 //! in rounds of outlier marking as [`crate::global`] does. An unknown focal length comes from a
 //! one-dimensional search of the chained rotations' residual over focal lengths
-//! ([`estimate_rotation_focal`]; a rotating camera's homographies K R K⁻¹ fix K: Hartley 1997,
-//! "Self-calibration of stationary cameras"), then the adjustment refines it with the lens.
+//! ([`crate::rotations::estimate_rotation_focal`]; a rotating camera's homographies K R K⁻¹
+//! fix K: Hartley 1997, "Self-calibration of stationary cameras"), then the adjustment refines
+//! it with the lens.
 //!
 //! Whether a shot is a pan is [`crate::parallax`]'s to measure.
 
