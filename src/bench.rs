@@ -216,13 +216,13 @@ pub(crate) fn cpu_seconds() -> Option<f64> {
 }
 
 fn bench_matchmove(tracks: &Path, intrinsics: &Path, json: bool) -> Result<u8, String> {
-    use vfxgraph_vision::klt::Tracks;
-    use vfxgraph_vision::matchmove::{matchmove, relax_path, MatchmoveOptions, RelaxOptions};
+    use vfxgraph_klt::Tracks;
+    use vfxgraph_matchmove::{matchmove, relax_path, MatchmoveOptions, RelaxOptions};
     const BOOK_CALIB_CPU_S: f64 = 24.0 * 60.0;
     const BOOK_RELAX_CPU_S: f64 = 386.0;
     let text = std::fs::read_to_string(tracks).map_err(|e| format!("{}: {e}", tracks.display()))?;
     let t = Tracks::parse(&text).map_err(|e| format!("{}: {e}", tracks.display()))?;
-    let k = vfxgraph_vision::formats::read_intrinsics(intrinsics)
+    let k = vfxgraph_geometry::formats::read_intrinsics(intrinsics)
         .map_err(|e| format!("{}: {e}", intrinsics.display()))?;
     let (w0, c0) = (Instant::now(), cpu_seconds().unwrap_or(f64::NAN));
     let solve = matchmove(&t, &k, &MatchmoveOptions::default(), &|_, _, _| {})
@@ -279,7 +279,7 @@ fn bench_matchmove(tracks: &Path, intrinsics: &Path, json: bool) -> Result<u8, S
         println!("  note: {n}");
     }
     println!("relax            {w2:.2} s wall, {relax_cpu:.2} CPU-s");
-    let show = |name: &str, s: &Option<vfxgraph_vision::matchmove::BookScore>| {
+    let show = |name: &str, s: &Option<vfxgraph_matchmove::BookScore>| {
         if let Some(s) = s {
             println!(
                 "{name:<16} {}/{} frames; over ALL {} observations: median {:.3} px, mean {:.3} px, \
@@ -382,7 +382,7 @@ fn bench_ba(
     threads: Option<usize>,
     json: bool,
 ) -> Result<u8, String> {
-    use vfxgraph_vision::bundle::{solve_bal_file, BalBenchOptions, LinearSolverKind, Loss};
+    use vfxgraph_bundle::{solve_bal_file, BalBenchOptions, LinearSolverKind, Loss};
     let opts = BalBenchOptions {
         solver: LinearSolverKind::parse(solver).ok_or_else(|| {
             format!("--solver `{solver}`: expected auto, dense, sparse or iterative")

@@ -133,7 +133,7 @@ pub fn run(a: &Args<'_>) -> Result<u8, String> {
     let v = |p: vfxgraph_render::Vec3| Vector3::new(p.x, p.y, p.z);
     let dome = Dome::new(&img, v(spec.orig), -v(spec.south))
         .map_err(|e| format!("{}: {e}", a.dome.display()))?;
-    let k = vfxgraph_vision::formats::read_intrinsics(a.intrinsics)
+    let k = vfxgraph_geometry::formats::read_intrinsics(a.intrinsics)
         .map_err(|e| format!("{}: {e}", a.intrinsics.display()))?;
     let kk = [[k.f1, k.s, k.u0], [0.0, k.f2, k.v0], [0.0, 0.0, 1.0]];
     let render = |cam: &Camera, spp: u32, seed: u64, strategy: Strategy, adaptive| {

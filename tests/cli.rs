@@ -386,10 +386,11 @@ fn calibrate_hdr_camera_graph_recovers_a_known_camera() {
         return;
     };
     let data = vfxgraph_testdata::require("book-demo/calib_projs.txt");
-    let projs = vfxgraph_vision::formats::read_points2d(&data).unwrap().0;
-    let k = vfxgraph_vision::Intrinsics::new(3100.0, 3100.0, 2000.0, 1500.0);
-    let r = vfxgraph_vision::rotation::axis_angle_to_r(&nalgebra::Vector3::new(0.1, -0.4, 0.05));
-    let truth = vfxgraph_vision::Camera::new(k.clone(), r, nalgebra::Vector3::new(0.2, -0.1, 3.0));
+    let projs = vfxgraph_geometry::formats::read_points2d(&data).unwrap().0;
+    let k = vfxgraph_geometry::Intrinsics::new(3100.0, 3100.0, 2000.0, 1500.0);
+    let r = vfxgraph_geometry::rotation::axis_angle_to_r(&nalgebra::Vector3::new(0.1, -0.4, 0.05));
+    let truth =
+        vfxgraph_geometry::Camera::new(k.clone(), r, nalgebra::Vector3::new(0.2, -0.1, 3.0));
     let inv = truth.pose.inverse();
     let depths = [4.0, 6.5, 5.0, 8.0, 3.5, 7.0];
     let mut text = String::new();
@@ -417,7 +418,7 @@ fn calibrate_hdr_camera_graph_recovers_a_known_camera() {
             assert!((cam["R"][i][j].as_f64().unwrap() - r[(i, j)]).abs() < 1e-6);
         }
     }
-    let rep: vfxgraph_vision::calibration::CalibrationReport =
+    let rep: vfxgraph_geometry::calibration::CalibrationReport =
         serde_json::from_slice(&fs::read(g.join("out/hdr_camera_report.json")).unwrap()).unwrap();
     assert!(rep.rms < 1e-6, "{rep:?}");
     assert_eq!(rep.errors.len(), 6);
@@ -582,7 +583,7 @@ fn book_matchmove_graph_runs_and_reruns_only_the_relaxation() {
     assert!(json["intrinsics"]["K"][0][0].as_f64().unwrap() > 1228.0);
     let svg = fs::read_to_string(out.join("solve_error.svg")).unwrap();
     assert!(svg.starts_with("<svg"));
-    let report: vfxgraph_vision::matchmove::SolveReport =
+    let report: vfxgraph_matchmove::SolveReport =
         serde_json::from_str(&fs::read_to_string(out.join("solve_report.json")).unwrap()).unwrap();
     assert_eq!(report.score.unwrap().frames_with_camera, 286);
     // Chapter 8: the three marked ground points, measured with the relaxed cameras.

@@ -24,9 +24,9 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use nalgebra::{Matrix3, Matrix3x4, Point2, Vector3};
-use vfxgraph_vision::formats::{read_json, CameraPath};
-use vfxgraph_vision::klt::Tracks;
-use vfxgraph_vision::two_view::triangulation::triangulate;
+use vfxgraph_geometry::formats::{read_json, CameraPath};
+use vfxgraph_geometry::two_view::triangulation::triangulate;
+use vfxgraph_klt::Tracks;
 
 /// The plate's frames (all 48: on 24 the solve's draw between encodings reaches ±90 %).
 const FRAMES: usize = 48;

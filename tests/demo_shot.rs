@@ -15,7 +15,7 @@ use std::path::Path;
 use std::process::Command;
 
 use nalgebra::Point3;
-use vfxgraph_vision::formats::{read_json, CameraPath};
+use vfxgraph_geometry::formats::{read_json, CameraPath};
 
 /// The true ground points clicked in `graphs/data/demo/marks.txt`, in order.
 const CORNERS: [[f64; 3]; 4] = [
@@ -104,7 +104,7 @@ fn demo_shot_inserts_the_objects_into_the_embedded_plate() {
         // patch and the 0.8-unit space above it, projected with the true camera, + 4 px);
         // inside, the objects change a good part of the frame.
         let plate_f = srgb8(&plate.frame(f as i64).unwrap());
-        let cam = vfxgraph_vision::camera::Camera::new(
+        let cam = vfxgraph_geometry::camera::Camera::new(
             k.clone(),
             truth.frames[f].pose.r,
             truth.frames[f].pose.t,

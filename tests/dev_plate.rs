@@ -14,7 +14,7 @@
 
 mod common;
 
-use vfxgraph_vision::formats::{read_json, CameraPath};
+use vfxgraph_geometry::formats::{read_json, CameraPath};
 
 const ROTATION_BOUND_DEG: f64 = 0.025;
 const CENTRE_BOUND: f64 = 0.0014;
@@ -79,7 +79,7 @@ fn an_unknown_lens_is_solved_from_the_distorted_plate() {
     let truth: CameraPath = read_json(&truth_file).unwrap();
     assert_eq!(solved.frames.len(), 48, "every frame solved");
     let k = solved.intrinsics.clone().expect("the solved lens");
-    let vfxgraph_vision::lens::Distortion::BrownConrady { k1, k2, .. } = k.distortion else {
+    let vfxgraph_geometry::lens::Distortion::BrownConrady { k1, k2, .. } = k.distortion else {
         panic!("solved lens {:?}", k.distortion)
     };
     let (_, rot, cen) = common::aligned_errors(&solved, &truth);

@@ -9,9 +9,9 @@ use std::path::Path;
 use std::process::Command;
 
 use serde_json::json;
+use vfxgraph_exchange::colmap;
+use vfxgraph_geometry::camera::Camera;
 use vfxgraph_testdata::{repo, Python};
-use vfxgraph_vision::camera::Camera;
-use vfxgraph_vision::export::colmap;
 
 /// The Python with the clients these checks use.
 fn python() -> Python {
@@ -119,7 +119,7 @@ fn book_export_graph_writes_every_format_and_the_clients_agree() {
     // The COLMAP model and the JSON export hold the same solve: K, every pose within 1e-9
     // (R through COLMAP's quaternion), the tracks' 2-D points, and the book's K from g7cam.txt.
     let ours = colmap::read(&o.join("colmap/cameras.txt")).unwrap();
-    let k = vfxgraph_vision::formats::read_intrinsics(&vfxgraph_testdata::require(
+    let k = vfxgraph_geometry::formats::read_intrinsics(&vfxgraph_testdata::require(
         "book-demo/g7cam.txt",
     ))
     .unwrap()

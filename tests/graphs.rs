@@ -11,8 +11,8 @@ use std::process::Output;
 use serde_json::Value as Json;
 use vfxgraph_imaging::color::linear_to_srgb8;
 use vfxgraph_imaging::{read_image, Image};
+use vfxgraph_matchmove::SolveReport;
 use vfxgraph_nodes::modeling::MeasuredReport;
-use vfxgraph_vision::matchmove::SolveReport;
 
 mod common;
 use common::{run_json, vfx};

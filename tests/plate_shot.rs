@@ -14,7 +14,7 @@
 
 use nalgebra::Point3;
 use serde_json::Value as Json;
-use vfxgraph_vision::formats::{read_json, CameraPath};
+use vfxgraph_geometry::formats::{read_json, CameraPath};
 
 mod common;
 

@@ -41,7 +41,7 @@ def ensure_ceres():
 
 
 def build_ours():
-    out = run(["cargo", "build", "--release", "-p", "vfxgraph-vision", "--example", "bench_ba",
+    out = run(["cargo", "build", "--release", "-p", "vfxgraph-bundle", "--example", "bench_ba",
                "--message-format=json"], cwd=ROOT, stdout=subprocess.PIPE).stdout
     exe = None
     for line in out.splitlines():

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
-"""Benchmark vfxgraph-vision's chapter 2-5 estimators against OpenCV on the same synthetic inputs.
+"""Benchmark vfxgraph-geometry's chapter 2-5 estimators against OpenCV on the same synthetic inputs.
 
-Runs `cargo run --release --example bench_calibration -p vfxgraph-vision`, which builds the scenes
+Runs `cargo run --release --example bench_calibration -p vfxgraph-geometry`, which builds the scenes
 (fixed seeds), runs our estimators (timing each call) and writes scenes + ground truth + our
 estimates as JSON; then runs OpenCV on exactly those inputs and prints, per task, our time /
 OpenCV's time and the accuracy of both (median and max over the scenes).
@@ -193,7 +193,7 @@ def run_ours(args):
     """Our side: the Rust example writes scenes, ground truth, estimates and timings as JSON."""
     with tempfile.TemporaryDirectory() as tmp:
         out = os.path.join(tmp, "bench.json")
-        cmd = ["cargo", "run", "--quiet", "--release", "--example", "bench_calibration", "-p", "vfxgraph-vision",
+        cmd = ["cargo", "run", "--quiet", "--release", "--example", "bench_calibration", "-p", "vfxgraph-geometry",
                "--", "--scenes", str(args.scenes), "--repeat", str(args.repeat), "--out", out]
         subprocess.run(cmd, cwd=ROOT, check=True)
         with open(out) as f:
@@ -216,7 +216,7 @@ def main():
     args = ap.parse_args()
     cv2.setNumThreads(args.threads)
     doc = run_ours(args)
-    print(f"OpenCV {cv2.__version__}, {args.threads} thread(s); ours: vfxgraph-vision (release); "
+    print(f"OpenCV {cv2.__version__}, {args.threads} thread(s); ours: vfxgraph-geometry (release); "
           f"times: sum over scenes of the fastest of {args.repeat} runs per call "
           f"(ours: of two such runs, before and after OpenCV's)")
 

@@ -3,7 +3,7 @@
 
 What it does
 ------------
-1. Runs ``cargo run --release -p vfxgraph-vision --example solve_corpus -- COUNT SEED`` with
+1. Runs ``cargo run --release -p vfxgraph-matchmove --example solve_corpus -- COUNT SEED`` with
    ``VFXGRAPH_CORPUS_EXPORT`` set: every plate of the corpus (``matchmove::corpus``: seven sets x
    nine motions, 8-200 frames, 960x540) is solved by our matchmove with its defaults (K given),
    scored against its true cameras, and written out (tracks, K, truth).
@@ -186,10 +186,10 @@ def main():
     export = work / "plates"
     ours_json = work / "ours.json"
     env = dict(os.environ, VFXGRAPH_CORPUS_EXPORT=str(export))
-    subprocess.run(["cargo", "build", "--release", "-q", "-p", "vfxgraph-vision", "--example",
+    subprocess.run(["cargo", "build", "--release", "-q", "-p", "vfxgraph-matchmove", "--example",
                     "solve_corpus"], cwd=REPO, check=True)
     t0 = time.perf_counter()
-    subprocess.run(["cargo", "run", "--release", "-q", "-p", "vfxgraph-vision", "--example",
+    subprocess.run(["cargo", "run", "--release", "-q", "-p", "vfxgraph-matchmove", "--example",
                     "solve_corpus", "--", str(args.count), str(args.seed), "calibrated",
                     str(ours_json)], cwd=REPO, env=env, check=True, stdout=subprocess.DEVNULL)
     ours_wall = time.perf_counter() - t0

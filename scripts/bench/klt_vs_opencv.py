@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""KLT benchmark: vfxgraph's tracker (crates/vision/src/klt) against OpenCV's
+"""KLT benchmark: vfxgraph's tracker (crates/klt/src) against OpenCV's
 goodFeaturesToTrack + calcOpticalFlowPyrLK, in one run, on the same frames and corners.
 
     pip install opencv-python-headless numpy
@@ -111,7 +111,7 @@ def main():
     if not os.path.isdir(DATA):
         print(f"no data at {DATA}; nothing to do")
         return 0
-    subprocess.run(["cargo", "build", "--release", "-q", "-p", "vfxgraph-vision", "--example",
+    subprocess.run(["cargo", "build", "--release", "-q", "-p", "vfxgraph-klt", "--example",
                     "klt_bench"], cwd=ROOT, check=True)
     print(f"OpenCV {cv2.__version__}, {cv2.getNumThreads()} threads; best of {args.repeat} x "
           f"{args.rounds} rounds; "

@@ -16,7 +16,7 @@ strong per-frame grain; JPEG q95) with the lens's K known and held fixed, the sc
    The graph writes its cameras next to itself (``graphs/out/dev_plate_solve/cameras.json``); the
    script copies each run's cameras into ``--work``.
 3. Both against the renderer's ground truth (``cameras_gt.json``) with the project's metric (as
-   ``aligned_errors`` in ``crates/vision/src/matchmove/tests.rs``): the estimated path is aligned to
+   ``aligned_errors`` in ``crates/matchmove/src/tests.rs``): the estimated path is aligned to
    the truth by a similarity -- the rotation R_a = nearest rotation (SVD, det +1) to
    sum_f R_truth_f^T R_est_f, then scale and translation by least squares on the camera centres
    C = -R^T t after rotating the estimated ones by R_a. Per frame: rotation error = angle between

@@ -44,13 +44,17 @@ pub fn nodes_with(nodes: &[Json], status: &str) -> BTreeSet<String> {
 /// solve is defined up to one): the similarity, each frame's rotation error (°) and camera-centre
 /// error (true units).
 pub fn aligned_errors(
-    solved: &vfxgraph_vision::formats::CameraPath,
-    truth: &vfxgraph_vision::formats::CameraPath,
-) -> (vfxgraph_vision::camera_path::Similarity, Vec<f64>, Vec<f64>) {
-    let poses = |p: &vfxgraph_vision::formats::CameraPath| {
+    solved: &vfxgraph_geometry::formats::CameraPath,
+    truth: &vfxgraph_geometry::formats::CameraPath,
+) -> (
+    vfxgraph_geometry::camera_path::Similarity,
+    Vec<f64>,
+    Vec<f64>,
+) {
+    let poses = |p: &vfxgraph_geometry::formats::CameraPath| {
         p.frames.iter().map(|f| f.pose.clone()).collect::<Vec<_>>()
     };
-    vfxgraph_vision::camera_path::aligned_pose_errors(&poses(solved), &poses(truth)).unwrap()
+    vfxgraph_geometry::camera_path::aligned_pose_errors(&poses(solved), &poses(truth)).unwrap()
 }
 
 /// The worst errors of [`aligned_errors`]: rotation (°) and camera centre as a fraction of the
@@ -58,7 +62,7 @@ pub fn aligned_errors(
 pub fn worst_path_errors(
     rot: &[f64],
     cen: &[f64],
-    truth: &vfxgraph_vision::formats::CameraPath,
+    truth: &vfxgraph_geometry::formats::CameraPath,
 ) -> (f64, f64, f64) {
     let centres: Vec<nalgebra::Point3<f64>> =
         truth.frames.iter().map(|f| f.pose.center()).collect();
@@ -72,7 +76,7 @@ pub fn worst_path_errors(
 /// the truth's frame).
 pub fn aligned_points(
     report: &Path,
-    sim: &vfxgraph_vision::camera_path::Similarity,
+    sim: &vfxgraph_geometry::camera_path::Similarity,
 ) -> Vec<nalgebra::Point3<f64>> {
     let text = std::fs::read_to_string(report).unwrap();
     let j: Json = serde_json::from_str(&text).unwrap();

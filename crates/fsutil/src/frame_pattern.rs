@@ -1,6 +1,6 @@
 //! Frame patterns in file names: `%04d` (printf's width, zero-padded with a leading 0),
 //! `%d`, or a run of `#` (its length the width, zero-padded), filled with a frame number — the
-//! patterns of image sequences in graphs (engine) and in the files exports name (vision).
+//! patterns of image sequences in graphs (engine) and in the files exports name (exchange).
 
 /// True when `text` holds a frame pattern.
 pub fn has_frame_pattern(text: &str) -> bool {

@@ -13,8 +13,8 @@
 //! file system is atomic, there are no locks across hosts): no two writers ever share a
 //! temporary.
 //!
-//! Its own crate because both the engine and the algorithm crates (imaging, vision, video) write
-//! files, and neither may depend on the other; it depends on nothing. For the same reason it
+//! Its own crate because both the engine and the algorithm crates (imaging, geometry, video, …)
+//! write files, and neither may depend on the other; it depends on nothing. For the same reason it
 //! holds the frame patterns of file names ([`frame_pattern`]), which graphs and exports share.
 
 pub mod frame_pattern;

@@ -12,12 +12,12 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::{Matrix3, Point2, Point3, Vector3};
 use vfxgraph_engine::{Overrides, Registry};
+use vfxgraph_geometry::camera::{Intrinsics, Pose};
+use vfxgraph_geometry::formats::{self, CameraPath, FramePose, MarkedFrame, MarkedPoints};
+use vfxgraph_geometry::{Points2d, Points3d};
 use vfxgraph_imaging::io::{encode_exr, ExrCompression, ExrOptions, ExrPrecision};
 use vfxgraph_imaging::{Format, Image};
-use vfxgraph_vision::camera::{Intrinsics, Pose};
-use vfxgraph_vision::formats::{self, CameraPath, FramePose, MarkedFrame, MarkedPoints};
-use vfxgraph_vision::klt::tracks::{LostReason, Track, TrackEnd, Tracks};
-use vfxgraph_vision::{Points2d, Points3d};
+use vfxgraph_klt::tracks::{LostReason, Track, TrackEnd, Tracks};
 
 use crate::mutate::Kind;
 
@@ -710,7 +710,7 @@ fn seeds_points(d: &SeedDirs) -> Vec<Seed> {
     ];
     s.extend(named(&[d.shared.join("book-demo/calib_projs.txt")]));
     s.extend(files(
-        &d.repo.join("crates/vision/tests/data/book"),
+        &d.repo.join("crates/geometry/tests/data/book"),
         &[".txt"],
         1 << 16,
     ));
@@ -750,17 +750,13 @@ fn run_colmap(b: &[u8]) -> bool {
         parts.next().unwrap_or(""),
         parts.next().unwrap_or(""),
     );
-    vfxgraph_vision::export::colmap::parse(
-        (c, "cameras.txt"),
-        (i, "images.txt"),
-        (p, "points3D.txt"),
-    )
-    .is_ok()
+    vfxgraph_exchange::colmap::parse((c, "cameras.txt"), (i, "images.txt"), (p, "points3D.txt"))
+        .is_ok()
 }
 
 fn seeds_colmap(_: &SeedDirs) -> Vec<Seed> {
-    use vfxgraph_vision::export::{colmap, Shot};
-    use vfxgraph_vision::points::PointCloud;
+    use vfxgraph_exchange::{colmap, Shot};
+    use vfxgraph_geometry::points::PointCloud;
     let shot = Shot {
         intrinsics: Intrinsics::new(1228.4, 1228.4, 639.5, 359.5).with_size(1280, 720),
         path: sample_camera_path(),

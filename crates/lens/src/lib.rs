@@ -23,8 +23,8 @@
 //! that fold the image over inside a given radius, so an inverse that does not exist is an error,
 //! not NaN cameras.
 //!
-//! A leaf crate (nalgebra and serde only) so that the vision crate (solving, exports: re-exported
-//! as `vfxgraph_vision::lens`) and the render crate (rays through the lens) share one type.
+//! A leaf crate (nalgebra and serde only) so that the camera crates (geometry, bundle adjustment, matchmove, exports; re-exported
+//! as `vfxgraph_geometry::lens`) and the render crate (rays through the lens) share one type.
 
 #![warn(missing_docs)]
 // `!(x > 0.0)` is used on purpose: it is also true for NaN.

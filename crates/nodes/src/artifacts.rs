@@ -80,22 +80,22 @@ pub(crate) use json_artifact;
 
 json_artifact! {
     /// Camera intrinsics K (`intrinsics`).
-    IntrinsicsArt(vfxgraph_vision::Intrinsics), "intrinsics",
+    IntrinsicsArt(vfxgraph_geometry::Intrinsics), "intrinsics",
     "Camera intrinsics K: f1, f2, skew, principal point (pixels), optional image size.";
     /// A calibrated camera K[R|t] (`camera`).
-    CameraArt(vfxgraph_vision::Camera), "camera",
+    CameraArt(vfxgraph_geometry::Camera), "camera",
     "A calibrated camera K[R|t]: maps world X to pixels K(RX + t), looking down +z.";
     /// Pixel positions (`points2d`).
-    Points2dArt(vfxgraph_vision::Points2d), "points2d",
+    Points2dArt(vfxgraph_geometry::Points2d), "points2d",
     "A list of image points (pixels, origin at the top-left pixel centre, y down).";
     /// World points (`points3d`).
-    Points3dArt(vfxgraph_vision::Points3d), "points3d",
+    Points3dArt(vfxgraph_geometry::Points3d), "points3d",
     "A list of 3D points in world coordinates.";
     /// The cameras of a sequence, one [R|t] per frame (`camera_path`).
-    CameraPathArt(vfxgraph_vision::formats::CameraPath), "camera_path",
+    CameraPathArt(vfxgraph_geometry::formats::CameraPath), "camera_path",
     "The extrinsics [R|t] of every solved frame of a shot (intrinsics travel separately).";
     /// A point cloud with track ids and errors (`point_cloud`).
-    PointCloudArt(vfxgraph_vision::points::PointCloud), "point_cloud",
+    PointCloudArt(vfxgraph_geometry::points::PointCloud), "point_cloud",
     "Reconstructed 3D points, each with the id of its feature track and its RMS error (px).";
     /// Indices into another list (`indices`).
     IndicesArt(Vec<usize>), "indices",

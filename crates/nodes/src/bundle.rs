@@ -1,8 +1,8 @@
 //! Bundle adjustment nodes (book §7.7): `bundle_adjust`, `read_cameras`.
 
+use vfxgraph_bundle::{adjust_sequence, SequenceAdjustOptions};
 use vfxgraph_engine::{In, Mode, NodeSpec, OptIn, Out, Registry};
-use vfxgraph_vision::bundle::{adjust_sequence, SequenceAdjustOptions};
-use vfxgraph_vision::formats;
+use vfxgraph_geometry::formats;
 
 use crate::artifacts::{CameraPathArt, IntrinsicsArt, PointCloudArt, ReportArt};
 use crate::tracking::TracksArt;
@@ -95,16 +95,16 @@ mod tests {
     use super::*;
     use nalgebra::Vector3;
     use vfxgraph_engine::{Context, InputValue, Params, Value};
-    use vfxgraph_vision::camera::Pose;
-    use vfxgraph_vision::formats::{CameraPath, FramePose};
-    use vfxgraph_vision::klt::{Track, Tracks};
-    use vfxgraph_vision::points::PointCloud;
+    use vfxgraph_geometry::camera::Pose;
+    use vfxgraph_geometry::formats::{CameraPath, FramePose};
+    use vfxgraph_geometry::points::PointCloud;
+    use vfxgraph_klt::{Track, Tracks};
 
     /// Exact observations from a known path; a perturbed point cloud; the node must bring the
     /// reprojection error to ~0 and report it.
     #[test]
     fn bundle_adjust_node_refines_points_to_exact_observations() {
-        let k = vfxgraph_vision::Intrinsics::new(700.0, 700.0, 320.0, 240.0);
+        let k = vfxgraph_geometry::Intrinsics::new(700.0, 700.0, 320.0, 240.0);
         let poses: Vec<Pose> = (0..5)
             .map(|i| Pose {
                 r: nalgebra::Matrix3::identity(),

@@ -3,9 +3,9 @@
 //! `intrinsics_from_metadata` (K from a photograph's EXIF focal length).
 
 use vfxgraph_engine::{ArtifactType, Context, In, Mode, NodeError, NodeSpec, Out, Registry};
-use vfxgraph_vision::calibration::{calibrate_camera, CalibrateCameraOptions};
-use vfxgraph_vision::formats;
-use vfxgraph_vision::two_view::{reconstruct_two_view, TwoViewRansacOptions};
+use vfxgraph_geometry::calibration::{calibrate_camera, CalibrateCameraOptions};
+use vfxgraph_geometry::formats;
+use vfxgraph_geometry::two_view::{reconstruct_two_view, TwoViewRansacOptions};
 
 use crate::artifacts::{CameraArt, IndicesArt, IntrinsicsArt, Points2dArt, Points3dArt, ReportArt};
 
@@ -48,8 +48,9 @@ fn run_intrinsics_from_metadata(ctx: &mut Context<'_>) -> Result<(), NodeError> 
     let f = vfxgraph_imaging::metadata::camera_focal(&bytes, img.width, img.height)
         .map_err(|e| NodeError::msg(format!("{}: {e}", path.display())))?;
     let (w, h) = (img.width as f64, img.height as f64);
-    let k = vfxgraph_vision::Intrinsics::new(f.pixels, f.pixels, (w - 1.0) / 2.0, (h - 1.0) / 2.0)
-        .with_size(img.width as u32, img.height as u32);
+    let k =
+        vfxgraph_geometry::Intrinsics::new(f.pixels, f.pixels, (w - 1.0) / 2.0, (h - 1.0) / 2.0)
+            .with_size(img.width as u32, img.height as u32);
     ctx.set(METADATA_K, IntrinsicsArt(k));
     Ok(())
 }
@@ -79,8 +80,8 @@ fn intrinsics_from_movie(ctx: &mut Context<'_>, path: &std::path::Path) -> Resul
     })?;
     let f = vfxgraph_imaging::metadata::pixels_from_35mm(f35, w as usize, h as usize);
     let (wf, hf) = (w as f64, h as f64);
-    let k =
-        vfxgraph_vision::Intrinsics::new(f, f, (wf - 1.0) / 2.0, (hf - 1.0) / 2.0).with_size(w, h);
+    let k = vfxgraph_geometry::Intrinsics::new(f, f, (wf - 1.0) / 2.0, (hf - 1.0) / 2.0)
+        .with_size(w, h);
     ctx.set(METADATA_K, IntrinsicsArt(k));
     Ok(())
 }
@@ -258,7 +259,7 @@ mod tests {
     use rand::SeedableRng;
     use rand_pcg::Pcg64;
     use vfxgraph_engine::{InputValue, ParamValue, Value};
-    use vfxgraph_vision::{synthetic, Camera, Points2d, Points3d};
+    use vfxgraph_geometry::{synthetic, Camera, Points2d, Points3d};
 
     struct Scene {
         camera: Camera,
@@ -434,7 +435,7 @@ mod tests {
         let f_err =
             (cam.intrinsics.f1 - scene.camera.intrinsics.f1).abs() / scene.camera.intrinsics.f1;
         assert!(f_err < 0.005, "focal error {f_err}");
-        let rep: vfxgraph_vision::calibration::CalibrationReport = ctx
+        let rep: vfxgraph_geometry::calibration::CalibrationReport = ctx
             .take_output::<ReportArt>("report")
             .unwrap()
             .parse()
@@ -468,8 +469,8 @@ mod tests {
     fn too_few_points_is_an_error_not_a_panic() {
         let s = spec("calibrate_camera");
         let p = params(&s, &[]);
-        let pts3 = vfxgraph_vision::Points3d(vec![nalgebra::Point3::new(0.0, 0.0, 1.0); 3]);
-        let pts2 = vfxgraph_vision::Points2d(vec![nalgebra::Point2::new(0.0, 0.0); 3]);
+        let pts3 = vfxgraph_geometry::Points3d(vec![nalgebra::Point3::new(0.0, 0.0, 1.0); 3]);
+        let pts2 = vfxgraph_geometry::Points2d(vec![nalgebra::Point2::new(0.0, 0.0); 3]);
         let mut ctx = Context::for_test(
             &s,
             &p,

@@ -1,12 +1,12 @@
 //! Camera exchange nodes (the solved shot for other programs, book §7.13 and §2.8):
 //! `export_cameras` and `import_cameras`. The formats and their conventions live in
-//! `vfxgraph_vision::export`.
+//! `vfxgraph_geometry::export`.
 
 use vfxgraph_engine::{Context, In, Mode, NodeError, NodeSpec, OptIn, OptSeqIn, Out, Registry};
+use vfxgraph_exchange::files::{report, write_with};
+use vfxgraph_exchange::{read, ExportFormat, ExportOptions, ImportFormat};
 use vfxgraph_imaging::Image;
 use vfxgraph_params::Options;
-use vfxgraph_vision::export::files::{report, write_with};
-use vfxgraph_vision::export::{read, ExportFormat, ExportOptions, ImportFormat};
 
 use crate::artifacts::{images, CameraPathArt, ImageArt, IntrinsicsArt, PointCloudArt, ReportArt};
 use crate::tracking::TracksArt;
@@ -161,12 +161,12 @@ mod tests {
     use std::path::Path;
     use vfxgraph_engine::ParamValue;
     use vfxgraph_engine::{InputValue, Value};
-    use vfxgraph_vision::camera::Pose;
-    use vfxgraph_vision::formats;
-    use vfxgraph_vision::formats::{CameraPath, FramePose};
-    use vfxgraph_vision::points::PointCloud;
-    use vfxgraph_vision::rotation::axis_angle_to_r;
-    use vfxgraph_vision::Intrinsics;
+    use vfxgraph_geometry::camera::Pose;
+    use vfxgraph_geometry::formats;
+    use vfxgraph_geometry::formats::{CameraPath, FramePose};
+    use vfxgraph_geometry::points::PointCloud;
+    use vfxgraph_geometry::rotation::axis_angle_to_r;
+    use vfxgraph_geometry::Intrinsics;
 
     fn path() -> CameraPath {
         CameraPath {
@@ -227,7 +227,7 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("vfxgraph-export-node-{}", std::process::id()));
         let k = Intrinsics::new(1228.4, 1228.4, 639.5, 359.5)
             .with_size(1280, 720)
-            .with_distortion(vfxgraph_vision::lens::Distortion::BrownConrady {
+            .with_distortion(vfxgraph_geometry::lens::Distortion::BrownConrady {
                 k1: -0.16,
                 k2: 0.045,
                 k3: 0.0,

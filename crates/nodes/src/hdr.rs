@@ -686,8 +686,8 @@ mod tests {
         assert_eq!(back.0.image(), &img);
         assert_eq!(back.0.south(), dome.0.south());
         // The same rotation from a connected camera.
-        let cam = vfxgraph_vision::Camera::new(
-            vfxgraph_vision::Intrinsics::new(500.0, 500.0, 320.0, 240.0),
+        let cam = vfxgraph_geometry::Camera::new(
+            vfxgraph_geometry::Intrinsics::new(500.0, 500.0, 320.0, 240.0),
             Matrix3::new(1.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 1.0, 0.0),
             Vector3::zeros(),
         );

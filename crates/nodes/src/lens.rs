@@ -1,11 +1,11 @@
 //! Lens nodes: `undistort`, `redistort` (plates through the lens model, with overscan) and
 //! `write_st_map` (the same warps as Nuke ST-maps). The algorithms and their options live in
-//! `vfxgraph_vision::undistort` and `vfxgraph_vision::st_map`.
+//! `vfxgraph_geometry::undistort` and `vfxgraph_geometry::st_map`.
 
 use vfxgraph_engine::{Context, In, Mode, NodeError, NodeSpec, OptIn, Out, Registry, Threads};
+use vfxgraph_geometry::st_map::{st_map, StMapOptions};
+use vfxgraph_geometry::undistort::{LensWarp, UndistortOptions};
 use vfxgraph_imaging::io::write_image;
-use vfxgraph_vision::st_map::{st_map, StMapOptions};
-use vfxgraph_vision::undistort::{LensWarp, UndistortOptions};
 
 use crate::artifacts::{CameraPathArt, ImageArt, IntrinsicsArt};
 
@@ -156,9 +156,9 @@ mod tests {
     use super::*;
     use crate::testing::{params, spec};
     use vfxgraph_engine::{InputValue, ParamValue, Value};
+    use vfxgraph_geometry::lens::Distortion;
+    use vfxgraph_geometry::Intrinsics;
     use vfxgraph_imaging::Image;
-    use vfxgraph_vision::lens::Distortion;
-    use vfxgraph_vision::Intrinsics;
 
     fn lens() -> Intrinsics {
         Intrinsics::new(92.0, 92.0, 47.5, 26.5)
@@ -243,7 +243,7 @@ mod tests {
         let map = vfxgraph_imaging::io::read_image(&dir.path().join("map.exr")).unwrap();
         assert_eq!(
             map,
-            st_map(&warp, vfxgraph_vision::st_map::StMapDirection::Redistort)
+            st_map(&warp, vfxgraph_geometry::st_map::StMapDirection::Redistort)
         );
 
         let sp = spec("undistort");

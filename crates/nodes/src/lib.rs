@@ -66,8 +66,8 @@ pub fn registry() -> Registry {
 pub(crate) fn intrinsics_or_path_k<'a>(
     ctx: &'a Context<'_>,
     port: OptIn<artifacts::IntrinsicsArt>,
-    path: Option<&'a vfxgraph_vision::formats::CameraPath>,
-) -> Result<Option<&'a vfxgraph_vision::Intrinsics>, NodeError> {
+    path: Option<&'a vfxgraph_geometry::formats::CameraPath>,
+) -> Result<Option<&'a vfxgraph_geometry::Intrinsics>, NodeError> {
     let k = ctx.get(port)?;
     Ok(k.map(|k| &k.0).or(path.and_then(|p| p.intrinsics.as_ref())))
 }

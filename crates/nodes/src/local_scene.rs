@@ -161,8 +161,8 @@ mod tests {
     use nalgebra::Point3;
     use std::path::Path;
     use vfxgraph_engine::{InputValue, ParamValue, Value};
+    use vfxgraph_geometry::Points3d;
     use vfxgraph_imaging::Image;
-    use vfxgraph_vision::Points3d;
 
     fn scene(camera_at: &str) -> SceneArt {
         let yaml = format!(

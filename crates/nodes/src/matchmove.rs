@@ -1,11 +1,11 @@
 //! Matchmove nodes (book chapter 7): `matchmove`, `relax`, `global_bundle_adjust`,
 //! `write_cameras`, `plot_solve_error`. The algorithms and their params (the book's values as
-//! defaults) live in `vfxgraph_vision::matchmove`.
+//! defaults) live in `vfxgraph_geometry::matchmove`.
 
 use vfxgraph_engine::{Context, In, Mode, NodeError, NodeSpec, OptIn, Out, Registry};
+use vfxgraph_geometry::formats;
 use vfxgraph_imaging::draw::svg::solve_error_svg;
-use vfxgraph_vision::formats;
-use vfxgraph_vision::matchmove::{
+use vfxgraph_matchmove::{
     adjust_path, matchmove_with_lens, relax_path, solve_progress, GlobalPathOptions,
     MatchmoveOptions, RelaxPathOptions, Solve,
 };
@@ -185,11 +185,11 @@ mod tests {
     use super::*;
     use crate::testing::{params, spec};
     use vfxgraph_engine::{InputValue, ParamValue, Value};
-    use vfxgraph_vision::matchmove::SolveReport;
+    use vfxgraph_matchmove::SolveReport;
 
-    use vfxgraph_vision::matchmove::synthetic::{synthetic_shot, ShotOptions};
+    use vfxgraph_matchmove::synthetic::{synthetic_shot, ShotOptions};
 
-    fn shot() -> vfxgraph_vision::matchmove::synthetic::SyntheticShot {
+    fn shot() -> vfxgraph_matchmove::synthetic::SyntheticShot {
         synthetic_shot(&ShotOptions {
             frames: 70,
             slots: 80,
@@ -201,7 +201,7 @@ mod tests {
     /// Runs `matchmove` (with `min_frames: 30`) on a synthetic shot: the outcome and the
     /// `cameras` and `report` outputs when it succeeded.
     fn run_node(
-        s: &vfxgraph_vision::matchmove::synthetic::SyntheticShot,
+        s: &vfxgraph_matchmove::synthetic::SyntheticShot,
     ) -> (
         Result<(), NodeError>,
         Option<CameraPathArt>,
@@ -212,7 +212,7 @@ mod tests {
 
     /// [`run_node`] with more params set.
     fn run_node_with(
-        s: &vfxgraph_vision::matchmove::synthetic::SyntheticShot,
+        s: &vfxgraph_matchmove::synthetic::SyntheticShot,
         set: &[(&str, ParamValue)],
     ) -> (
         Result<(), NodeError>,
@@ -266,7 +266,7 @@ mod tests {
 
     /// A nodal pan solved as a moving camera (`solve: general`, no parallax) gives a clear
     /// error, never NaN cameras; the default (`solve: auto`) solves it as rotations
-    /// (vfxgraph_vision::matchmove::tripod) and its report says so.
+    /// (vfxgraph_matchmove::tripod) and its report says so.
     #[test]
     fn a_tripod_pan_is_a_clear_error_as_a_moving_camera_and_solved_as_a_pan() {
         let s = synthetic_shot(&ShotOptions {

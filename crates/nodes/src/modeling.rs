@@ -1,11 +1,11 @@
 //! Modeling nodes (book chapter 8): `read_marks`, `point_cloud_calibrate`.
 
 use vfxgraph_engine::{In, Mode, NodeSpec, OptIn, Out, Registry};
-use vfxgraph_vision::formats::marked_points::{
+use vfxgraph_geometry::formats::marked_points::{
     read_marked_points, write_marked_points, MarkedPoints,
 };
-use vfxgraph_vision::modeling::{point_cloud_calibrate, PointCloudReport};
-use vfxgraph_vision::Points3d;
+use vfxgraph_geometry::modeling::{point_cloud_calibrate, PointCloudReport};
+use vfxgraph_geometry::Points3d;
 
 use crate::artifacts::{json_artifact, CameraPathArt, IntrinsicsArt, Points3dArt, ReportArt};
 

@@ -6,11 +6,11 @@
 //! algorithms and their options are in the render crate's `placement` module.
 
 use vfxgraph_engine::{Context, In, Mode, NodeError, NodeSpec, OptIn, Out, Registry};
+use vfxgraph_geometry::formats::CameraPath;
 use vfxgraph_render::placement::place::{
     catcher_from_points, place_scene, CatcherOptions, Design, PlaceOptions, Viewers,
 };
 use vfxgraph_render::{Camera, Vec3};
-use vfxgraph_vision::formats::CameraPath;
 
 use crate::artifacts::{CameraPathArt, ImageArt, Points3dArt, ReportArt};
 use crate::render::{rows, SceneArt};
@@ -167,6 +167,8 @@ mod tests {
     use crate::testing::{params, spec};
     use nalgebra::{Matrix3, Point3, Rotation3, Unit, Vector3};
     use vfxgraph_engine::{InputValue, ParamValue, Value};
+    use vfxgraph_geometry::formats::{CameraPath, FramePose};
+    use vfxgraph_geometry::{Points3d, Pose};
     use vfxgraph_imaging::Image;
     use vfxgraph_render::brdf::{Brdf, Lambert};
     use vfxgraph_render::dome::Dome;
@@ -176,8 +178,6 @@ mod tests {
     use vfxgraph_render::DomeSpec;
     use vfxgraph_render::Shape;
     use vfxgraph_render::{Object, Rgb, Scene};
-    use vfxgraph_vision::formats::{CameraPath, FramePose};
-    use vfxgraph_vision::{Points3d, Pose};
 
     fn row(v: Vec3) -> [f64; 3] {
         [v.x, v.y, v.z]

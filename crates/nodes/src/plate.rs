@@ -5,10 +5,10 @@
 //! book's marked-points form of chapter 8).
 
 use vfxgraph_engine::{Context, In, Mode, NodeError, NodeSpec, Out, Registry, Threads};
-use vfxgraph_params::Options;
-use vfxgraph_vision::camera_path::{
+use vfxgraph_geometry::camera_path::{
     project_marks, synthetic_path, ProjectMarksOptions, SyntheticPathOptions,
 };
+use vfxgraph_params::Options;
 
 use crate::artifacts::{CameraPathArt, IntrinsicsArt};
 use crate::modeling::MarkedPointsArt;

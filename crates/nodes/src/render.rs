@@ -11,12 +11,12 @@ use vfxgraph_engine::artifact::{decode_json, encode_json};
 use vfxgraph_engine::{
     ArtifactType, Context, In, Mode, NodeError, NodeSpec, OptIn, Out, Registry, Threads,
 };
+use vfxgraph_geometry::formats::FramePose;
 use vfxgraph_render::dome::{Dome, Light};
 use vfxgraph_render::{
     camera_for_frame, read_scene_file, render, with_sync_progress, Camera, ImageSize, PathPose,
     RenderError, RenderOptions, Scene, SolvedK,
 };
-use vfxgraph_vision::formats::FramePose;
 
 use crate::artifacts::{CameraPathArt, ImageArt, IntrinsicsArt};
 use crate::hdr::DomeArt;
@@ -262,9 +262,9 @@ mod tests {
     use nalgebra::Vector3;
     use std::path::Path;
     use vfxgraph_engine::{InputValue, ParamValue, Value};
+    use vfxgraph_geometry::formats::{CameraPath, FramePose};
+    use vfxgraph_geometry::Pose;
     use vfxgraph_imaging::Image;
-    use vfxgraph_vision::formats::{CameraPath, FramePose};
-    use vfxgraph_vision::Pose;
 
     const SCN: &str = "scene{ camera = view{ from = {0,-4,1}, at = {0,0,0.5}, fov = 60, imgw = 32, imgh = 24 }
       polylight{ color = {3,3,3}, shape = trilist{ {{-1,-1,3},{1,-1,3},{1,1,3}} } }
@@ -488,11 +488,11 @@ mod tests {
         std::fs::write(dir.path().join("s.scn"), SCN).unwrap();
         let scene = read(dir.path(), "s.scn").unwrap();
         let c = scene.scene.camera.clone().unwrap();
-        let k = vfxgraph_vision::Intrinsics {
+        let k = vfxgraph_geometry::Intrinsics {
             s: c.k[0][1],
-            ..vfxgraph_vision::Intrinsics::new(c.k[0][0], c.k[1][1], c.k[0][2], c.k[1][2])
+            ..vfxgraph_geometry::Intrinsics::new(c.k[0][0], c.k[1][1], c.k[0][2], c.k[1][2])
         };
-        let path = |k: Option<vfxgraph_vision::Intrinsics>| CameraPath {
+        let path = |k: Option<vfxgraph_geometry::Intrinsics>| CameraPath {
             frames: vec![FramePose {
                 frame: 3,
                 pose: Pose {

@@ -3,7 +3,7 @@
 
 use vfxgraph_engine::stream::Stream;
 use vfxgraph_engine::{Context, In, Mode, NodeError, NodeSpec, Out, Registry, StreamIn};
-use vfxgraph_vision::klt::{
+use vfxgraph_klt::{
     draw_tracks, track_loaded, DrawTracksOptions, GrayImage, TrackerOptions, Tracks,
     WriteTracksOptions,
 };

@@ -1,11 +1,11 @@
 //! `klt_track_opencv` (only with the `opencv` cargo feature): `klt_track`'s params, ports and
-//! `tracks` artifact over vfxgraph-vision's `klt::opencv::track_sequence_opencv` (the book's
+//! `tracks` artifact over vfxgraph-klt's `opencv::track_sequence_opencv` (the book's
 //! chapter 6 tracker with OpenCV's `goodFeaturesToTrack` and `calcOpticalFlowPyrLK`; how the
 //! params map onto OpenCV's is documented there), to cross-check our KLT inside a graph.
 
 use vfxgraph_engine::{Context, NodeError, Registry};
-use vfxgraph_vision::klt::opencv::track_sequence_opencv;
-use vfxgraph_vision::klt::{GrayImage, TrackerOptions};
+use vfxgraph_klt::opencv::track_sequence_opencv;
+use vfxgraph_klt::{GrayImage, TrackerOptions};
 
 use crate::tracking::{gray_frames, klt_spec, TracksArt, TRACKS_OUT};
 
@@ -58,13 +58,13 @@ fn run_klt_track_opencv(ctx: &mut Context<'_>) -> Result<(), NodeError> {
 #[cfg(test)]
 mod tests {
     use vfxgraph_engine::{InputValue, ParamValue, Value};
+    use vfxgraph_geometry::formats::flo::read_flo;
     use vfxgraph_imaging::{read_image, Image};
-    use vfxgraph_vision::formats::flo::read_flo;
 
     use super::*;
     use crate::artifacts::ImageArt;
     use crate::testing::{params, spec};
-    use vfxgraph_vision::klt::{LostReason, Tracks};
+    use vfxgraph_klt::{LostReason, Tracks};
 
     /// Runs a tracking node on `(frame, image)` pairs with `set` params over the book's
     /// tracker (no noise-adaptive threshold, forward–backward check or drift correction: what

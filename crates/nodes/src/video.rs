@@ -98,8 +98,8 @@ mod tests {
     use std::path::Path;
     use vfxgraph_engine::{InputValue, ParamValue, Value};
     use vfxgraph_imaging::Image;
+    use vfxgraph_klt::{track_sequence, GrayImage, TrackerOptions};
     use vfxgraph_video::{write_mp4, ColorInfo, Matrix, Video};
-    use vfxgraph_vision::klt::{track_sequence, GrayImage, TrackerOptions};
 
     /// A smooth random-ish texture translated by `(dx, dy)` pixels (linear light, gray).
     fn texture(w: usize, h: usize, dx: f32, dy: f32) -> Image {

@@ -11,12 +11,12 @@
 use std::path::PathBuf;
 
 use nalgebra::Point3;
+use vfxgraph_geometry::formats::{read_intrinsics, read_marked_points};
+use vfxgraph_geometry::modeling::point_cloud_calibrate;
+use vfxgraph_klt::Tracks;
+use vfxgraph_matchmove::{matchmove, relax_path, MatchmoveOptions, RelaxOptions};
 use vfxgraph_render::placement::{first_catcher_vertices, transform_scene, umeyama};
 use vfxgraph_render::{parse_scn, Vec3};
-use vfxgraph_vision::formats::{read_intrinsics, read_marked_points};
-use vfxgraph_vision::klt::Tracks;
-use vfxgraph_vision::matchmove::{matchmove, relax_path, MatchmoveOptions, RelaxOptions};
-use vfxgraph_vision::modeling::point_cloud_calibrate;
 
 /// The book's data folder; `None` when absent (a failure under CI=true).
 fn book() -> Option<PathBuf> {

@@ -14,16 +14,16 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::{Point3, Vector3};
 use serde_json::json;
+use vfxgraph_exchange::files::write;
+use vfxgraph_exchange::{colmap, ExportFormat, SceneOptions, Shot, UpAxis};
+use vfxgraph_geometry::camera::{Camera, Intrinsics, Pose};
+use vfxgraph_geometry::formats::{CameraPath, FramePose};
+use vfxgraph_geometry::lens::Distortion;
+use vfxgraph_geometry::points::PointCloud;
+use vfxgraph_geometry::rotation::axis_angle_to_r;
+use vfxgraph_klt::{Track, Tracks};
 use vfxgraph_params::Choice;
 use vfxgraph_testdata::{repo, Python};
-use vfxgraph_vision::camera::{Camera, Intrinsics, Pose};
-use vfxgraph_vision::export::files::write;
-use vfxgraph_vision::export::{colmap, ExportFormat, SceneOptions, Shot, UpAxis};
-use vfxgraph_vision::formats::{CameraPath, FramePose};
-use vfxgraph_vision::klt::{Track, Tracks};
-use vfxgraph_vision::lens::Distortion;
-use vfxgraph_vision::points::PointCloud;
-use vfxgraph_vision::rotation::axis_angle_to_r;
 
 /// The Python with the clients these checks use.
 fn python() -> Python {
@@ -40,7 +40,7 @@ fn export(
     path: &Path,
     shot: &Shot,
     o: &SceneOptions,
-) -> Result<Vec<PathBuf>, vfxgraph_vision::VisionError> {
+) -> Result<Vec<PathBuf>, vfxgraph_geometry::VisionError> {
     let f = ExportFormat::from_choice(format).expect("an export format");
     write(f, path, shot, o)
 }
@@ -281,7 +281,7 @@ fn odd_k() -> Intrinsics {
 /// its values.
 fn book_k() -> Intrinsics {
     let k = match vfxgraph_testdata::path("book-demo/g7cam.txt") {
-        Some(p) => vfxgraph_vision::formats::read_intrinsics(&p).unwrap(),
+        Some(p) => vfxgraph_geometry::formats::read_intrinsics(&p).unwrap(),
         None => Intrinsics::new(1228.4022637363655, 1228.4022637363655, 639.5, 359.5),
     };
     k.with_size(1280, 720)
@@ -454,7 +454,7 @@ fn blender_tracking_camera_distorts_like_ours() {
         export("blender", &script, &s, &o).unwrap();
         let t = dir.join("truth.json");
         write_truth(&s, &o, &t, Through::PinholeAndGrid);
-        let fit = vfxgraph_vision::export::blender::tracking_camera(&s)
+        let fit = vfxgraph_exchange::blender::tracking_camera(&s)
             .unwrap()
             .unwrap()
             .fit_error_px;

@@ -8,8 +8,8 @@
 //! spelled twice and has no fallback arm.
 //!
 //! The crate has no dependencies (the derive aside; serde behind the `serde` feature) and knows
-//! nothing of the engine: the algorithm crates (vision, render, imaging) derive [`Options`] on
-//! their structs, and the engine declares its nodes' parameters with these same types
+//! nothing of the engine: the algorithm crates (geometry, matchmove, render, imaging, …) derive
+//! [`Options`] on their structs, and the engine declares its nodes' parameters with these same types
 //! ([`ParamDesc`], [`Kind`], [`Value`], [`PathRole`]), checks graph values with
 //! [`Kind::check`] and reads options structs back through its [`Source`].
 //! COLMAP's option manager binds command-line names to the fields of its option structs the same

@@ -34,7 +34,7 @@ use tokio_stream::wrappers::BroadcastStream;
 use tokio_stream::StreamExt;
 use vfxgraph_engine::store::Store;
 use vfxgraph_engine::Graph;
-use vfxgraph_vision::formats::marked_points::MarkedPoints;
+use vfxgraph_geometry::formats::marked_points::MarkedPoints;
 
 use crate::preview::{self, find_output, View};
 use crate::safety::{self, ApiError, MAX_BODY};

@@ -1,7 +1,7 @@
 //! The point-cloud definer (book §8.3, `defpcl`): the marks file of a `read_marks` node —
 //! read, validated, written back in the book's `points2d.txt` form (and JSON beside it), and
 //! triangulated from the solved cameras with the catalog's own `point_cloud_calibrate`
-//! (vision crate) so the page shows each point's reprojection error while marking.
+//! (geometry crate) so the page shows each point's reprojection error while marking.
 //!
 //! The file is a declared input of `read_marks` (its content digest is in the node's key), so
 //! after a save the plan marks exactly `read_marks` and its dependants to run.
@@ -12,10 +12,10 @@ use serde_json::{json, Value as Json};
 use vfxgraph_engine::node::resolve_path;
 use vfxgraph_engine::store::Store;
 use vfxgraph_engine::{Graph, Registry};
-use vfxgraph_nodes::artifacts::{CameraPathArt, IntrinsicsArt};
-use vfxgraph_vision::formats::marked_points::{
+use vfxgraph_geometry::formats::marked_points::{
     format_marked_points, parse_marked_points, MarkedPoints,
 };
+use vfxgraph_nodes::artifacts::{CameraPathArt, IntrinsicsArt};
 
 use crate::preview::{find_output, PreviewCache};
 use crate::safety::ApiError;
@@ -52,10 +52,10 @@ pub fn read(graph: &Graph, id: &str) -> Result<(PathBuf, MarkedPoints), ApiError
     if !path.exists() {
         return Ok((path, MarkedPoints::default()));
     }
-    let m = if vfxgraph_vision::formats::is_json(&path) {
-        vfxgraph_vision::formats::read_json(&path)
+    let m = if vfxgraph_geometry::formats::is_json(&path) {
+        vfxgraph_geometry::formats::read_json(&path)
     } else {
-        vfxgraph_vision::formats::marked_points::read_marked_points(&path)
+        vfxgraph_geometry::formats::marked_points::read_marked_points(&path)
     }
     .map_err(|e| ApiError::new(axum::http::StatusCode::UNPROCESSABLE_ENTITY, e.to_string()))?;
     Ok((path, m))
@@ -111,9 +111,9 @@ pub fn validate(m: &MarkedPoints) -> Result<(), ApiError> {
 pub fn save(graph: &Graph, id: &str, m: &MarkedPoints) -> Result<Vec<PathBuf>, ApiError> {
     validate(m)?;
     let path = marks_file(graph, id)?;
-    let io = |e: vfxgraph_vision::VisionError| ApiError::internal(e.to_string());
-    if vfxgraph_vision::formats::is_json(&path) {
-        vfxgraph_vision::formats::write_json(&path, m).map_err(io)?;
+    let io = |e: vfxgraph_geometry::VisionError| ApiError::internal(e.to_string());
+    if vfxgraph_geometry::formats::is_json(&path) {
+        vfxgraph_geometry::formats::write_json(&path, m).map_err(io)?;
         return Ok(vec![path]);
     }
     let text = format_marked_points(m);
@@ -124,11 +124,11 @@ pub fn save(graph: &Graph, id: &str, m: &MarkedPoints) -> Result<Vec<PathBuf>, A
             "the marks do not round-trip through the text form",
         ));
     }
-    vfxgraph_vision::formats::write_text(&path, &text).map_err(io)?;
+    vfxgraph_geometry::formats::write_text(&path, &text).map_err(io)?;
     let mut sidecar = path.clone().into_os_string();
     sidecar.push(".json");
     let sidecar = PathBuf::from(sidecar);
-    vfxgraph_vision::formats::write_json(&sidecar, m).map_err(io)?;
+    vfxgraph_geometry::formats::write_json(&sidecar, m).map_err(io)?;
     Ok(vec![path, sidecar])
 }
 
@@ -187,7 +187,7 @@ pub fn triangulate(
         .as_ref()
         .and_then(|a| a.as_any().downcast_ref::<IntrinsicsArt>())
         .map(|k| &k.0);
-    let (points, report) = vfxgraph_vision::modeling::point_cloud_calibrate(m, &cams.0, k)
+    let (points, report) = vfxgraph_geometry::modeling::point_cloud_calibrate(m, &cams.0, k)
         .map_err(|e| ApiError::new(axum::http::StatusCode::UNPROCESSABLE_ENTITY, e.to_string()))?;
     let projected = project_all(&points, &cams.0, k);
     Ok(json!({
@@ -199,16 +199,16 @@ pub fn triangulate(
 /// behind the camera or without intrinsics), so the page draws the triangulated points back on
 /// the marked frames and predicts them on the others.
 pub fn project_all(
-    points: &vfxgraph_vision::Points3d,
-    path: &vfxgraph_vision::formats::cameras::CameraPath,
-    k: Option<&vfxgraph_vision::camera::Intrinsics>,
+    points: &vfxgraph_geometry::Points3d,
+    path: &vfxgraph_geometry::formats::cameras::CameraPath,
+    k: Option<&vfxgraph_geometry::camera::Intrinsics>,
 ) -> Json {
     let mut out = serde_json::Map::new();
     for (i, f) in path.frames.iter().enumerate() {
         let Some(intrinsics) = path.intrinsics_at(i).or_else(|| k.cloned()) else {
             continue;
         };
-        let cam = vfxgraph_vision::camera::Camera {
+        let cam = vfxgraph_geometry::camera::Camera {
             intrinsics,
             pose: f.pose.clone(),
         };
@@ -230,8 +230,8 @@ pub fn project_all(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use vfxgraph_vision::formats::MarkedFrame;
-    use vfxgraph_vision::Points2d;
+    use vfxgraph_geometry::formats::MarkedFrame;
+    use vfxgraph_geometry::Points2d;
 
     fn marks(frames: &[(usize, &[(f64, f64)])]) -> MarkedPoints {
         MarkedPoints {

@@ -404,7 +404,7 @@ async fn the_books_marks_are_written_as_the_books_file() {
         return;
     };
     let text = std::fs::read_to_string(&book).unwrap();
-    let marks = vfxgraph_vision::formats::marked_points::parse_marked_points(&text, "b").unwrap();
+    let marks = vfxgraph_geometry::formats::marked_points::parse_marked_points(&text, "b").unwrap();
     let dir = tempfile::tempdir().unwrap();
     let s = studio(dir.path(), GRAPH);
     let (st, v) = post_json(&s, "/api/marks", json!({"node": "marks", "marks": marks})).await;

@@ -355,7 +355,7 @@ fn studio_in_a_browser() {
     std::fs::write(d.join("studio.yaml"), STUDIO).unwrap();
     let target_text = std::fs::read_to_string(d.join("target.txt")).unwrap();
     let target =
-        vfxgraph_vision::formats::marked_points::parse_marked_points(&target_text, "t").unwrap();
+        vfxgraph_geometry::formats::marked_points::parse_marked_points(&target_text, "t").unwrap();
 
     let port = serve(d, "studio.yaml");
     let (_driver, dport) = chromedriver();
@@ -753,7 +753,7 @@ fn studio_in_a_browser() {
         std::fs::read_to_string(d.join("marks.txt")).unwrap(),
         target_text
     );
-    let sidecar: vfxgraph_vision::formats::MarkedPoints =
+    let sidecar: vfxgraph_geometry::formats::MarkedPoints =
         serde_json::from_str(&std::fs::read_to_string(d.join("marks.txt.json")).unwrap()).unwrap();
     assert_eq!(sidecar, target);
     wait_for("the plan after the save", || {
@@ -923,7 +923,7 @@ fn studio_in_a_browser() {
         );
         (!v.is_null()).then_some(v)
     });
-    let marks2: vfxgraph_vision::formats::MarkedPoints = serde_json::from_value(marks2).unwrap();
+    let marks2: vfxgraph_geometry::formats::MarkedPoints = serde_json::from_value(marks2).unwrap();
     assert_eq!(marks2, target);
     s.js(
         "api('POST', '/api/params', {node: 'grade', param: 'stops', value: '2'});",
@@ -950,7 +950,7 @@ fn exr_scrub_and_the_books_marks() {
     };
     let book_text = std::fs::read_to_string(&book).unwrap();
     let book_marks =
-        vfxgraph_vision::formats::marked_points::parse_marked_points(&book_text, "b").unwrap();
+        vfxgraph_geometry::formats::marked_points::parse_marked_points(&book_text, "b").unwrap();
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let mut frames: Vec<i64> = book_marks.frames.iter().map(|f| f.frame as i64).collect();
