@@ -13,7 +13,6 @@
 //! second time costs no decode.
 
 use std::collections::{HashMap, VecDeque};
-use std::path::Path;
 use std::sync::{Arc, Mutex};
 
 use image::codecs::jpeg::JpegEncoder;
@@ -190,18 +189,10 @@ pub fn output_colour(
         Some(name) => <WorkingSpace as vfxgraph_params::Choice>::from_choice(name)
             .ok_or_else(|| ApiError::bad(format!("unknown working space `{name}`")))?,
     };
-    let config = match param("ocio_config") {
-        None => ColourConfig::builtin(),
-        Some(p) => {
-            let path = Path::new(&p);
-            let path = if path.is_absolute() {
-                path.to_path_buf()
-            } else {
-                g.dir.join(path)
-            };
-            ColourConfig::open(&path).map_err(|e| ApiError::bad(e.to_string()))?
-        }
-    };
+    let path =
+        param("ocio_config").map(|p| vfxgraph_engine::frames::resolve_path(&g.dir, &p, None));
+    let config =
+        ColourConfig::resolve(path.as_deref()).map_err(|e| ApiError::bad(e.to_string()))?;
     Ok((config, space))
 }
 

@@ -205,12 +205,16 @@ struct Decode {
 impl Decode {
     const N: usize = 4096;
 
-    fn new() -> Decode {
-        let at = |i: usize| srgb_to_linear(i as f32 / Self::N as f32);
-        Decode {
-            value: (0..Self::N).map(at).collect(),
-            slope: (0..Self::N).map(|i| at(i + 1) - at(i)).collect(),
-        }
+    /// The table, built once.
+    fn get() -> &'static Decode {
+        static TABLE: std::sync::OnceLock<Decode> = std::sync::OnceLock::new();
+        TABLE.get_or_init(|| {
+            let at = |i: usize| srgb_to_linear(i as f32 / Self::N as f32);
+            Decode {
+                value: (0..Self::N).map(at).collect(),
+                slope: (0..Self::N).map(|i| at(i + 1) - at(i)).collect(),
+            }
+        })
     }
 
     #[inline(always)]
@@ -331,7 +335,7 @@ fn convert<P: Plane>(
     let cw = if l.half_width { w.div_ceil(2) } else { w };
     let ch = if l.half_height { h.div_ceil(2) } else { h };
     let [py, pu, pv] = planes;
-    let decode = Decode::new();
+    let decode = Decode::get();
     #[cfg(target_arch = "x86_64")]
     let avx2 = simd::has_avx2();
     #[cfg(not(target_arch = "x86_64"))]
@@ -560,7 +564,7 @@ mod tests {
     /// past both ends of it, and on the cells' edges.
     #[test]
     fn the_vector_row_is_the_portable_row_bit_for_bit() {
-        let d = Decode::new();
+        let d = Decode::get();
         let n = 1000;
         let y: Vec<f32> = (0..n).map(|i| -0.1 + 1.2 * i as f32 / n as f32).collect();
         let edges: Vec<f32> = (0..n).map(|i| (i % 40) as f32 / 4096.0 - 0.2).collect();
